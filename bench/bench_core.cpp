@@ -1,0 +1,123 @@
+// Core stages of geotraj, one benchmark each: Chapter 5 conversion per frame, building the
+// thesis's 4-frame demonstration path (validation, conversion, blending, arc lengths), arc
+// length alone, path evaluation, analysis, and paths of 10 to 10,000 frames (cost linear
+// in the number of frames). Run: build/bench/bench_core --benchmark_repetitions=5
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <random>
+
+#include "geotraj/core/analysis.hpp"
+#include "geotraj/core/arc_length.hpp"
+#include "geotraj/core/constraints.hpp"
+#include "geotraj/core/path.hpp"
+#include "thesis_paths.hpp"
+
+namespace {
+
+using namespace geotraj;
+
+// A frame with every constraint given (orders 1..4): the most work per frame.
+core::KeyFrame full_frame() {
+  core::KeyFrame f;
+  f.p_W = {1, 1, 1};
+  f.T_W = Eigen::Vector3d(0.707, 0.3536, 0.6124).normalized();
+  f.N_W = Eigen::Vector3d(0, -0.866, 0.5).normalized();
+  f.kappa = 3;
+  f.kappa_d = -10;
+  f.tau = -5;
+  f.tau_d = 25;
+  return f;
+}
+
+void BM_ConvertFrame(benchmark::State& state) {
+  const auto frame = full_frame();
+  for (auto _ : state) {
+    auto c = core::convert_frame(frame, core::DerivativeConvention::kPerArcLength);
+    benchmark::DoNotOptimize(c);
+  }
+}
+BENCHMARK(BM_ConvertFrame);
+
+void BM_BuildDemoPath(benchmark::State& state) {
+  const auto blend = state.range(0) == 0 ? core::BlendMethod::kPolynomial : core::BlendMethod::kTrapezoidal;
+  const auto spec = testing::thesis_demo_path('C', blend);
+  for (auto _ : state) {
+    auto path = core::build_path(spec);
+    benchmark::DoNotOptimize(path);
+  }
+  state.SetLabel(state.range(0) == 0 ? "polynomial" : "trapezoidal");
+}
+BENCHMARK(BM_BuildDemoPath)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+
+void BM_ArcLengthDemoPath(benchmark::State& state) {
+  const auto path = *core::build_path(testing::thesis_demo_path('C'));
+  for (auto _ : state) {
+    double s = 0.0;
+    for (const auto& seg : path.segments) s += core::segment_arc_length(seg, 0.0, 1.0);
+    benchmark::DoNotOptimize(s);
+  }
+}
+BENCHMARK(BM_ArcLengthDemoPath)->Unit(benchmark::kMicrosecond);
+
+void BM_EvaluateJet(benchmark::State& state) {
+  const auto path = *core::build_path(testing::thesis_demo_path('C'));
+  double u = 0.0;
+  for (auto _ : state) {
+    auto jet = core::evaluate(path, u, core::kMaxJetOrder);
+    benchmark::DoNotOptimize(jet);
+    u += 1e-3;
+    if (u > path.u_max()) u = 0.0;
+  }
+}
+BENCHMARK(BM_EvaluateJet);
+
+void BM_AnalyzeDemoPath(benchmark::State& state) {
+  const auto path = *core::build_path(testing::thesis_demo_path('C'));
+  for (auto _ : state) {
+    auto profile = core::analyze(path, static_cast<std::size_t>(state.range(0)));
+    benchmark::DoNotOptimize(profile);
+  }
+  state.SetItemsProcessed(state.iterations() * state.range(0));
+}
+BENCHMARK(BM_AnalyzeDemoPath)->Arg(100)->Arg(1000)->Unit(benchmark::kMicrosecond);
+
+// A random walk of frames, 0.1 m apart, every third one with curvature and torsion.
+core::PathSpec many_frames(std::size_t n) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  core::PathSpec spec;
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    core::KeyFrame f;
+    const Eigen::Vector3d T = Eigen::Vector3d(1.0, 0.3 * uni(rng), 0.3 * uni(rng)).normalized();
+    Eigen::Vector3d N = T.cross(Eigen::Vector3d(uni(rng), uni(rng), uni(rng)));
+    N.normalize();
+    f.p_W = p;
+    f.T_W = T;
+    f.N_W = N;
+    f.tangent_scale = 0.1;
+    if (i % 3 == 1) {
+      f.kappa = 2.0 + uni(rng);
+      f.tau = 5.0 * uni(rng);
+    }
+    spec.frames.push_back(f);
+    p += 0.1 * T;
+  }
+  return spec;
+}
+
+void BM_BuildManyFrames(benchmark::State& state) {
+  const auto spec = many_frames(static_cast<std::size_t>(state.range(0)));
+  for (auto _ : state) {
+    auto path = core::build_path(spec);
+    benchmark::DoNotOptimize(path);
+  }
+  state.SetItemsProcessed(state.iterations() * state.range(0));
+  state.SetComplexityN(state.range(0));
+}
+BENCHMARK(BM_BuildManyFrames)->RangeMultiplier(10)->Range(10, 10000)->Unit(benchmark::kMillisecond)->Complexity(benchmark::oN);
+
+}  // namespace
+
+BENCHMARK_MAIN();

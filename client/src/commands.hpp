@@ -1,0 +1,24 @@
+// The CLI's subcommands: read a request, call the service, print the answer.
+#pragma once
+
+#include <string>
+
+#include "connection.hpp"
+
+namespace geotraj::cli {
+
+struct CallOptions {
+  std::string input = "-";  ///< request file in the proto JSON mapping; "-" reads stdin
+  bool json = false;        ///< print the response as proto JSON instead of a table
+  double timeout_s = 60.0;  ///< deadline of the call [s]
+};
+
+// Each returns the process exit code: 0 on success, 1 when the call failed, 2 when the
+// request could not be read.
+int run_convert(const Connection& connection, const CallOptions& options);
+int run_plan(const Connection& connection, const CallOptions& options);
+int run_analyze(const Connection& connection, const CallOptions& options);
+/// Checks grpc.health.v1.Health for `service` ("" is the whole server); 0 when SERVING.
+int run_health(const Connection& connection, const std::string& service, double timeout_s);
+
+}  // namespace geotraj::cli

@@ -1,0 +1,47 @@
+// geotraj: the command-line client of the geotraj gRPC API.
+#include <iostream>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "commands.hpp"
+#include "connection.hpp"
+
+int main(int argc, char** argv) {
+  geotraj::cli::CallOptions options;
+  std::string server;
+  std::string health_service;
+  CLI::App app{"geotraj: plan spatial paths through key frames (a gRPC client; without --server it "
+               "runs the service in process)."};
+  app.require_subcommand(1);
+  app.fallthrough();
+  app.add_option("--server", server, "HOST:PORT of a running geotrajd (plaintext)")->envname("GEOTRAJ_SERVER");
+  app.add_option("--timeout", options.timeout_s, "deadline of the call [s]")
+      ->envname("GEOTRAJ_TIMEOUT")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_flag("--json", options.json, "print the response in the proto JSON mapping instead of a table");
+  const auto request_arg = [&](CLI::App* sub, const char* type) {
+    sub->add_option("request", options.input, std::string(type) + " in the proto JSON mapping: a file, or - for stdin")
+        ->capture_default_str();
+  };
+  auto* convert = app.add_subcommand("convert", "ConvertConstraints: key-frame constraints -> parametric derivatives");
+  request_arg(convert, "a ConvertRequest");
+  auto* plan = app.add_subcommand("plan", "PlanTrajectory: segments, arc lengths, achieved geometry");
+  request_arg(plan, "a PlanRequest");
+  auto* analyze = app.add_subcommand("analyze", "AnalyzePath: curvature, torsion and Frenet frames along the path");
+  request_arg(analyze, "a PlanRequest");
+  auto* health = app.add_subcommand("health", "grpc.health.v1 Check: prints the serving status, exit 0 if SERVING");
+  health->add_option("--service", health_service, "service name; empty: the whole server");
+  CLI11_PARSE(app, argc, argv);
+
+  auto connection = geotraj::cli::connect(server);
+  if (!connection) {
+    std::cerr << "geotraj: " << connection.error() << '\n';
+    return 1;
+  }
+  if (convert->parsed()) return geotraj::cli::run_convert(*connection, options);
+  if (plan->parsed()) return geotraj::cli::run_plan(*connection, options);
+  if (analyze->parsed()) return geotraj::cli::run_analyze(*connection, options);
+  return geotraj::cli::run_health(*connection, health_service, options.timeout_s);
+}

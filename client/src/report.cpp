@@ -1,0 +1,142 @@
+#include "report.hpp"
+
+#include <cstdio>
+#include <string>
+
+#include "google/rpc/error_details.pb.h"
+#include "google/rpc/status.pb.h"
+
+namespace geotraj::cli {
+namespace {
+
+// Fixed-width cells so that columns line up; "-" for an absent value.
+// A leading space keeps cells apart even when a value needs more than its width.
+std::string num(double v, int width = 12) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, " %*.*g", width - 1, 6, v);
+  return buf;
+}
+std::string absent(int width = 12) { return std::string(static_cast<std::size_t>(width - 1), ' ') + "-"; }
+std::string cell(const std::string& s, int width) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, "%-*s", width, s.c_str());
+  return buf;
+}
+std::string vec(const v1::Vec3& v) { return num(v.x()) + num(v.y()) + num(v.z()); }
+std::string vec_or_absent(bool present, const v1::Vec3& v) {
+  return present ? vec(v) : absent() + absent() + absent();
+}
+
+std::string short_enum(const std::string& name, const std::string& prefix) {
+  return name.rfind(prefix, 0) == 0 ? name.substr(prefix.size()) : name;
+}
+
+void print_geometry_row(const std::string& label, const v1::FrenetGeometry& g, std::ostream& out) {
+  out << label << num(g.speed()) << (g.has_curvature() ? num(g.curvature()) : absent())
+      << (g.has_torsion() ? num(g.torsion()) : absent())
+      << (g.has_curvature_derivative() ? num(g.curvature_derivative()) : absent())
+      << (g.has_torsion_derivative() ? num(g.torsion_derivative()) : absent()) << "  "
+      << vec_or_absent(g.has_tangent(), g.tangent()) << '\n';
+}
+
+const char* code_name(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::OK: return "OK";
+    case grpc::StatusCode::CANCELLED: return "CANCELLED";
+    case grpc::StatusCode::UNKNOWN: return "UNKNOWN";
+    case grpc::StatusCode::INVALID_ARGUMENT: return "INVALID_ARGUMENT";
+    case grpc::StatusCode::DEADLINE_EXCEEDED: return "DEADLINE_EXCEEDED";
+    case grpc::StatusCode::NOT_FOUND: return "NOT_FOUND";
+    case grpc::StatusCode::ALREADY_EXISTS: return "ALREADY_EXISTS";
+    case grpc::StatusCode::PERMISSION_DENIED: return "PERMISSION_DENIED";
+    case grpc::StatusCode::UNAUTHENTICATED: return "UNAUTHENTICATED";
+    case grpc::StatusCode::RESOURCE_EXHAUSTED: return "RESOURCE_EXHAUSTED";
+    case grpc::StatusCode::FAILED_PRECONDITION: return "FAILED_PRECONDITION";
+    case grpc::StatusCode::ABORTED: return "ABORTED";
+    case grpc::StatusCode::OUT_OF_RANGE: return "OUT_OF_RANGE";
+    case grpc::StatusCode::UNIMPLEMENTED: return "UNIMPLEMENTED";
+    case grpc::StatusCode::INTERNAL: return "INTERNAL";
+    case grpc::StatusCode::UNAVAILABLE: return "UNAVAILABLE";
+    case grpc::StatusCode::DATA_LOSS: return "DATA_LOSS";
+    default: return "UNKNOWN_CODE";
+  }
+}
+
+}  // namespace
+
+void print_table(const v1::ConvertResponse& response, std::ostream& out) {
+  out << "parametric constraints d^k p/du^k [m], per side of each key frame\n"
+      << "frame  side     k             x           y           z\n";
+  for (int i = 0; i < response.frames_size(); ++i) {
+    const auto& f = response.frames(i);
+    out << cell(std::to_string(i), 7) << cell("position", 11) << ' ' << vec(f.position()) << '\n';
+    const auto side = [&](const char* name, const v1::SideConstraints& s) {
+      for (int k = 0; k < s.derivatives_size(); ++k) {
+        out << cell("", 7) << cell(name, 9) << cell(std::to_string(k + 1), 3) << vec(s.derivatives(k)) << '\n';
+      }
+    };
+    side("approach", f.approach());
+    side("leave", f.leave());
+  }
+}
+
+void print_table(const v1::PlanResponse& response, std::ostream& out) {
+  out << "segments: " << response.segments_size() << ", total arc length" << num(response.arc_length(), 1)
+      << " m\n"
+      << "  seg  from    to  blend         degree  orders     arc length [m]\n";
+  for (const auto& s : response.segments()) {
+    std::string orders = std::to_string(s.start_order()) + "/" + std::to_string(s.end_order());
+    std::string degree = std::to_string(s.degree());
+    if (s.trapezoid_orders_size() > 0) {
+      degree = "n=";
+      for (int k = 0; k < s.trapezoid_orders_size(); ++k) {
+        degree += (k ? "," : "") + std::to_string(s.trapezoid_orders(k));
+      }
+    }
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "%5u %5u %5u  %-12s  %6s  %-7s %17.9g\n", s.index(), s.from_frame(), s.to_frame(),
+                  short_enum(v1::BlendMethod_Name(s.blend()), "BLEND_METHOD_").c_str(), degree.c_str(),
+                  orders.c_str(), s.arc_length());
+    out << buf;
+  }
+  out << "\nachieved geometry at the key frames (\"-\": undefined there)\n"
+      << "frame  side            speed   curvature     torsion     dkappa        dtau  "
+      << "   tangent x   tangent y   tangent z\n";
+  for (int i = 0; i < response.frames_size(); ++i) {
+    const auto& f = response.frames(i);
+    if (f.has_approach()) print_geometry_row(cell(std::to_string(i), 7) + cell("approach", 8), f.approach(), out);
+    if (f.has_leave()) print_geometry_row(cell(std::to_string(i), 7) + cell("leave", 8), f.leave(), out);
+  }
+  const auto& loop = response.closed_loop();
+  out << "\nclosed loop: max error " << num(loop.max_error(), 1)
+      << (loop.worst_field().empty() ? std::string() : " at " + loop.worst_field()) << '\n';
+}
+
+void print_table(const v1::PathProfile& profile, std::ostream& out) {
+  out << "path profile: " << profile.points_size() << " points, arc length" << num(profile.arc_length(), 1)
+      << " m; derivatives per metre of arc (\"-\": undefined there)\n"
+      << "           u        s [m]  seg        x [m]        y [m]        z [m]   curvature     torsion"
+      << "   dkappa/ds     dtau/ds  speed |p'|\n";
+  for (const auto& p : profile.points()) {
+    char seg[16];
+    std::snprintf(seg, sizeof seg, "%5u", p.segment());
+    out << num(p.u()) << num(p.s(), 13) << seg << num(p.position().x(), 13) << num(p.position().y(), 13)
+        << num(p.position().z(), 13) << (p.has_curvature() ? num(p.curvature()) : absent())
+        << (p.has_torsion() ? num(p.torsion()) : absent())
+        << (p.has_curvature_derivative() ? num(p.curvature_derivative()) : absent())
+        << (p.has_torsion_derivative() ? num(p.torsion_derivative()) : absent()) << num(p.speed()) << '\n';
+  }
+}
+
+void print_error(const grpc::Status& status, std::ostream& err) {
+  err << "geotraj: " << code_name(status.error_code()) << ": " << status.error_message() << '\n';
+  google::rpc::Status details;
+  if (status.error_details().empty() || !details.ParseFromString(status.error_details())) return;
+  for (const auto& any : details.details()) {
+    google::rpc::BadRequest bad_request;
+    if (!any.UnpackTo(&bad_request)) continue;
+    for (const auto& v : bad_request.field_violations()) err << "  " << v.field() << ": " << v.description() << '\n';
+  }
+}
+
+}  // namespace geotraj::cli

@@ -1,0 +1,20 @@
+// What the CLI prints: responses as aligned tables, and failed calls with their details.
+#pragma once
+
+#include <ostream>
+
+#include <grpcpp/support/status.h>
+
+#include "geotraj/v1/geotraj.pb.h"
+
+namespace geotraj::cli {
+
+void print_table(const v1::ConvertResponse& response, std::ostream& out);
+void print_table(const v1::PlanResponse& response, std::ostream& out);
+void print_table(const v1::PathProfile& profile, std::ostream& out);
+
+/// The status code and message, then each google.rpc.BadRequest field violation of the
+/// status details, one per line.
+void print_error(const grpc::Status& status, std::ostream& err);
+
+}  // namespace geotraj::cli

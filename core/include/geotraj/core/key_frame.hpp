@@ -1,0 +1,67 @@
+// The operator's description of a path: key frames with geometric constraints (thesis
+// Chapter 5, Table 7.8). Plain value types; `std::optional` mirrors proto3 `optional`, so a
+// constraint that was not given (free) stays distinct from one given as zero.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace geotraj::core {
+
+/// How curvature and torsion derivatives are expressed.
+enum class DerivativeConvention {
+  kPerArcLength,  ///< d/ds: kappa' and tau' in [1/m^2] (the API default).
+  kPerParameter,  ///< d/du: per unit of the segment parameter u, as in the thesis's tables.
+};
+
+/// How each axis of each segment is blended between its end constraints (thesis App. B).
+enum class BlendMethod {
+  kPolynomial,   ///< lowest-degree polynomial (App. B.2), held in Bernstein form.
+  kTrapezoidal,  ///< generalized trapezoid of Tesar and Matthew (App. B, Eq. B.7).
+};
+
+/// One key frame: position and Frenet frame in the world frame W, plus the geometric
+/// constraints that hold there. Units: metres and radians.
+struct KeyFrame {
+  Eigen::Vector3d p_W = Eigen::Vector3d::Zero();  ///< position [m]
+  Eigen::Vector3d T_W = Eigen::Vector3d::UnitX();  ///< unit tangent (required)
+  std::optional<Eigen::Vector3d> N_W;              ///< unit normal, required where kappa > 0
+  std::optional<Eigen::Vector3d> B_W;              ///< binormal, checked against T x N when given
+  std::optional<double> kappa;                     ///< curvature [1/m], >= 0
+  std::optional<double> kappa_d;                   ///< curvature derivative [1/m^2] or [1/m per u]
+  std::optional<double> tau;                       ///< torsion [1/m], signed
+  std::optional<double> tau_d;                     ///< torsion derivative [1/m^2] or [1/m per u]
+  std::optional<double> tangent_scale;             ///< |dp/du| at the frame [m], > 0; default 1
+  bool cusp = false;        ///< the tangent inverts on the leaving side (thesis 5.6.2)
+  bool inflection = false;  ///< the normal inverts on the leaving side (thesis 5.6.1)
+  bool stop = false;        ///< the motion rests here (used by motion planning)
+};
+
+/// Trapezoid breakpoints of one segment (thesis App. B, Eqs. B.10, B.11, B.13), in the
+/// segment's local parameter u in [0, 1]. `all` applies to every axis unless that axis has
+/// its own list. Each list holds 2n + 2 non-decreasing values for an order-n trapezoid.
+struct SegmentBreakpoints {
+  std::uint32_t segment = 0;
+  std::vector<double> all;
+  std::vector<double> x, y, z;
+};
+
+/// Everything that defines the geometry of a path.
+struct PathSpec {
+  std::vector<KeyFrame> frames;  ///< at least 2
+  DerivativeConvention convention = DerivativeConvention::kPerArcLength;
+  BlendMethod blend = BlendMethod::kPolynomial;
+  std::vector<SegmentBreakpoints> breakpoints;  ///< trapezoid only; default uniform (B.10)
+  bool closed = false;  ///< a last segment returns from the last frame to the first
+};
+
+/// Number of segments of a path with `frame_count` frames.
+constexpr std::size_t segment_count(std::size_t frame_count, bool closed) {
+  return frame_count < 2 ? 0 : (closed ? frame_count : frame_count - 1);
+}
+
+}  // namespace geotraj::core

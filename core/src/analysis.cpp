@@ -1,0 +1,134 @@
+#include "geotraj/core/analysis.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "geotraj/core/arc_length.hpp"
+
+namespace geotraj::core {
+
+using Eigen::Vector3d;
+
+namespace {
+
+double angle_between(const Vector3d& a, const Vector3d& b) { return std::atan2(a.cross(b).norm(), a.dot(b)); }
+
+struct Worst {
+  ClosedLoopError result;
+  void update(double err, const std::string& field) {
+    if (!(err <= result.max_error)) {  // NaN counts as worst
+      result.max_error = std::isnan(err) ? std::numeric_limits<double>::infinity() : err;
+      result.worst_field = field;
+    }
+  }
+};
+
+double relative(double achieved, double asked) { return std::abs(achieved - asked) / std::max(1.0, std::abs(asked)); }
+
+void compare_side(Worst& w, const std::string& at, const KeyFrame& asked, const SideConstraints& side,
+                  const Vector3d& p_asked, const Vector3d& p_achieved, const LocalGeometry& g,
+                  DerivativeConvention convention) {
+  w.update((p_achieved - p_asked).norm() / std::max(1.0, p_asked.norm()), at + ".position");
+  if (!g.regular) {
+    w.update(std::numeric_limits<double>::infinity(), at + ".tangent");
+    return;
+  }
+  w.update(angle_between(g.T, side.T), at + ".tangent");
+  w.update(relative(g.speed, asked.tangent_scale.value_or(1.0)), at + ".tangentScale");
+  if (!asked.kappa) return;
+  w.update(relative(g.kappa, *asked.kappa), at + ".curvature");
+  if (*asked.kappa > 0.0) {
+    if (!g.has_normal) {
+      w.update(std::numeric_limits<double>::infinity(), at + ".normal");
+      return;
+    }
+    w.update(angle_between(g.N, side.N), at + ".normal");
+  }
+  const bool per_s = convention == DerivativeConvention::kPerArcLength;
+  if (asked.tau) w.update(relative(g.tau, *asked.tau), at + ".torsion");
+  if (asked.kappa_d) w.update(relative(per_s ? g.kappa_ds : g.kappa_du, *asked.kappa_d), at + ".curvatureDerivative");
+  if (asked.tau_d) w.update(relative(per_s ? g.tau_ds : g.tau_du, *asked.tau_d), at + ".torsionDerivative");
+}
+
+}  // namespace
+
+std::vector<AchievedFrame> achieved_geometry(const Path& path) {
+  const std::size_t n = path.frames.size();
+  const std::size_t m = path.segments.size();
+  std::vector<AchievedFrame> out(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    auto& a = out[k];
+    a.p_W = path.frames[k].p_W;
+    if (k > 0 || path.spec.closed) {
+      const std::size_t arriving = (k + m - 1) % m;
+      Jet jet;
+      evaluate(path.segments[arriving], 1.0, kMaxJetOrder, jet);
+      a.p_W = jet[0];
+      // The trapezoid is exact at its ends (evaluated from the nearer end): no noise there.
+      const bool exact = std::holds_alternative<TrapezoidSegment>(path.segments[arriving]);
+      a.approach = local_geometry(jet, exact ? 0.0 : path.p_uu_noise[arriving]);
+    }
+    if (k < m) {
+      Jet jet;
+      evaluate(path.segments[k], 0.0, kMaxJetOrder, jet);
+      a.p_W = jet[0];
+      const bool exact = std::holds_alternative<TrapezoidSegment>(path.segments[k]);
+      a.leave = local_geometry(jet, exact ? 0.0 : path.p_uu_noise[k]);
+    }
+  }
+  return out;
+}
+
+ClosedLoopError closed_loop_error(const Path& path, const std::vector<AchievedFrame>& achieved) {
+  GEOTRAJ_CHECK(achieved.size() == path.frames.size());
+  Worst w;
+  const std::size_t m = path.segments.size();
+  for (std::size_t k = 0; k < achieved.size(); ++k) {
+    const std::string at = "frames[" + std::to_string(k) + "]";
+    const KeyFrame& asked = path.spec.frames[k];
+    const Vector3d& p = path.frames[k].p_W;
+    if (achieved[k].approach) {
+      Jet jet;
+      evaluate(path.segments[(k + m - 1) % m], 1.0, 0, jet);
+      compare_side(w, at + ".approach", asked, path.frames[k].approach, p, jet[0], *achieved[k].approach,
+                   path.spec.convention);
+    }
+    if (achieved[k].leave) {
+      Jet jet;
+      evaluate(path.segments[k], 0.0, 0, jet);
+      compare_side(w, at + ".leave", asked, path.frames[k].leave, p, jet[0], *achieved[k].leave, path.spec.convention);
+    }
+  }
+  return w.result;
+}
+
+std::vector<ProfilePoint> analyze(const Path& path, std::size_t count) {
+  GEOTRAJ_CHECK(count >= 2);
+  std::vector<ProfilePoint> out(count);
+  const double m = path.u_max();
+  std::size_t segment = 0;
+  double prev_local = 0.0, running = 0.0;
+  for (std::size_t i = 0; i < count; ++i) {
+    ProfilePoint& pt = out[i];
+    pt.u = i + 1 == count ? m : m * static_cast<double>(i) / static_cast<double>(count - 1);
+    const auto [seg, ul] = locate(path, pt.u);
+    if (seg != segment) {  // re-anchor on the segment's start for every new segment
+      segment = seg;
+      prev_local = 0.0;
+      running = 0.0;
+    }
+    running += segment_arc_length(path.segments[seg], prev_local, ul);
+    prev_local = ul;
+    pt.segment = seg;
+    pt.s = path.cumulative_lengths[seg] + running;
+    Jet jet;
+    evaluate(path.segments[seg], ul, kMaxJetOrder, jet);
+    pt.p_W = jet[0];
+    pt.geometry = local_geometry(jet, path.p_uu_noise[seg]);
+  }
+  out.back().s = path.length();
+  return out;
+}
+
+}  // namespace geotraj::core

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# The thesis's demonstration (Section 7.2) through the geotraj CLI: the key frames of
+# Table 7.8 with the curvature and torsion of Table 7.18 (paths A, B, C), tangent scale
+# 0.25. For each path: the arc length of every segment and the geometry achieved at every
+# key frame; then an SVG picture of the three paths under out/.
+#   usage: scripts/demo.sh [BUILD_DIR]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+build="${1:-build}"
+cli="$build/client/geotraj"
+requests=client/grpcurl
+out=out
+mkdir -p "$out"
+
+[ -x "$cli" ] || { echo "demo: $cli is missing; run 'make build' first" >&2; exit 1; }
+
+for path in a b c; do
+  P=$(echo "$path" | tr a-c A-C)
+  echo
+  echo "=== Thesis demonstration, path $P (Tables 7.8 and 7.18)"
+  "$cli" plan "$requests/plan_demo_path_$path.json"
+  # The profile for the picture: 600 points along the path.
+  /usr/bin/python3 - "$requests/plan_demo_path_$path.json" "$out/request_$path.json" <<'PY'
+import json, sys
+req = json.load(open(sys.argv[1]))
+req["analysisPoints"] = 600
+json.dump(req, open(sys.argv[2], "w"))
+PY
+  "$cli" --json analyze "$out/request_$path.json" > "$out/profile_$path.json"
+done
+
+/usr/bin/python3 scripts/plot_paths.py "$out/thesis_paths.svg" \
+  "path A (kappa2 5, tau2 -50; kappa3 1, tau3 0)=$out/request_a.json:$out/profile_a.json" \
+  "path B (kappa2 10, tau2 -50; kappa3 10, tau3 100)=$out/request_b.json:$out/profile_b.json" \
+  "path C (kappa2 20, tau2 -50; kappa3 10, tau3 -100)=$out/request_c.json:$out/profile_c.json"
+echo
+echo "Wrote $out/thesis_paths.svg (top and side views of paths A, B, C; key frames in black, the cusp in orange)"

@@ -1,0 +1,306 @@
+// The conversion file (see convert.hpp): proto <-> core values and the wire checks.
+#include "convert.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <set>
+#include <sstream>
+#include <string>
+#include <type_traits>
+#include <utility>
+#include <variant>
+
+#include "geotraj/core/validate.hpp"
+
+namespace geotraj::server {
+namespace {
+
+using Eigen::Vector3d;
+
+// --- small value conversions -------------------------------------------------------------
+
+Vector3d to_core(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+void set(v1::Vec3* out, const Vector3d& v) {
+  out->set_x(v.x());
+  out->set_y(v.y());
+  out->set_z(v.z());
+}
+
+std::string fmt(double v) {
+  std::ostringstream os;
+  os.precision(6);
+  os << v;
+  return os.str();
+}
+
+std::string at_frame(std::size_t i) { return "path.frames[" + std::to_string(i) + "]"; }
+
+// --- wire checks ----------------------------------------------------------------------------
+
+// The wire checks of one request, with the fields whose core checks would only repeat them.
+struct WireCheck {
+  core::Violations violations;
+  std::set<std::string> suppressed;  ///< core field paths (relative to `path`) to drop
+
+  void add(std::string field, std::string description) {
+    violations.push_back({std::move(field), std::move(description)});
+  }
+};
+
+// Records a violation when `value` is not a value of the enum (proto3 enums are open:
+// unknown numbers survive parsing), naming the values that are.
+void check_enum(WireCheck& check, const std::string& field, int value,
+                const google::protobuf::EnumDescriptor* descriptor) {
+  if (descriptor->FindValueByNumber(value) != nullptr) return;
+  std::string names;
+  for (int i = 0; i < descriptor->value_count(); ++i) {
+    if (!names.empty()) names += ", ";
+    names += descriptor->value(i)->name();
+  }
+  check.add(field, "unknown value " + std::to_string(value) + "; use one of " + names);
+}
+
+// A quaternion whose norm is within this of 1 is accepted as a rotation.
+constexpr double kUnitQuaternionTolerance = 1e-3;
+
+void check_frame(WireCheck& check, const v1::KeyFrame& frame, std::size_t i) {
+  const std::string at = at_frame(i);
+  const std::string core_at = "frames[" + std::to_string(i) + "]";
+  if (!frame.has_position()) check.add(at + ".position", "is required: the position of the key frame in metres");
+  if (!frame.has_tangent()) {
+    check.add(at + ".tangent", "is required: the unit tangent of the path at the key frame");
+    // Without a tangent, core's checks of the normal and binormal against it are noise.
+    check.suppressed.insert(core_at + ".normal");
+    check.suppressed.insert(core_at + ".binormal");
+  }
+  check_enum(check, at + ".orientationMode", frame.orientation_mode(), v1::OrientationMode_descriptor());
+  const bool custom = frame.orientation_mode() == v1::ORIENTATION_MODE_CUSTOM;
+  if (custom && !frame.has_orientation()) {
+    check.add(at + ".orientation",
+              "is required with orientationMode ORIENTATION_MODE_CUSTOM: the tool orientation to turn to");
+  }
+  if (!custom && frame.has_orientation() && v1::OrientationMode_IsValid(frame.orientation_mode())) {
+    check.add(at + ".orientation", "is only used with orientationMode ORIENTATION_MODE_CUSTOM; orientationMode is " +
+                                       v1::OrientationMode_Name(frame.orientation_mode()));
+  }
+  if (frame.has_orientation()) {
+    const auto& q = frame.orientation();
+    const double norm = std::sqrt(q.w() * q.w() + q.x() * q.x() + q.y() * q.y() + q.z() * q.z());
+    if (!std::isfinite(norm) || std::abs(norm - 1.0) > kUnitQuaternionTolerance) {
+      check.add(at + ".orientation", "must be a unit quaternion (norm within " + fmt(kUnitQuaternionTolerance) +
+                                         " of 1), got (w, x, y, z) = (" + fmt(q.w()) + ", " + fmt(q.x()) + ", " +
+                                         fmt(q.y()) + ", " + fmt(q.z()) + ") of norm " + fmt(norm));
+    }
+  }
+}
+
+void check_path(WireCheck& check, const v1::PathSpec& path) {
+  for (int i = 0; i < path.frames_size(); ++i) check_frame(check, path.frames(i), static_cast<std::size_t>(i));
+  check_enum(check, "path.derivativeConvention", path.derivative_convention(),
+             v1::DerivativeConvention_descriptor());
+  check_enum(check, "path.blend", path.blend(), v1::BlendMethod_descriptor());
+}
+
+// --- proto -> core --------------------------------------------------------------------------
+
+core::KeyFrame to_core(const v1::KeyFrame& f) {
+  core::KeyFrame k;
+  k.p_W = to_core(f.position());
+  if (f.has_tangent()) k.T_W = to_core(f.tangent());
+  if (f.has_normal()) k.N_W = to_core(f.normal());
+  if (f.has_binormal()) k.B_W = to_core(f.binormal());
+  if (f.has_curvature()) k.kappa = f.curvature();
+  if (f.has_curvature_derivative()) k.kappa_d = f.curvature_derivative();
+  if (f.has_torsion()) k.tau = f.torsion();
+  if (f.has_torsion_derivative()) k.tau_d = f.torsion_derivative();
+  if (f.has_tangent_scale()) k.tangent_scale = f.tangent_scale();
+  k.cusp = f.cusp();
+  k.inflection = f.inflection();
+  k.stop = f.stop();
+  return k;
+}
+
+core::PathSpec to_core(const v1::PathSpec& p) {
+  core::PathSpec spec;
+  spec.frames.reserve(static_cast<std::size_t>(p.frames_size()));
+  for (const auto& f : p.frames()) spec.frames.push_back(to_core(f));
+  spec.convention = p.derivative_convention() == v1::DERIVATIVE_CONVENTION_PER_PARAMETER
+                        ? core::DerivativeConvention::kPerParameter
+                        : core::DerivativeConvention::kPerArcLength;
+  spec.blend = p.blend() == v1::BLEND_METHOD_TRAPEZOIDAL ? core::BlendMethod::kTrapezoidal
+                                                         : core::BlendMethod::kPolynomial;
+  for (const auto& b : p.breakpoints()) {
+    core::SegmentBreakpoints s;
+    s.segment = b.segment();
+    s.all.assign(b.all().begin(), b.all().end());
+    s.x.assign(b.x().begin(), b.x().end());
+    s.y.assign(b.y().begin(), b.y().end());
+    s.z.assign(b.z().begin(), b.z().end());
+    spec.breakpoints.push_back(std::move(s));
+  }
+  spec.closed = p.closed();
+  return spec;
+}
+
+// N for a field path under `path.frames[N]`, -1 for the path's other fields.
+long frame_index(const std::string& field) {
+  static const std::string prefix = "path.frames[";
+  if (field.rfind(prefix, 0) != 0) return -1;
+  return std::strtol(field.c_str() + prefix.size(), nullptr, 10);
+}
+
+// The path of a request after every wire check: the path's own, then `request_checks` on
+// the request's other fields. When any fails, core's validation of what could be read
+// joins them (after the path's wire checks, before the request's), so that one answer
+// lists everything.
+template <class RequestChecks>
+core::Expected<core::PathSpec> read_path(bool has_path, const v1::PathSpec& path, RequestChecks request_checks) {
+  WireCheck check;
+  if (has_path) {
+    check_path(check, path);
+  } else {
+    check.add("path", "is required: the key frames of the path (at least 2)");
+  }
+  WireCheck request_level;
+  request_checks(request_level);
+  if (check.violations.empty() && request_level.violations.empty()) return to_core(path);
+  if (has_path) {
+    auto validated = core::validate_path(to_core(path));
+    if (!validated) {
+      for (auto& v : validated.error()) {
+        if (check.suppressed.count(v.field) == 0) check.add("path." + v.field, std::move(v.description));
+      }
+    }
+  }
+  // The path's violations in frame order (the wire checks and core's interleaved).
+  std::stable_sort(check.violations.begin(), check.violations.end(),
+                   [](const auto& a, const auto& b) { return frame_index(a.field) < frame_index(b.field); });
+  for (auto& v : request_level.violations) check.violations.push_back(std::move(v));
+  return tl::unexpected(std::move(check.violations));
+}
+
+// --- core -> proto --------------------------------------------------------------------------
+
+void to_proto(const core::SideConstraints& side, v1::SideConstraints* out) {
+  for (int k = 0; k < side.order; ++k) set(out->add_derivatives(), side.d[static_cast<std::size_t>(k)]);
+  set(out->mutable_tangent(), side.T);
+  if (!side.N.isZero()) {
+    set(out->mutable_normal(), side.N);
+    set(out->mutable_binormal(), side.T.cross(side.N));
+  }
+}
+
+// The Frenet apparatus, each quantity only where it is defined; derivatives per arc length
+// or per unit u.
+template <class Out>
+void set_geometry(const core::LocalGeometry& g, bool per_arc_length, Out* out) {
+  if (!g.regular) return;
+  set(out->mutable_tangent(), g.T);
+  out->set_curvature(g.kappa);
+  if (!g.has_normal) return;
+  set(out->mutable_normal(), g.N);
+  set(out->mutable_binormal(), g.B);
+  out->set_torsion(g.tau);
+  out->set_curvature_derivative(per_arc_length ? g.kappa_ds : g.kappa_du);
+  out->set_torsion_derivative(per_arc_length ? g.tau_ds : g.tau_du);
+}
+
+void to_proto(const core::LocalGeometry& g, bool per_arc_length, v1::FrenetGeometry* out) {
+  out->set_speed(g.speed);
+  set_geometry(g, per_arc_length, out);
+}
+
+v1::BlendMethod to_proto(core::BlendMethod b) {
+  return b == core::BlendMethod::kTrapezoidal ? v1::BLEND_METHOD_TRAPEZOIDAL : v1::BLEND_METHOD_POLYNOMIAL;
+}
+
+}  // namespace
+
+core::Expected<core::PathSpec> path_from_request(const v1::ConvertRequest& request) {
+  return read_path(request.has_path(), request.path(), [](WireCheck&) {});
+}
+
+core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request) {
+  return read_path(request.has_path(), request.path(), [&request](WireCheck& check) {
+    if (request.has_analysis_points() &&
+        (request.analysis_points() < kMinAnalysisPoints || request.analysis_points() > kMaxAnalysisPoints)) {
+      check.add("analysisPoints", "must be between " + std::to_string(kMinAnalysisPoints) + " and " +
+                                      std::to_string(kMaxAnalysisPoints) +
+                                      " (both ends of the path are points), got " +
+                                      std::to_string(request.analysis_points()));
+    }
+    if (request.has_samples_per_batch() && request.samples_per_batch() == 0) {
+      check.add("samplesPerBatch", "must be at least 1 when given, got 0");
+    }
+  });
+}
+
+std::size_t analysis_points(const v1::PlanRequest& request) {
+  return request.has_analysis_points() ? request.analysis_points() : kDefaultAnalysisPoints;
+}
+
+void to_proto(const std::vector<core::FrameConstraints>& frames, v1::ConvertResponse& response) {
+  for (const auto& f : frames) {
+    auto* out = response.add_frames();
+    set(out->mutable_position(), f.p_W);
+    to_proto(f.approach, out->mutable_approach());
+    to_proto(f.leave, out->mutable_leave());
+  }
+}
+
+void to_proto(const core::Path& path, const std::vector<core::AchievedFrame>& achieved,
+              const core::ClosedLoopError& closed_loop, v1::PlanResponse& response) {
+  const std::size_t frame_count = path.frames.size();
+  for (std::size_t i = 0; i < path.segment_count(); ++i) {
+    auto* s = response.add_segments();
+    const std::size_t to = (i + 1) % frame_count;
+    s->set_index(static_cast<std::uint32_t>(i));
+    s->set_from_frame(static_cast<std::uint32_t>(i));
+    s->set_to_frame(static_cast<std::uint32_t>(to));
+    s->set_arc_length(path.segment_lengths[i]);
+    s->set_blend(to_proto(path.spec.blend));
+    std::visit(
+        [s](const auto& seg) {
+          using T = std::decay_t<decltype(seg)>;
+          if constexpr (std::is_same_v<T, core::BezierSegment>) {
+            s->set_degree(static_cast<std::uint32_t>(seg.degree));
+          } else {
+            for (const auto& axis : seg.axes) s->add_trapezoid_orders(static_cast<std::uint32_t>(axis.n));
+          }
+        },
+        path.segments[i]);
+    s->set_start_order(static_cast<std::uint32_t>(path.frames[i].leave.order));
+    s->set_end_order(static_cast<std::uint32_t>(path.frames[to].approach.order));
+  }
+  response.set_arc_length(path.length());
+
+  const bool per_arc_length = path.spec.convention == core::DerivativeConvention::kPerArcLength;
+  for (const auto& a : achieved) {
+    auto* out = response.add_frames();
+    set(out->mutable_position(), a.p_W);
+    if (a.approach) to_proto(*a.approach, per_arc_length, out->mutable_approach());
+    if (a.leave) to_proto(*a.leave, per_arc_length, out->mutable_leave());
+  }
+
+  auto* loop = response.mutable_closed_loop();
+  loop->set_max_error(closed_loop.max_error);
+  loop->set_worst_field(closed_loop.worst_field);
+}
+
+void to_proto(const core::Path& path, const std::vector<core::ProfilePoint>& points, v1::PathProfile& profile) {
+  profile.mutable_points()->Reserve(static_cast<int>(points.size()));
+  for (const auto& p : points) {
+    auto* out = profile.add_points();
+    out->set_u(p.u);
+    out->set_s(p.s);
+    out->set_segment(static_cast<std::uint32_t>(p.segment));
+    set(out->mutable_position(), p.p_W);
+    out->set_speed(p.geometry.speed);
+    set_geometry(p.geometry, /*per_arc_length=*/true, out);
+  }
+  profile.set_arc_length(path.length());
+}
+
+}  // namespace geotraj::server

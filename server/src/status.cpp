@@ -1,0 +1,48 @@
+// The status-mapping file (see status.hpp).
+#include "status.hpp"
+
+#include <cstddef>
+
+#include "google/rpc/error_details.pb.h"
+#include "google/rpc/status.pb.h"
+
+namespace geotraj::server {
+namespace {
+
+// The message lists this many violations; the details always hold all of them.
+constexpr std::size_t kViolationsInMessage = 5;
+
+std::string summary(const core::Violations& violations) {
+  std::string message = "invalid request: " + std::to_string(violations.size()) +
+                         (violations.size() == 1 ? " problem" : " problems");
+  for (std::size_t i = 0; i < violations.size() && i < kViolationsInMessage; ++i) {
+    message += (i == 0 ? ": " : "; ") + violations[i].field + ": " + violations[i].description;
+  }
+  if (violations.size() > kViolationsInMessage) {
+    message += "; and " + std::to_string(violations.size() - kViolationsInMessage) +
+               " more in the BadRequest details";
+  }
+  return message;
+}
+
+}  // namespace
+
+grpc::Status invalid_argument(const core::Violations& violations) {
+  google::rpc::BadRequest bad_request;
+  for (const auto& v : violations) {
+    auto* fv = bad_request.add_field_violations();
+    fv->set_field(v.field);
+    fv->set_description(v.description);
+  }
+  google::rpc::Status status;
+  status.set_code(grpc::StatusCode::INVALID_ARGUMENT);
+  status.set_message(summary(violations));
+  status.add_details()->PackFrom(bad_request);
+  return {grpc::StatusCode::INVALID_ARGUMENT, status.message(), status.SerializeAsString()};
+}
+
+grpc::Status unimplemented(const std::string& what) {
+  return {grpc::StatusCode::UNIMPLEMENTED, what};
+}
+
+}  // namespace geotraj::server

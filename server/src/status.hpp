@@ -1,0 +1,22 @@
+// The status-mapping file: core violations -> gRPC status with rich error details.
+// With convert.hpp, the only place where proto and core types meet.
+#pragma once
+
+#include <string>
+
+#include <grpcpp/support/status.h>
+
+#include "geotraj/core/error.hpp"
+
+namespace geotraj::server {
+
+/// INVALID_ARGUMENT carrying every violation: the message lists them for people, and the
+/// details (the `grpc-status-details-bin` trailer) hold a serialized google.rpc.Status with
+/// one google.rpc.BadRequest whose field violations are `violations`, in order. The field
+/// paths must already be complete (`path.frames[2].torsion`).
+grpc::Status invalid_argument(const core::Violations& violations);
+
+/// UNIMPLEMENTED for a feature that this server does not provide yet, named in `what`.
+grpc::Status unimplemented(const std::string& what);
+
+}  // namespace geotraj::server

@@ -1,0 +1,110 @@
+// The `geotraj` CLI run as a subprocess on the example request files: tables, --json, errors
+// on stderr, in process and against a server on a loopback port.
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <string>
+
+#include <gmock/gmock.h>
+
+#include "test_server.hpp"
+
+namespace geotraj::testing {
+namespace {
+
+using ::testing::HasSubstr;
+
+struct CliRun {
+  int exit_code = -1;
+  std::string out;  ///< stdout, or stdout and stderr together with `merge_stderr`
+};
+
+// Runs the CLI with `args` (shell words), `stdin_text` (no single quotes) on its standard
+// input when given, and captures its output.
+CliRun run_cli(const std::string& args, bool merge_stderr = false, const std::string& stdin_text = "") {
+  const std::string feed = stdin_text.empty() ? "" : "printf '%s' '" + stdin_text + "' | ";
+  const std::string command =
+      feed + "'" + GEOTRAJ_CLI + "' " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null");
+  CliRun run;
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) return run;
+  char buf[4096];
+  std::size_t n = 0;
+  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) run.out.append(buf, n);
+  const int status = ::pclose(pipe);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return run;
+}
+
+std::string example_path(const std::string& name) { return std::string("'") + GEOTRAJ_EXAMPLES_DIR + "/" + name + "'"; }
+
+TEST(Cli, PlanPrintsATable) {
+  const CliRun run = run_cli("plan " + example_path("plan_demo_path_a.json"));
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_THAT(run.out, HasSubstr("segments: 3, total arc length"));
+  EXPECT_THAT(run.out, HasSubstr("POLYNOMIAL"));
+  EXPECT_THAT(run.out, HasSubstr("closed loop: max error"));
+}
+
+TEST(Cli, PlanJsonIsAPlanResponse) {
+  const CliRun run = run_cli("plan --json " + example_path("plan_demo_path_b.json"));
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto response = from_json<v1::PlanResponse>(run.out);
+  EXPECT_EQ(response.segments_size(), 3);
+  EXPECT_EQ(response.frames_size(), 4);
+  EXPECT_GT(response.arc_length(), 0.0);
+  EXPECT_LT(response.closed_loop().max_error(), 1e-9);
+}
+
+TEST(Cli, ConvertReadsStdin) {
+  const CliRun run = run_cli("convert - < " + example_path("convert_table_5_10.json"));
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_THAT(run.out, HasSubstr("parametric constraints"));
+  EXPECT_THAT(run.out, HasSubstr("-2.59804"));  // d2y of frame 2, Table 5.11
+}
+
+TEST(Cli, AnalyzeJsonHasTheRequestedPoints) {
+  const CliRun run = run_cli("analyze --json " + example_path("analyze_demo_path_a.json"));
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto profile = from_json<v1::PathProfile>(run.out);
+  EXPECT_EQ(profile.points_size(), 31);
+}
+
+TEST(Cli, BadRequestPrintsEachFieldViolation) {
+  const CliRun run = run_cli("plan " + example_path("bad_request.json"), /*merge_stderr=*/true);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_THAT(run.out, HasSubstr("INVALID_ARGUMENT"));
+  for (const char* line : {"  path.frames[0].tangent: ", "  path.frames[1].torsion: ", "  path.frames[2].tangent: ",
+                           "  analysisPoints: "}) {
+    EXPECT_THAT(run.out, HasSubstr(line));
+  }
+}
+
+TEST(Cli, UnreadableRequestExitsWithUsageError) {
+  const CliRun run = run_cli("plan -", /*merge_stderr=*/true, R"({"path": {"frames": 3}})");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.out, HasSubstr("geotraj.v1.PlanRequest"));
+}
+
+// The same CLI against a server on a loopback port.
+class CliRemote : public ServerTest {};
+
+TEST_F(CliRemote, TalksToTheServerAndChecksHealth) {
+  const CliRun plan = run_cli("--server " + address_ + " plan --json " + example_path("plan_demo_path_c.json"));
+  ASSERT_EQ(plan.exit_code, 0) << plan.out;
+  EXPECT_EQ(from_json<v1::PlanResponse>(plan.out).segments_size(), 3);
+
+  const CliRun health = run_cli("--server " + address_ + " health");
+  EXPECT_EQ(health.exit_code, 0);
+  EXPECT_EQ(health.out, "SERVING\n");
+}
+
+TEST(Cli, UnreachableServerFails) {
+  // Port 1 on loopback: nothing listens there in a test environment.
+  const CliRun run = run_cli("--server 127.0.0.1:1 --timeout 5 health", /*merge_stderr=*/true);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_THAT(run.out, HasSubstr("UNAVAILABLE"));
+}
+
+}  // namespace
+}  // namespace geotraj::testing

@@ -1,0 +1,126 @@
+// The real service on a loopback ephemeral port, and helpers to talk to it.
+#pragma once
+
+#include <chrono>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <google/protobuf/util/json_util.h>
+#include <grpcpp/client_context.h>
+#include <grpcpp/create_channel.h>
+#include <grpcpp/security/credentials.h>
+#include <gtest/gtest.h>
+
+#include "geotraj/server/server.hpp"
+#include "geotraj/v1/geotraj.grpc.pb.h"
+#include "google/rpc/error_details.pb.h"
+#include "google/rpc/status.pb.h"
+
+namespace geotraj::testing {
+
+/// A started server on 127.0.0.1:<ephemeral>, a plaintext channel and a stub to it.
+class ServerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    server::ServerOptions options;
+    options.address = "127.0.0.1:0";
+    auto started = server::start_server(options);
+    ASSERT_TRUE(started) << started.error();
+    running_ = std::move(*started);
+    ASSERT_GT(running_.port, 0);
+    address_ = "127.0.0.1:" + std::to_string(running_.port);
+    channel_ = grpc::CreateChannel(address_, grpc::InsecureChannelCredentials());
+    stub_ = v1::TrajectoryService::NewStub(channel_);
+  }
+
+  void TearDown() override { server::stop_server(running_, std::chrono::seconds(1)); }
+
+  /// A context whose deadline keeps a broken test from hanging.
+  static std::unique_ptr<grpc::ClientContext> context() {
+    auto c = std::make_unique<grpc::ClientContext>();
+    c->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
+    return c;
+  }
+
+  grpc::Status convert(const v1::ConvertRequest& request, v1::ConvertResponse& response) {
+    return stub_->ConvertConstraints(context().get(), request, &response);
+  }
+  grpc::Status plan(const v1::PlanRequest& request, v1::PlanResponse& response) {
+    return stub_->PlanTrajectory(context().get(), request, &response);
+  }
+  grpc::Status analyze(const v1::PlanRequest& request, v1::PathProfile& profile) {
+    return stub_->AnalyzePath(context().get(), request, &profile);
+  }
+
+  server::RunningServer running_;
+  std::string address_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::TrajectoryService::Stub> stub_;
+};
+
+/// A message from its proto JSON mapping; fails the test on a parse error.
+template <class Message>
+Message from_json(const std::string& json) {
+  Message m;
+  const auto status = google::protobuf::util::JsonStringToMessage(json, &m);
+  EXPECT_TRUE(status.ok()) << status.message() << "\n" << json;
+  return m;
+}
+
+/// The text of an example request file in client/grpcurl/.
+inline std::string example_text(const std::string& name) {
+  std::ifstream file(std::string(GEOTRAJ_EXAMPLES_DIR) + "/" + name);
+  EXPECT_TRUE(file.good()) << "cannot open example " << name;
+  std::stringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
+template <class Message>
+Message example(const std::string& name) {
+  return from_json<Message>(example_text(name));
+}
+
+/// The thesis demonstration (Table 7.8 with its erratum, Table 7.18), path 'a', 'b' or 'c'.
+inline v1::PlanRequest demo_request(char path) {
+  return example<v1::PlanRequest>(std::string("plan_demo_path_") + path + ".json");
+}
+
+/// The field violations of a status's google.rpc.BadRequest detail, as (field, description).
+struct Violation {
+  std::string field;
+  std::string description;
+};
+inline std::vector<Violation> bad_request_violations(const grpc::Status& status) {
+  std::vector<Violation> out;
+  google::rpc::Status details;
+  EXPECT_TRUE(details.ParseFromString(status.error_details())) << "no google.rpc.Status in the details";
+  EXPECT_EQ(details.code(), static_cast<int>(grpc::StatusCode::INVALID_ARGUMENT));
+  EXPECT_EQ(details.message(), status.error_message());
+  for (const auto& any : details.details()) {
+    google::rpc::BadRequest bad_request;
+    if (!any.UnpackTo(&bad_request)) continue;
+    for (const auto& v : bad_request.field_violations()) out.push_back({v.field(), v.description()});
+  }
+  return out;
+}
+
+/// The description of the violation of `field`, or "" when there is none.
+inline std::string violation_of(const std::vector<Violation>& violations, const std::string& field) {
+  for (const auto& v : violations) {
+    if (v.field == field) return v.description;
+  }
+  return "";
+}
+
+/// Lists the violations for a failure message.
+inline std::string describe(const std::vector<Violation>& violations) {
+  std::string s;
+  for (const auto& v : violations) s += "  " + v.field + ": " + v.description + "\n";
+  return s;
+}
+
+}  // namespace geotraj::testing

@@ -13,7 +13,7 @@ namespace {
 // A leading space keeps cells apart even when a value needs more than its width.
 std::string num(double v, int width = 12) {
   char buf[64];
-  std::snprintf(buf, sizeof buf, " %*.*g", width - 1, 6, v);
+  std::snprintf(buf, sizeof buf, " %*.*g", width - 1, 6, v + 0.0);  // + 0.0: -0 prints as 0
   return buf;
 }
 std::string absent(int width = 12) { return std::string(static_cast<std::size_t>(width - 1), ' ') + "-"; }
@@ -99,9 +99,11 @@ void print_table(const v1::PlanResponse& response, std::ostream& out) {
                   orders.c_str(), s.arc_length());
     out << buf;
   }
-  out << "\nachieved geometry at the key frames (\"-\": undefined there)\n"
-      << "frame  side            speed   curvature     torsion     dkappa        dtau  "
-      << "   tangent x   tangent y   tangent z\n";
+  out << "\nachieved geometry at the key frames, measured on the curve (\"-\": undefined there;\n"
+      << "kappa' and tau' in the request's derivative convention)\n"
+      << "frame  side        |dp/du|   curvature     torsion      kappa'        tau'  "
+      << "   tangent x   tangent y   tangent z\n"
+      << "                       [m]       [1/m]       [1/m]\n";
   for (int i = 0; i < response.frames_size(); ++i) {
     const auto& f = response.frames(i);
     if (f.has_approach()) print_geometry_row(cell(std::to_string(i), 7) + cell("approach", 8), f.approach(), out);

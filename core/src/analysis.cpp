@@ -12,6 +12,8 @@ using Eigen::Vector3d;
 
 namespace {
 
+constexpr double kPi = 3.14159265358979323846;
+
 double angle_between(const Vector3d& a, const Vector3d& b) { return std::atan2(a.cross(b).norm(), a.dot(b)); }
 
 struct Worst {
@@ -30,8 +32,9 @@ void compare_side(Worst& w, const std::string& at, const KeyFrame& asked, const 
                   const Vector3d& p_asked, const Vector3d& p_achieved, const LocalGeometry& g,
                   DerivativeConvention convention) {
   w.update((p_achieved - p_asked).norm() / std::max(1.0, p_asked.norm()), at + ".position");
+  // An undefined direction on the curve counts as the largest angle error, pi.
   if (!g.regular) {
-    w.update(std::numeric_limits<double>::infinity(), at + ".tangent");
+    w.update(kPi, at + ".tangent");
     return;
   }
   w.update(angle_between(g.T, side.T), at + ".tangent");
@@ -40,7 +43,7 @@ void compare_side(Worst& w, const std::string& at, const KeyFrame& asked, const 
   w.update(relative(g.kappa, *asked.kappa), at + ".curvature");
   if (*asked.kappa > 0.0) {
     if (!g.has_normal) {
-      w.update(std::numeric_limits<double>::infinity(), at + ".normal");
+      w.update(kPi, at + ".normal");
       return;
     }
     w.update(angle_between(g.N, side.N), at + ".normal");

@@ -127,9 +127,15 @@ Expected<Path> build_path(const PathSpec& raw) {
   path.segment_lengths.reserve(m);
   path.cumulative_lengths.reserve(m + 1);
   path.cumulative_lengths.push_back(0.0);
-  for (const auto& seg : path.segments) {
-    path.segment_lengths.push_back(segment_arc_length(seg, 0.0, 1.0));
+  for (std::size_t i = 0; i < m; ++i) {
+    path.segment_lengths.push_back(segment_arc_length(path.segments[i], 0.0, 1.0));
     path.cumulative_lengths.push_back(path.cumulative_lengths.back() + path.segment_lengths.back());
+    if (!std::isfinite(path.cumulative_lengths.back())) {
+      violations.push_back({"frames[" + std::to_string(i) + "]",
+                            "the segment leaving this frame is too long to measure in double precision; reduce the "
+                            "torsion, derivatives or tangent scale"});
+      return tl::unexpected(std::move(violations));
+    }
   }
   return path;
 }

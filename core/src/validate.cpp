@@ -54,8 +54,11 @@ bool unit_vector(Collector& c, const std::string& field, const char* name, Eigen
 }
 
 void validate_frame(Collector& c, const std::string& at, KeyFrame& f, std::size_t index,
-                    std::size_t count, bool closed, const FrameTolerances& tol) {
-  c.finite(at + ".position", f.p_W);
+                    std::size_t count, bool closed, const FrameTolerances& tol, const PathLimits& limits) {
+  if (c.finite(at + ".position", f.p_W) && f.p_W.cwiseAbs().maxCoeff() > limits.max_coordinate) {
+    c.add(at + ".position", "coordinates must lie within " + fmt(limits.max_coordinate) + " m of the origin, got " +
+                                fmt(f.p_W));
+  }
   const bool tangent_ok = unit_vector(c, at + ".tangent", "tangent", f.T_W, tol.unit_length);
 
   bool normal_ok = false;
@@ -85,6 +88,17 @@ void validate_frame(Collector& c, const std::string& at, KeyFrame& f, std::size_
     }
     f.B_W.reset();  // checked; the frame's binormal is always T x N from here on
   }
+
+  // Bounded magnitudes keep every product of the conversion (5.10)-(5.22) finite.
+  const auto bounded = [&](const std::optional<double>& v, const char* name) {
+    if (v && std::isfinite(*v) && std::abs(*v) > limits.max_abs_geometry) {
+      c.add(at + "." + name, "magnitude must be at most " + fmt(limits.max_abs_geometry) + ", got " + fmt(*v));
+    }
+  };
+  bounded(f.kappa, "curvature");
+  bounded(f.kappa_d, "curvatureDerivative");
+  bounded(f.tau, "torsion");
+  bounded(f.tau_d, "torsionDerivative");
 
   bool kappa_positive = false;
   if (f.kappa) {
@@ -125,8 +139,15 @@ void validate_frame(Collector& c, const std::string& at, KeyFrame& f, std::size_
   }
 
   if (f.tangent_scale) {
-    if (c.finite(at + ".tangentScale", *f.tangent_scale) && !(*f.tangent_scale > 0.0)) {
-      c.add(at + ".tangentScale", "must be > 0 (it is |dp/du| at the frame), got " + fmt(*f.tangent_scale));
+    if (c.finite(at + ".tangentScale", *f.tangent_scale)) {
+      if (!(*f.tangent_scale > 0.0)) {
+        c.add(at + ".tangentScale", "must be > 0 (it is |dp/du| at the frame), got " + fmt(*f.tangent_scale));
+      } else if (*f.tangent_scale < limits.min_tangent_scale) {
+        c.add(at + ".tangentScale", "must be at least " + fmt(limits.min_tangent_scale) +
+                                        " m (smaller ones lose the tangent in rounding), got " + fmt(*f.tangent_scale));
+      } else if (*f.tangent_scale > limits.max_tangent_scale) {
+        c.add(at + ".tangentScale", "must be at most " + fmt(limits.max_tangent_scale) + " m, got " + fmt(*f.tangent_scale));
+      }
     }
   }
 
@@ -204,7 +225,7 @@ Expected<PathSpec> validate_path(const PathSpec& spec, const FrameTolerances& to
     return tl::unexpected(std::move(violations));
   }
   for (std::size_t i = 0; i < out.frames.size(); ++i) {
-    validate_frame(c, "frames[" + std::to_string(i) + "]", out.frames[i], i, out.frames.size(), out.closed, tol);
+    validate_frame(c, "frames[" + std::to_string(i) + "]", out.frames[i], i, out.frames.size(), out.closed, tol, limits);
   }
   validate_breakpoints(c, out, segment_count(out.frames.size(), out.closed));
   if (!violations.empty()) return tl::unexpected(std::move(violations));

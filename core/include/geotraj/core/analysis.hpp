@@ -24,7 +24,8 @@ std::vector<AchievedFrame> achieved_geometry(const Path& path);
 
 /// The largest deviation between what the request asked at its frames and what the curve
 /// achieved: position [m], tangent and normal (angle [rad]), kappa, tau and the given
-/// derivatives (in the request's convention) relative to max(1, |asked|).
+/// derivatives (in the request's convention) relative to max(1, |asked|). A tangent or
+/// normal that the curve does not define there (rounding ate it) counts as pi.
 struct ClosedLoopError {
   double max_error = 0.0;
   std::string worst_field;  ///< e.g. "frames[2].leave.torsion"

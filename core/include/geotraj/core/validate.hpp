@@ -20,6 +20,15 @@ struct FrameTolerances {
 /// Hard limits on the size of a path, to bound the work of one request.
 struct PathLimits {
   std::size_t max_frames = 100000;
+  /// Largest |coordinate| of a key frame [m] and largest tangent scale [m]: far beyond any
+  /// workcell, and small enough that no product in the conversion or blend overflows.
+  double max_coordinate = 1e6;
+  double max_tangent_scale = 1e6;
+  /// Smallest tangent scale [m]: below it the tangent of the blended curve is lost in rounding.
+  double min_tangent_scale = 1e-9;
+  /// Largest |curvature|, |torsion| and |derivative| [1/m, 1/m^2 or per u]: a radius of
+  /// 1e-12 m; larger values only overflow the conversion.
+  double max_abs_geometry = 1e12;
 };
 
 /// Checks `spec` completely and returns a normalised copy: unit T and N, N exactly

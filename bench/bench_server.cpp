@@ -1,0 +1,144 @@
+// End-to-end calls over loopback TCP: a geotraj server started in this process on
+// 127.0.0.1 (ephemeral port) and a client stub on a real channel, so every call pays for
+// serialisation, HTTP/2, the thread hand-offs and the core work. One call at a time.
+// Run: build/bench/bench_server --benchmark_repetitions=5
+#include <benchmark/benchmark.h>
+#include <grpcpp/grpcpp.h>
+
+#include <cstdlib>
+#include <iostream>
+
+#include "geotraj/server/server.hpp"
+#include "geotraj/v1/geotraj.grpc.pb.h"
+
+namespace {
+
+using namespace geotraj;
+
+void set(v1::Vec3* v, double x, double y, double z) {
+  v->set_x(x);
+  v->set_y(y);
+  v->set_z(z);
+}
+
+// The thesis's demonstration path C (Tables 7.8 and 7.18), as a client would send it.
+v1::PlanRequest demo_request() {
+  v1::PlanRequest req;
+  auto* path = req.mutable_path();
+  path->set_derivative_convention(v1::DERIVATIVE_CONVENTION_PER_PARAMETER);
+  const double rows[4][9] = {{0.106, 0, 0.975, 1, 0, 0, 0, -1, 0},
+                             {0.4, 0.15, 0.5, 0, -1, 0, 0, 0, -1},
+                             {0.5, -0.3, 0.525, 1, 0, 0, 0, 1, 0},
+                             {0.2, -0.5, 0.6, 0, -1, 0, 0, 0, -1}};
+  for (const auto& r : rows) {
+    auto* f = path->add_frames();
+    set(f->mutable_position(), r[0], r[1], r[2]);
+    set(f->mutable_tangent(), r[3], r[4], r[5]);
+    set(f->mutable_normal(), r[6], r[7], r[8]);
+    f->set_tangent_scale(0.25);
+  }
+  path->mutable_frames(1)->set_curvature(20);
+  path->mutable_frames(1)->set_torsion(-50);
+  path->mutable_frames(2)->set_curvature(10);
+  path->mutable_frames(2)->set_torsion(-100);
+  path->mutable_frames(2)->set_cusp(true);
+  return req;
+}
+
+// A random-walk path of n frames, 0.1 m apart, as in bench_core's BM_BuildManyFrames.
+v1::PlanRequest many_frames_request(int n) {
+  v1::PlanRequest req;
+  auto* path = req.mutable_path();
+  for (int i = 0; i < n; ++i) {
+    auto* f = path->add_frames();
+    const double a = 0.3 * std::sin(0.7 * i);
+    set(f->mutable_position(), 0.1 * i, 0.05 * std::sin(0.3 * i), 0.0);
+    set(f->mutable_tangent(), std::cos(a), std::sin(a), 0.0);
+    set(f->mutable_normal(), -std::sin(a), std::cos(a), 0.0);
+    f->set_tangent_scale(0.1);
+  }
+  return req;
+}
+
+class Loopback {
+ public:
+  Loopback() {
+    server::ServerOptions options;
+    options.address = "127.0.0.1:0";
+    auto running = server::start_server(options);
+    if (!running) {
+      std::cerr << "bench_server: " << running.error() << '\n';
+      std::exit(1);
+    }
+    running_ = std::move(*running);
+    channel_ = grpc::CreateChannel("127.0.0.1:" + std::to_string(running_.port), grpc::InsecureChannelCredentials());
+    stub_ = v1::TrajectoryService::NewStub(channel_);
+  }
+  ~Loopback() { server::stop_server(running_, std::chrono::milliseconds(100)); }
+  v1::TrajectoryService::Stub& stub() { return *stub_; }
+
+ private:
+  server::RunningServer running_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::TrajectoryService::Stub> stub_;
+};
+
+Loopback& loopback() {
+  static Loopback instance;
+  return instance;
+}
+
+template <class Call>
+void run_calls(benchmark::State& state, Call call) {
+  for (auto _ : state) {
+    grpc::ClientContext context;
+    const grpc::Status status = call(context);
+    if (!status.ok()) {
+      state.SkipWithError(status.error_message().c_str());
+      break;
+    }
+  }
+}
+
+void BM_PlanTrajectoryDemo(benchmark::State& state) {
+  const auto request = demo_request();
+  run_calls(state, [&](grpc::ClientContext& ctx) {
+    v1::PlanResponse response;
+    return loopback().stub().PlanTrajectory(&ctx, request, &response);
+  });
+}
+BENCHMARK(BM_PlanTrajectoryDemo)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+void BM_ConvertConstraintsDemo(benchmark::State& state) {
+  v1::ConvertRequest request;
+  *request.mutable_path() = demo_request().path();
+  run_calls(state, [&](grpc::ClientContext& ctx) {
+    v1::ConvertResponse response;
+    return loopback().stub().ConvertConstraints(&ctx, request, &response);
+  });
+}
+BENCHMARK(BM_ConvertConstraintsDemo)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+void BM_AnalyzePathDemo(benchmark::State& state) {
+  auto request = demo_request();
+  request.set_analysis_points(static_cast<std::uint32_t>(state.range(0)));
+  run_calls(state, [&](grpc::ClientContext& ctx) {
+    v1::PathProfile response;
+    return loopback().stub().AnalyzePath(&ctx, request, &response);
+  });
+}
+BENCHMARK(BM_AnalyzePathDemo)->Arg(101)->Arg(1001)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+void BM_PlanTrajectoryManyFrames(benchmark::State& state) {
+  const auto request = many_frames_request(static_cast<int>(state.range(0)));
+  run_calls(state, [&](grpc::ClientContext& ctx) {
+    v1::PlanResponse response;
+    return loopback().stub().PlanTrajectory(&ctx, request, &response);
+  });
+  state.SetComplexityN(state.range(0));
+}
+BENCHMARK(BM_PlanTrajectoryManyFrames)->RangeMultiplier(10)->Range(10, 1000)->Unit(benchmark::kMillisecond)->UseRealTime()->Complexity(benchmark::oN);
+
+}  // namespace
+
+BENCHMARK_MAIN();

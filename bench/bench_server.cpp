@@ -5,7 +5,10 @@
 #include <benchmark/benchmark.h>
 #include <grpcpp/grpcpp.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cstdlib>
+#include <vector>
 #include <iostream>
 
 #include "geotraj/server/server.hpp"
@@ -88,16 +91,28 @@ Loopback& loopback() {
   return instance;
 }
 
+// Runs one call per iteration and reports the latency distribution: median, 99th
+// percentile and worst call, in microseconds (counters p50_us, p99_us, max_us).
 template <class Call>
 void run_calls(benchmark::State& state, Call call) {
+  std::vector<double> latency_us;
+  latency_us.reserve(4096);
   for (auto _ : state) {
     grpc::ClientContext context;
+    const auto t0 = std::chrono::steady_clock::now();
     const grpc::Status status = call(context);
+    latency_us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
     if (!status.ok()) {
       state.SkipWithError(status.error_message().c_str());
       break;
     }
   }
+  if (latency_us.empty()) return;
+  std::sort(latency_us.begin(), latency_us.end());
+  const auto at = [&](double q) { return latency_us[static_cast<std::size_t>(q * (latency_us.size() - 1))]; };
+  state.counters["p50_us"] = at(0.5);
+  state.counters["p99_us"] = at(0.99);
+  state.counters["max_us"] = latency_us.back();
 }
 
 void BM_PlanTrajectoryDemo(benchmark::State& state) {

@@ -119,6 +119,18 @@ core::KeyFrame to_core(const v1::KeyFrame& f) {
   k.cusp = f.cusp();
   k.inflection = f.inflection();
   k.stop = f.stop();
+  switch (f.orientation_mode()) {
+    case v1::ORIENTATION_MODE_FRAME_BASED: k.orientation_mode = core::OrientationMode::kFrameBased; break;
+    case v1::ORIENTATION_MODE_CUSTOM: k.orientation_mode = core::OrientationMode::kCustom; break;
+    case v1::ORIENTATION_MODE_FRENET: k.orientation_mode = core::OrientationMode::kFrenet; break;
+    case v1::ORIENTATION_MODE_PARALLEL_TRANSPORT: k.orientation_mode = core::OrientationMode::kParallelTransport; break;
+    default: k.orientation_mode = core::OrientationMode::kFixed; break;  // FIXED and UNSPECIFIED
+  }
+  if (f.has_orientation()) {
+    // Wire order (w, x, y, z) by name; Eigen stores (x, y, z, w).
+    const auto& q = f.orientation();
+    k.orientation = Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z()).normalized();
+  }
   return k;
 }
 

@@ -24,6 +24,17 @@ enum class BlendMethod {
   kTrapezoidal,  ///< generalized trapezoid of Tesar and Matthew (App. B, Eq. B.7).
 };
 
+/// How the tool turns on the segment that leaves a key frame (thesis Table 6.3). The tool
+/// frame convention is Eq. (6.21): tool z along the frame's tangent T, tool y along N, tool
+/// x = y x z = -B, i.e. R_WT = [-B N T].
+enum class OrientationMode {
+  kFixed,              ///< keep the orientation the segment starts with
+  kFrameBased,         ///< turn (SLERP) to the next key frame's [-B N T]
+  kCustom,             ///< turn (SLERP) to a given orientation
+  kFrenet,             ///< follow the curve's Frenet frame [-B N T] (6.21)
+  kParallelTransport,  ///< rotation-minimising frame about the tangent (7.3.2)
+};
+
 /// One key frame: position and Frenet frame in the world frame W, plus the geometric
 /// constraints that hold there. Units: metres and radians.
 struct KeyFrame {
@@ -39,6 +50,8 @@ struct KeyFrame {
   bool cusp = false;        ///< the tangent inverts on the leaving side (thesis 5.6.2)
   bool inflection = false;  ///< the normal inverts on the leaving side (thesis 5.6.1)
   bool stop = false;        ///< the motion rests here (used by motion planning)
+  OrientationMode orientation_mode = OrientationMode::kFixed;  ///< for the leaving segment
+  std::optional<Eigen::Quaterniond> orientation;  ///< R_WT target for kCustom (unit)
 };
 
 /// Trapezoid breakpoints of one segment (thesis App. B, Eqs. B.10, B.11, B.13), in the

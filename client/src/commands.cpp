@@ -1,5 +1,10 @@
 #include "commands.hpp"
 
+#include <unistd.h>
+
+#include <cstdint>
+#include <cstdio>
+
 #include <chrono>
 #include <fstream>
 #include <iostream>
@@ -104,6 +109,71 @@ int run_analyze(const Connection& connection, const CallOptions& options) {
   return run<v1::PlanRequest, v1::PathProfile>(options, [&](auto& context, auto& request, auto& response) {
     return stub->AnalyzePath(&context, request, &response);
   });
+}
+
+int run_stream(const Connection& connection, const CallOptions& options) {
+  v1::PlanRequest request;
+  if (!read_request(options.input, request)) return 2;
+  auto stub = v1::TrajectoryService::NewStub(connection.channel);
+  // The expected count, for the progress bar (a plan costs far less than its stream).
+  std::uint64_t expected = 0;
+  const bool progress = ::isatty(STDERR_FILENO) != 0;
+  if (progress) {
+    grpc::ClientContext context;
+    set_deadline(context, options.timeout_s);
+    v1::PlanResponse plan;
+    if (stub->PlanTrajectory(&context, request, &plan).ok()) expected = plan.motion().sample_count();
+  }
+  grpc::ClientContext context;
+  set_deadline(context, options.timeout_s);
+  auto reader = stub->StreamSamples(&context, request);
+  if (!options.json) {
+    std::cout << "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz\n";
+  }
+  google::protobuf::util::JsonPrintOptions print;
+  print.add_whitespace = false;
+  v1::SampleBatch batch;
+  std::uint64_t received = 0;
+  int shown = -1;
+  char line[512];
+  while (reader->Read(&batch)) {
+    for (const auto& s : batch.samples()) {
+      if (options.json) {
+        std::string json;
+        (void)google::protobuf::util::MessageToJsonString(s, &json, print);
+        std::cout << json << '\n';
+      } else {
+        const auto& p = s.position();
+        const auto& q = s.orientation();
+        const auto& v = s.velocity();
+        const auto& a = s.acceleration();
+        const auto& w = s.angular_velocity();
+        std::snprintf(line, sizeof line,
+                      "%.9g,%.17g,%.17g,%u,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,"
+                      "%.17g,%.17g,%.17g,%.17g,%.17g\n",
+                      s.t(), s.u(), s.s(), s.segment(), p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z(), v.x(), v.y(),
+                      v.z(), a.x(), a.y(), a.z(), s.speed(), w.x(), w.y(), w.z());
+        std::cout << line;
+      }
+    }
+    received += static_cast<std::uint64_t>(batch.samples_size());
+    if (progress && expected > 0) {
+      const int percent = static_cast<int>(100 * received / expected);
+      if (percent != shown) {
+        shown = percent;
+        const int bar = percent / 4;
+        std::fprintf(stderr, "\r[%-25.*s] %3d%% %llu/%llu samples", bar, "#########################", percent,
+                     static_cast<unsigned long long>(received), static_cast<unsigned long long>(expected));
+      }
+    }
+  }
+  if (progress) std::fputc('\n', stderr);
+  const grpc::Status status = reader->Finish();
+  if (!status.ok()) {
+    print_error(status, std::cerr);
+    return 1;
+  }
+  return 0;
 }
 
 int run_health(const Connection& connection, const std::string& service, double timeout_s) {

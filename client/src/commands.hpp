@@ -18,6 +18,9 @@ struct CallOptions {
 int run_convert(const Connection& connection, const CallOptions& options);
 int run_plan(const Connection& connection, const CallOptions& options);
 int run_analyze(const Connection& connection, const CallOptions& options);
+/// StreamSamples: one line per sample on stdout, CSV with a header (default) or proto JSON
+/// lines (`json`); a progress bar on stderr when stderr is a terminal.
+int run_stream(const Connection& connection, const CallOptions& options);
 /// Checks grpc.health.v1.Health for `service` ("" is the whole server); 0 when SERVING.
 int run_health(const Connection& connection, const std::string& service, double timeout_s);
 

@@ -249,6 +249,67 @@ core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request)
   });
 }
 
+core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& request) {
+  const auto& m = request.motion();
+  WireCheck check;
+  check_enum(check, "motion.profile", m.profile(), v1::MotionProfile_descriptor());
+  check_enum(check, "motion.timeParameterization", m.time_parameterization(), v1::TimeParameterization_descriptor());
+  if (!check.violations.empty()) return tl::unexpected(std::move(check.violations));
+  core::MotionSpec spec;
+  spec.duration_s = m.duration_s();
+  spec.profile = m.profile() == v1::MOTION_PROFILE_S_CURVE ? core::ProfileShape::kSCurve
+                                                           : core::ProfileShape::kTrapezoidal;
+  if (m.has_ramp_fraction()) spec.ramp_fraction = m.ramp_fraction();
+  if (m.has_cycle_rate_hz()) spec.cycle_rate_hz = m.cycle_rate_hz();
+  switch (m.time_parameterization()) {
+    case v1::TIME_PARAMETERIZATION_TAYLOR_SECOND_ORDER:
+      spec.time_parameterization = core::TimeParameterization::kTaylorSecondOrder;
+      break;
+    case v1::TIME_PARAMETERIZATION_TAYLOR_FIRST_ORDER:
+      spec.time_parameterization = core::TimeParameterization::kTaylorFirstOrder;
+      break;
+    case v1::TIME_PARAMETERIZATION_LINEAR: spec.time_parameterization = core::TimeParameterization::kLinear; break;
+    case v1::TIME_PARAMETERIZATION_SMOOTH: spec.time_parameterization = core::TimeParameterization::kSmooth; break;
+    default: spec.time_parameterization = core::TimeParameterization::kArcLength; break;  // ARC_LENGTH, UNSPECIFIED
+  }
+  if (m.has_speed_scale()) spec.speed_scale = m.speed_scale();
+  if (m.has_max_speed()) spec.max_speed = m.max_speed();
+  if (m.has_max_acceleration()) spec.max_acceleration = m.max_acceleration();
+  if (m.has_max_jerk()) spec.max_jerk = m.max_jerk();
+  auto violations = core::validate_motion(spec);
+  if (!violations.empty()) return tl::unexpected(std::move(violations));
+  return spec;
+}
+
+std::size_t samples_per_batch(const v1::PlanRequest& request) {
+  return request.has_samples_per_batch() ? request.samples_per_batch() : kDefaultSamplesPerBatch;
+}
+
+void to_proto(const core::MotionPlan& plan, v1::MotionSummary& summary) {
+  summary.set_duration_s(plan.duration_s);
+  summary.set_peak_speed(plan.peak_speed);
+  summary.set_peak_acceleration(plan.peak_acceleration);
+  summary.set_sample_count(plan.sample_count);
+}
+
+void to_proto(const core::MotionSample& sample, const core::OrientationSample& orientation, v1::Sample& out) {
+  out.set_t(sample.t);
+  out.set_u(sample.u);
+  out.set_s(sample.s);
+  out.set_segment(static_cast<std::uint32_t>(sample.segment));
+  set(out.mutable_position(), sample.p_W);
+  set(out.mutable_velocity(), sample.v_W);
+  set(out.mutable_acceleration(), sample.a_W);
+  out.set_speed(sample.speed);
+  // Wire order (w, x, y, z) by name.
+  auto* q = out.mutable_orientation();
+  q->set_w(orientation.q_WT.w());
+  q->set_x(orientation.q_WT.x());
+  q->set_y(orientation.q_WT.y());
+  q->set_z(orientation.q_WT.z());
+  set(out.mutable_angular_velocity(), orientation.omega_W);
+}
+
 std::size_t analysis_points(const v1::PlanRequest& request) {
   return request.has_analysis_points() ? request.analysis_points() : kDefaultAnalysisPoints;
 }

@@ -12,6 +12,8 @@
 #include "geotraj/core/constraints.hpp"
 #include "geotraj/core/error.hpp"
 #include "geotraj/core/key_frame.hpp"
+#include "geotraj/core/motion.hpp"
+#include "geotraj/core/orientation.hpp"
 #include "geotraj/core/path.hpp"
 #include "geotraj/v1/geotraj.pb.h"
 
@@ -34,6 +36,22 @@ core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request)
 /// PlanRequest.analysis_points or its default. Precondition: the request passed
 /// path_from_request.
 std::size_t analysis_points(const v1::PlanRequest& request);
+
+/// Samples per SampleBatch when PlanRequest.samples_per_batch is absent.
+inline constexpr std::size_t kDefaultSamplesPerBatch = 256;
+
+/// PlanRequest.motion as a core MotionSpec, or every violation (`motion.rampFraction`, ...):
+/// absent optional fields take their documented defaults. Precondition: request.has_motion().
+core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& request);
+
+/// PlanRequest.samples_per_batch or its default.
+std::size_t samples_per_batch(const v1::PlanRequest& request);
+
+/// PlanTrajectory's motion summary.
+void to_proto(const core::MotionPlan& plan, v1::MotionSummary& summary);
+
+/// One streamed sample: the translational sample and the tool orientation at it.
+void to_proto(const core::MotionSample& sample, const core::OrientationSample& orientation, v1::Sample& out);
 
 /// ConvertConstraints' answer: the parametric constraints of every frame, per side.
 void to_proto(const std::vector<core::FrameConstraints>& frames, v1::ConvertResponse& response);

@@ -4,11 +4,14 @@
 #include "service.hpp"
 
 #include <chrono>
+#include <memory>
 #include <optional>
 
 #include "convert.hpp"
 #include "geotraj/core/analysis.hpp"
 #include "geotraj/core/constraints.hpp"
+#include "geotraj/core/motion.hpp"
+#include "geotraj/core/orientation.hpp"
 #include "geotraj/core/path.hpp"
 #include "status.hpp"
 
@@ -56,11 +59,59 @@ grpc::Status convert_constraints(const Abandon& abandon, const v1::ConvertReques
   return grpc::Status::OK;
 }
 
-// Geometry only for now: `motion` is accepted and not yet planned (PlanResponse.motion
-// stays absent).
+// A server-streaming call that ends at once with `status`.
+class FinishedWriter final : public grpc::ServerWriteReactor<v1::SampleBatch> {
+ public:
+  explicit FinishedWriter(const grpc::Status& status) { Finish(status); }
+  void OnDone() override { delete this; }
+};
+
+// Everything a motion needs, planned from one request: the path, the timing along it and
+// the tool orientation. Used by PlanTrajectory (with `motion`) and StreamSamples.
+struct PlannedMotion {
+  core::Path path;
+  core::MotionPlan timing;
+  core::OrientationPlan orientation;
+};
+
+// Plans the path and its motion, or the status to finish with (every violation of path and
+// motion together).
+tl::expected<PlannedMotion, grpc::Status> plan_motion(const v1::PlanRequest& request) {
+  const auto spec = path_from_request(request);
+  const auto motion = motion_from_request(request);
+  if (!spec || !motion) {
+    core::Violations all = spec ? core::Violations{} : spec.error();
+    if (!motion) all.insert(all.end(), motion.error().begin(), motion.error().end());
+    return tl::unexpected(invalid_argument(all));
+  }
+  auto path = core::build_path(*spec);
+  if (!path) return tl::unexpected(invalid_argument(core::prefixed(path.error(), "path.")));
+  auto timing = core::plan_motion(*path, *motion);
+  auto orientation = core::plan_orientation(*path);
+  if (!timing || !orientation) {
+    core::Violations all = timing ? core::Violations{} : timing.error();
+    if (!orientation) {
+      const auto more = core::prefixed(orientation.error(), "path.");
+      all.insert(all.end(), more.begin(), more.end());
+    }
+    return tl::unexpected(invalid_argument(all));
+  }
+  return PlannedMotion{std::move(*path), std::move(*timing), std::move(*orientation)};
+}
+
+// The geometry, and with `motion` the motion summary too.
 grpc::Status plan_trajectory(const Abandon& abandon, const v1::PlanRequest& request, v1::PlanResponse& response) {
   if (auto stop = abandon.check()) return *stop;
   if (auto status = unsupported_parts(request, /*robot_allowed=*/false); !status.ok()) return status;
+  if (request.has_motion()) {
+    auto planned = plan_motion(request);
+    if (!planned) return planned.error();
+    if (auto stop = abandon.check()) return *stop;
+    const auto achieved = core::achieved_geometry(planned->path);
+    to_proto(planned->path, achieved, core::closed_loop_error(planned->path, achieved), response);
+    to_proto(planned->timing, *response.mutable_motion());
+    return grpc::Status::OK;
+  }
   const auto spec = path_from_request(request);
   if (!spec) return invalid_argument(spec.error());
   const auto path = core::build_path(*spec);
@@ -69,6 +120,76 @@ grpc::Status plan_trajectory(const Abandon& abandon, const v1::PlanRequest& requ
   const auto achieved = core::achieved_geometry(*path);
   to_proto(*path, achieved, core::closed_loop_error(*path, achieved), response);
   return grpc::Status::OK;
+}
+
+// StreamSamples: samples are produced batch by batch while the previous batch is being
+// written (one write in flight), so memory is bounded by one batch whatever the motion's
+// length. Cancellation or a passed deadline ends the stream at the next batch.
+class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
+ public:
+  SampleStreamer(grpc::CallbackServerContext& context, PlannedMotion planned, std::size_t batch_size)
+      : abandon_(context),
+        planned_(std::make_unique<PlannedMotion>(std::move(planned))),
+        sampler_(planned_->path, planned_->timing),
+        batch_size_(batch_size) {
+    batch_.mutable_samples()->Reserve(static_cast<int>(batch_size_));
+    NextWrite();
+  }
+
+  void OnWriteDone(bool ok) override {
+    if (!ok) {  // the client went away (cancelled, deadline, connection lost)
+      Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled"));
+      return;
+    }
+    NextWrite();
+  }
+
+  void OnDone() override { delete this; }
+
+ private:
+  void NextWrite() {
+    if (auto stop = abandon_.check()) {
+      Finish(*stop);
+      return;
+    }
+    batch_.clear_samples();
+    core::MotionSample sample;
+    while (static_cast<std::size_t>(batch_.samples_size()) < batch_size_ && sampler_.next(sample)) {
+      auto orientation = core::orientation_at(planned_->orientation, planned_->path, sample.segment,
+                                              sample.u - static_cast<double>(sample.segment), sample.s, sample.speed);
+      // q and -q are one rotation: keep successive samples in one hemisphere.
+      if (orientation.q_WT.coeffs().dot(previous_q_.coeffs()) < 0.0) orientation.q_WT.coeffs() *= -1.0;
+      previous_q_ = orientation.q_WT;
+      to_proto(sample, orientation, *batch_.add_samples());
+    }
+    if (batch_.samples_size() == 0) {
+      Finish(grpc::Status::OK);
+      return;
+    }
+    StartWrite(&batch_);
+  }
+
+  Abandon abandon_;
+  std::unique_ptr<PlannedMotion> planned_;  // stable address: the sampler refers to it
+  core::MotionSampler sampler_;
+  std::size_t batch_size_;
+  v1::SampleBatch batch_;
+  Eigen::Quaterniond previous_q_ = Eigen::Quaterniond::Identity();
+};
+
+grpc::ServerWriteReactor<v1::SampleBatch>* stream_samples(grpc::CallbackServerContext& context,
+                                                          const v1::PlanRequest& request) {
+  if (auto stop = Abandon(context).check()) return new FinishedWriter(*stop);
+  if (auto status = unsupported_parts(request, /*robot_allowed=*/false); !status.ok()) {
+    return new FinishedWriter(status);
+  }
+  if (!request.has_motion()) {
+    return new FinishedWriter(invalid_argument(core::Violations{
+        {"motion", "is required to stream samples: give durationS (s), or maxSpeed and maxAcceleration"}}));
+  }
+  auto planned = plan_motion(request);
+  if (!planned) return new FinishedWriter(planned.error());
+  return new SampleStreamer(context, std::move(*planned), samples_per_batch(request));
 }
 
 // The analysis is the path's geometry: a robot, when given, does not change it.
@@ -83,13 +204,6 @@ grpc::Status analyze_path(const Abandon& abandon, const v1::PlanRequest& request
   to_proto(*path, core::analyze(*path, analysis_points(request)), profile);
   return grpc::Status::OK;
 }
-
-// A server-streaming call that ends at once with `status`.
-class FinishedWriter final : public grpc::ServerWriteReactor<v1::SampleBatch> {
- public:
-  explicit FinishedWriter(const grpc::Status& status) { Finish(status); }
-  void OnDone() override { delete this; }
-};
 
 class TrajectoryService final : public v1::TrajectoryService::CallbackService {
   grpc::ServerUnaryReactor* ConvertConstraints(grpc::CallbackServerContext* context,
@@ -107,11 +221,9 @@ class TrajectoryService final : public v1::TrajectoryService::CallbackService {
     return reactor;
   }
 
-  grpc::ServerWriteReactor<v1::SampleBatch>* StreamSamples(grpc::CallbackServerContext* /*context*/,
-                                                           const v1::PlanRequest* /*request*/) override {
-    return new FinishedWriter(unimplemented(
-        "StreamSamples is not available yet: motion planning (time parameterization and sampling) is "
-        "future work; PlanTrajectory and AnalyzePath serve the path geometry"));
+  grpc::ServerWriteReactor<v1::SampleBatch>* StreamSamples(grpc::CallbackServerContext* context,
+                                                           const v1::PlanRequest* request) override {
+    return stream_samples(*context, *request);
   }
 
   grpc::ServerUnaryReactor* AnalyzePath(grpc::CallbackServerContext* context, const v1::PlanRequest* request,

@@ -155,17 +155,55 @@ TEST_F(ErrorTest, RobotAndOptimizeAreNotAvailableYet) {
   EXPECT_THAT(status.error_message(), HasSubstr("optimize"));
 }
 
-TEST_F(ErrorTest, StreamSamplesAndListRobotsAreNotAvailableYet) {
+TEST_F(ErrorTest, StreamSamplesNeedsAMotion) {
+  auto request = demo_request('a');
+  request.clear_motion();
   auto context = ServerTest::context();
-  auto reader = stub_->StreamSamples(context.get(), demo_request('a'));
+  auto reader = stub_->StreamSamples(context.get(), request);
   v1::SampleBatch batch;
   EXPECT_FALSE(reader->Read(&batch));
-  auto status = reader->Finish();
-  EXPECT_EQ(status.error_code(), grpc::StatusCode::UNIMPLEMENTED);
-  EXPECT_THAT(status.error_message(), HasSubstr("StreamSamples"));
+  const auto status = reader->Finish();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("motion"));
+}
 
+TEST_F(ErrorTest, StreamSamplesNamesBadMotionFields) {
+  auto request = demo_request('a');
+  request.mutable_motion()->set_ramp_fraction(0.7);
+  request.mutable_motion()->set_cycle_rate_hz(0.0);
+  auto context = ServerTest::context();
+  auto reader = stub_->StreamSamples(context.get(), request);
+  v1::SampleBatch batch;
+  EXPECT_FALSE(reader->Read(&batch));
+  const auto status = reader->Finish();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("motion.rampFraction"));
+  EXPECT_THAT(status.error_message(), HasSubstr("motion.cycleRateHz"));
+}
+
+TEST_F(ErrorTest, StreamSamplesStreamsTheWholeMotion) {
+  auto context = ServerTest::context();
+  auto reader = stub_->StreamSamples(context.get(), demo_request('a'));  // 10 s at 100 Hz
+  v1::SampleBatch batch;
+  std::size_t count = 0;
+  double last_t = -1.0;
+  while (reader->Read(&batch)) {
+    for (const auto& s : batch.samples()) {
+      EXPECT_GT(s.t(), last_t);
+      last_t = s.t();
+      ++count;
+    }
+  }
+  EXPECT_TRUE(reader->Finish().ok());
+  EXPECT_EQ(count, 1001u);
+  EXPECT_DOUBLE_EQ(last_t, 10.0);
+}
+
+TEST_F(ErrorTest, ListRobotsIsNotAvailableYet) {
+  grpc::Status status;
   v1::ListRobotsResponse robots;
-  status = stub_->ListRobots(ServerTest::context().get(), v1::ListRobotsRequest{}, &robots);
+  auto context = ServerTest::context();
+  status = stub_->ListRobots(context.get(), v1::ListRobotsRequest{}, &robots);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::UNIMPLEMENTED);
   EXPECT_THAT(status.error_message(), HasSubstr("ListRobots"));
 }

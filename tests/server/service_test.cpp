@@ -148,7 +148,12 @@ TEST_P(DemoPlan, ClosedLoopAndAdditiveArcLengths) {
   EXPECT_TRUE(f2.has_curvature_derivative() && f2.has_torsion_derivative());
   EXPECT_NEAR(response.frames(2).leave().tangent().x(), -1.0, 1e-12) << "frame 3 is a cusp";
 
-  EXPECT_FALSE(response.has_motion()) << "motion planning is not served yet";
+  // The example's motion: 10 s at 100 Hz, two rest-to-rest portions (the cusp), the same
+  // peak speed L / (T (1 - 0.15)) on both (Eqs. 6.11-6.13).
+  ASSERT_TRUE(response.has_motion());
+  EXPECT_DOUBLE_EQ(response.motion().duration_s(), 10.0);
+  EXPECT_EQ(response.motion().sample_count(), 1001u);
+  EXPECT_NEAR(response.motion().peak_speed(), response.arc_length() / (10.0 * 0.85), 1e-12);
   EXPECT_FALSE(response.has_robot());
   EXPECT_FALSE(response.has_optimization());
 }

@@ -112,6 +112,12 @@ void print_table(const v1::PlanResponse& response, std::ostream& out) {
   const auto& loop = response.closed_loop();
   out << "\nclosed loop: max error " << num(loop.max_error(), 1)
       << (loop.worst_field().empty() ? std::string() : " at " + loop.worst_field()) << '\n';
+  if (response.has_motion()) {
+    const auto& m = response.motion();
+    out << "\nmotion: duration" << num(m.duration_s(), 1) << " s, peak speed" << num(m.peak_speed(), 1)
+        << " m/s, peak tangential acceleration" << num(m.peak_acceleration(), 1) << " m/s^2, "
+        << m.sample_count() << " samples\n";
+  }
 }
 
 void print_table(const v1::PathProfile& profile, std::ostream& out) {

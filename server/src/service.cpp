@@ -4,8 +4,11 @@
 #include "service.hpp"
 
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <optional>
+
+#include <grpcpp/alarm.h>
 
 #include "convert.hpp"
 #include "geotraj/core/analysis.hpp"
@@ -125,15 +128,24 @@ grpc::Status plan_trajectory(const Abandon& abandon, const v1::PlanRequest& requ
 // StreamSamples: samples are produced batch by batch while the previous batch is being
 // written (one write in flight), so memory is bounded by one batch whatever the motion's
 // length. Cancellation or a passed deadline ends the stream at the next batch.
+//
+// Real-time pacing: a sample is sent when due (t seconds after the stream started); while
+// the next one is not due, an alarm wakes the reactor, and cancellation cancels the alarm.
 class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
  public:
-  SampleStreamer(grpc::CallbackServerContext& context, PlannedMotion planned, std::size_t batch_size)
+  SampleStreamer(grpc::CallbackServerContext& context, PlannedMotion planned, std::size_t batch_size, bool real_time)
       : abandon_(context),
         planned_(std::make_unique<PlannedMotion>(std::move(planned))),
         sampler_(planned_->path, planned_->timing),
-        batch_size_(batch_size) {
+        batch_size_(batch_size),
+        real_time_(real_time),
+        start_(std::chrono::system_clock::now()) {
     batch_.mutable_samples()->Reserve(static_cast<int>(batch_size_));
     NextWrite();
+  }
+
+  void OnCancel() override {
+    if (real_time_) alarm_.Cancel();  // a pending wait ends at once (its callback sees !ok)
   }
 
   void OnWriteDone(bool ok) override {
@@ -153,14 +165,33 @@ class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
       return;
     }
     batch_.clear_samples();
-    core::MotionSample sample;
-    while (static_cast<std::size_t>(batch_.samples_size()) < batch_size_ && sampler_.next(sample)) {
-      auto orientation = core::orientation_at(planned_->orientation, planned_->path, sample.segment,
-                                              sample.u - static_cast<double>(sample.segment), sample.s, sample.speed);
+    const auto now = std::chrono::system_clock::now();
+    while (static_cast<std::size_t>(batch_.samples_size()) < batch_size_) {
+      if (!has_pending_ && !sampler_.next(pending_)) break;
+      has_pending_ = true;
+      if (real_time_) {
+        const auto due = start_ + std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                                      std::chrono::duration<double>(pending_.t));
+        if (due > now) {
+          if (batch_.samples_size() > 0) break;  // send what is due; the rest waits
+          alarm_.Set(due, [this](bool ok) {
+            if (ok) {
+              NextWrite();
+            } else {
+              Finish(abandon_.check().value_or(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled")));
+            }
+          });
+          return;
+        }
+      }
+      auto orientation = core::orientation_at(planned_->orientation, planned_->path, pending_.segment,
+                                              pending_.u - static_cast<double>(pending_.segment), pending_.s,
+                                              pending_.speed);
       // q and -q are one rotation: keep successive samples in one hemisphere.
       if (orientation.q_WT.coeffs().dot(previous_q_.coeffs()) < 0.0) orientation.q_WT.coeffs() *= -1.0;
       previous_q_ = orientation.q_WT;
-      to_proto(sample, orientation, *batch_.add_samples());
+      to_proto(pending_, orientation, *batch_.add_samples());
+      has_pending_ = false;
     }
     if (batch_.samples_size() == 0) {
       Finish(grpc::Status::OK);
@@ -173,6 +204,11 @@ class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
   std::unique_ptr<PlannedMotion> planned_;  // stable address: the sampler refers to it
   core::MotionSampler sampler_;
   std::size_t batch_size_;
+  bool real_time_;
+  std::chrono::system_clock::time_point start_;
+  grpc::Alarm alarm_;
+  core::MotionSample pending_;  // taken from the sampler, not yet sent
+  bool has_pending_ = false;
   v1::SampleBatch batch_;
   Eigen::Quaterniond previous_q_ = Eigen::Quaterniond::Identity();
 };
@@ -187,9 +223,15 @@ grpc::ServerWriteReactor<v1::SampleBatch>* stream_samples(grpc::CallbackServerCo
     return new FinishedWriter(invalid_argument(core::Violations{
         {"motion", "is required to stream samples: give durationS (s), or maxSpeed and maxAcceleration"}}));
   }
+  if (!v1::StreamPacing_IsValid(request.pacing())) {
+    return new FinishedWriter(invalid_argument(
+        core::Violations{{"pacing", "unknown value " + std::to_string(request.pacing()) +
+                                        "; use STREAM_PACING_AS_FAST_AS_POSSIBLE or STREAM_PACING_REAL_TIME"}}));
+  }
   auto planned = plan_motion(request);
   if (!planned) return new FinishedWriter(planned.error());
-  return new SampleStreamer(context, std::move(*planned), samples_per_batch(request));
+  return new SampleStreamer(context, std::move(*planned), samples_per_batch(request),
+                            request.pacing() == v1::STREAM_PACING_REAL_TIME);
 }
 
 // The analysis is the path's geometry: a robot, when given, does not change it.

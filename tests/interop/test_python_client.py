@@ -226,6 +226,28 @@ class PythonClient(unittest.TestCase):
         self.assertEqual(ctx.exception.code(), grpc.StatusCode.INVALID_ARGUMENT)
         self.assertIn("motion.durationS", ctx.exception.details() + str(ctx.exception.trailing_metadata()))
 
+    def test_stream_real_time_sends_no_sample_before_it_is_due(self):
+        req = self.motion_request("A", 0.5)  # 51 samples over half a second
+        req.pacing = pb.STREAM_PACING_REAL_TIME
+        start = time.monotonic()  # before the server's start: a strict lower bound
+        count = 0
+        for batch in self.stub.StreamSamples(req, timeout=60):
+            arrived = time.monotonic() - start
+            for smp in batch.samples:
+                self.assertGreaterEqual(arrived, smp.t)
+                count += 1
+        self.assertEqual(count, 51)
+
+    def test_stream_real_time_cancelled_while_waiting(self):
+        req = self.motion_request("A", 3600.0)
+        req.pacing = pb.STREAM_PACING_REAL_TIME
+        call = self.stub.StreamSamples(req)
+        first = next(call)
+        self.assertGreater(len(first.samples), 0)
+        call.cancel()
+        self.assertEqual(call.code(), grpc.StatusCode.CANCELLED)
+        self.assertLess(self.stub.PlanTrajectory(pb.PlanRequest(path=self.demo_path("A"))).closed_loop.max_error, 1e-9)
+
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser()

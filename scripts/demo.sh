@@ -2,7 +2,8 @@
 # The thesis's demonstration (Section 7.2) through the geotraj CLI: the key frames of
 # Table 7.8 with the curvature and torsion of Table 7.18 (paths A, B, C), tangent scale
 # 0.25. For each path: the arc length of every segment and the geometry achieved at every
-# key frame; then an SVG picture of the three paths under out/.
+# key frame; then an SVG picture of the three paths under out/; then the speed tables
+# (Tables 7.21, 7.22) with their plots (scripts/motion_demo.py).
 #   usage: scripts/demo.sh [BUILD_DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -35,3 +36,7 @@ done
   "path C (kappa2 20, tau2 -50; kappa3 10, tau3 -100)=$out/request_c.json:$out/profile_c.json"
 echo
 echo "Wrote $out/thesis_paths.svg (top and side views of paths A, B, C; key frames in black, the cusp in orange)"
+
+# The speed along the path (Tables 7.21 and 7.22): measured as the thesis does, against the
+# profile, for TAYLOR_SECOND_ORDER and ARC_LENGTH timing; SVG plots under out/.
+/usr/bin/python3 scripts/motion_demo.py "$cli" "$out"

@@ -181,24 +181,6 @@ TEST_F(ErrorTest, StreamSamplesNamesBadMotionFields) {
   EXPECT_THAT(status.error_message(), HasSubstr("motion.cycleRateHz"));
 }
 
-TEST_F(ErrorTest, StreamSamplesStreamsTheWholeMotion) {
-  auto context = ServerTest::context();
-  auto reader = stub_->StreamSamples(context.get(), demo_request('a'));  // 10 s at 100 Hz
-  v1::SampleBatch batch;
-  std::size_t count = 0;
-  double last_t = -1.0;
-  while (reader->Read(&batch)) {
-    for (const auto& s : batch.samples()) {
-      EXPECT_GT(s.t(), last_t);
-      last_t = s.t();
-      ++count;
-    }
-  }
-  EXPECT_TRUE(reader->Finish().ok());
-  EXPECT_EQ(count, 1001u);
-  EXPECT_DOUBLE_EQ(last_t, 10.0);
-}
-
 TEST_F(ErrorTest, ListRobotsIsNotAvailableYet) {
   grpc::Status status;
   v1::ListRobotsResponse robots;

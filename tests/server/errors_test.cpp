@@ -155,14 +155,20 @@ TEST_F(ErrorTest, RobotAndOptimizeAreNotAvailableYet) {
   EXPECT_THAT(status.error_message(), HasSubstr("optimize"));
 }
 
+// A stream refused before any sample: its final status.
+grpc::Status refused_stream(v1::TrajectoryService::Stub& stub, const v1::PlanRequest& request) {
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
+  auto reader = stub.StreamSamples(&context, request);
+  v1::SampleBatch batch;
+  EXPECT_FALSE(reader->Read(&batch)) << "a sample arrived";
+  return reader->Finish();
+}
+
 TEST_F(ErrorTest, StreamSamplesNeedsAMotion) {
   auto request = demo_request('a');
   request.clear_motion();
-  auto context = ServerTest::context();
-  auto reader = stub_->StreamSamples(context.get(), request);
-  v1::SampleBatch batch;
-  EXPECT_FALSE(reader->Read(&batch));
-  const auto status = reader->Finish();
+  const auto status = refused_stream(*stub_, request);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(status.error_message(), HasSubstr("motion"));
 }
@@ -171,11 +177,7 @@ TEST_F(ErrorTest, StreamSamplesNamesBadMotionFields) {
   auto request = demo_request('a');
   request.mutable_motion()->set_ramp_fraction(0.7);
   request.mutable_motion()->set_cycle_rate_hz(0.0);
-  auto context = ServerTest::context();
-  auto reader = stub_->StreamSamples(context.get(), request);
-  v1::SampleBatch batch;
-  EXPECT_FALSE(reader->Read(&batch));
-  const auto status = reader->Finish();
+  const auto status = refused_stream(*stub_, request);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(status.error_message(), HasSubstr("motion.rampFraction"));
   EXPECT_THAT(status.error_message(), HasSubstr("motion.cycleRateHz"));

@@ -208,9 +208,19 @@ Expected<MotionPlan> plan_motion(const Path& path, const MotionSpec& spec) {
   plan.duration_s = duration > 0.0 ? duration : t;
 
   const double grid = plan.duration_s * spec.cycle_rate_hz;
-  if (!(grid < kMaxMotionSamples))
-    return tl::make_unexpected(Violations{{"motion.durationS", "durationS x cycleRateHz = " + num(grid) +
-                                                                   " samples exceeds " + num(kMaxMotionSamples)}});
+  if (!(grid < kMaxMotionSamples)) {
+    const std::string what = duration > 0.0 ? "durationS x cycleRateHz = " + num(grid) + " samples"
+                                            : "the minimum-time motion lasts " + num(plan.duration_s) +
+                                                  " s under these limits, " + num(grid) + " samples,";
+    return tl::make_unexpected(Violations{{"motion.durationS", what + " more than " + num(kMaxMotionSamples) +
+                                                                   " per stream: shorten the motion, lower "
+                                                                   "cycleRateHz or raise the limits"}});
+  }
+  // A move time too short for the path makes speeds overflow: refuse it, never stream inf.
+  if (!std::isfinite(plan.peak_speed) || !std::isfinite(plan.peak_acceleration)) {
+    return tl::make_unexpected(Violations{{"motion.durationS", "is too short for a path of " + num(path.length()) +
+                                                                   " m: the speeds overflow double precision"}});
+  }
   const double n = std::floor(grid + 1e-9);
   plan.sample_count = static_cast<std::size_t>(n) + (grid - n <= 1e-9 ? 1 : 2);
   return plan;

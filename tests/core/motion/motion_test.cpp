@@ -114,6 +114,17 @@ TEST(MotionSpec, DurationZeroNeedsLimits) {
 // ---------------------------------------------------------------------------------------
 // Portions and the sample grid
 
+// Regression (hostile input): a move time of 1e-300 s made the peak speed inf, which the
+// service would have streamed. It is refused, naming the field.
+TEST(MotionPlan, MoveTimeTooShortToRepresentIsRefused) {
+  const auto path = demo('A');
+  const auto plan = core::plan_motion(path, timed(1e-300));
+  ASSERT_FALSE(plan);
+  ASSERT_EQ(plan.error().size(), 1u);
+  EXPECT_EQ(plan.error()[0].field, "motion.durationS");
+  EXPECT_NE(plan.error()[0].description.find("too short"), std::string::npos) << plan.error()[0].description;
+}
+
 TEST(MotionPlan, ThesisDemoRestsAtTheCusp) {
   const auto path = demo('A');
   const auto plan = plan_or_die(path, timed(10));

@@ -7,9 +7,11 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 #include <cstdlib>
-#include <vector>
 #include <iostream>
+#include <vector>
 
 #include "geotraj/server/server.hpp"
 #include "geotraj/v1/geotraj.grpc.pb.h"
@@ -176,6 +178,66 @@ void BM_StreamSamplesDemo(benchmark::State& state) {
   state.SetItemsProcessed(samples);
 }
 BENCHMARK(BM_StreamSamplesDemo)->Arg(64)->Arg(256)->Arg(1024)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Reads a joint-space stream of `joints` joints to the end; false (and the benchmark skipped)
+// when the call fails or a sample lacks its joints.
+bool read_joint_stream(benchmark::State& state, const v1::PlanRequest& request, int joints, std::int64_t& samples) {
+  grpc::ClientContext context;
+  auto reader = loopback().stub().StreamSamples(&context, request);
+  v1::SampleBatch batch;
+  bool complete = true;
+  while (reader->Read(&batch)) {
+    samples += batch.samples_size();
+    complete = complete && batch.samples(0).joints_size() == joints &&
+               batch.samples(batch.samples_size() - 1).joint_accelerations_size() == joints;
+  }
+  const grpc::Status status = reader->Finish();
+  if (!status.ok()) {
+    state.SkipWithError(status.error_message().c_str());
+    return false;
+  }
+  if (!complete) {
+    state.SkipWithError("a sample arrived without its joints");
+    return false;
+  }
+  return true;
+}
+
+// StreamSamples with a robot: the demo path C followed by the PA-10 for 600 s at 1 kHz
+// (600,001 samples, within every limit), read to the end. Each sample costs the IK twice
+// (the whole motion is checked before the first sample is sent, then tracked again while
+// streaming), the Jacobian solves for the joint velocities and accelerations, and 21 more
+// doubles on the wire. Samples per second over loopback, batch size swept.
+void BM_StreamSamplesJointSpace(benchmark::State& state) {
+  auto request = demo_request();
+  request.mutable_motion()->set_duration_s(600.0);
+  request.mutable_motion()->set_cycle_rate_hz(1000.0);
+  request.mutable_robot()->set_name("pa10");
+  request.set_samples_per_batch(static_cast<std::uint32_t>(state.range(0)));
+  std::int64_t samples = 0;
+  for (auto _ : state) {
+    if (!read_joint_stream(state, request, 7, samples)) break;
+  }
+  state.SetItemsProcessed(samples);
+}
+BENCHMARK(BM_StreamSamplesJointSpace)->Arg(256)->Arg(1024)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The same rate for a joint move (thesis 6.2.2.1: no IK; forward kinematics and the
+// Jacobian for the tool's state): the PA-10 over 600 s at 1 kHz.
+void BM_StreamSamplesJointMove(benchmark::State& state) {
+  v1::PlanRequest request;
+  for (double q : {0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8}) request.mutable_joint_move()->add_goal(q);
+  request.mutable_robot()->set_name("pa10");
+  request.mutable_motion()->set_duration_s(600.0);
+  request.mutable_motion()->set_cycle_rate_hz(1000.0);
+  request.set_samples_per_batch(static_cast<std::uint32_t>(state.range(0)));
+  std::int64_t samples = 0;
+  for (auto _ : state) {
+    if (!read_joint_stream(state, request, 7, samples)) break;
+  }
+  state.SetItemsProcessed(samples);
+}
+BENCHMARK(BM_StreamSamplesJointMove)->Arg(1024)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

@@ -40,3 +40,7 @@ echo "Wrote $out/thesis_paths.svg (top and side views of paths A, B, C; key fram
 # The speed along the path (Tables 7.21 and 7.22): measured as the thesis does, against the
 # profile, for TAYLOR_SECOND_ORDER and ARC_LENGTH timing; SVG plots under out/.
 /usr/bin/python3 scripts/motion_demo.py "$cli" "$out"
+
+# The same paths on the PA-10 in joint space (thesis 6.4, 7.2): limit margins, IK
+# residuals, manipulability, and SVG plots of the joints.
+/usr/bin/python3 scripts/robot_demo.py "$cli" "$out"

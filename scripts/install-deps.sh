@@ -11,6 +11,7 @@ packages=(
   golang-google-grpc-dev              # grpc/health/v1/health.proto
   libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  liborocos-kdl-dev                   # Orocos KDL: the kinematics cross-check (tests only)
   python3 python3-grpcio python3-protobuf   # the cross-language client test
 )
 

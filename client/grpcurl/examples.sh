@@ -10,6 +10,20 @@
 #   plan_demo_path_{a,b,c}.json  PlanRequest: the thesis demonstration (Tables 7.8, 7.18), paths A, B, C
 #   analyze_demo_path_a.json  PlanRequest with analysisPoints, for AnalyzePath
 #   bad_request.json          a PlanRequest with four mistakes: INVALID_ARGUMENT with a BadRequest
+# and with a robot (ListRobots describes the built-in models "pa10" and "ur5"):
+#   plan_pa10_path_c.json     PlanRequest: path C followed by the PA-10 in the thesis's 10 s. Too
+#                             fast for the arm's joint accelerations, so it sets robot.reportOnly
+#                             to get the joint report with its violations; without it the plan
+#                             fails with FAILED_PRECONDITION and a google.rpc.PreconditionFailure
+#                             (shown below). Over 30 s or more the PA-10 can follow it.
+#   joint_move_pa10.json      PlanRequest with a jointMove (thesis 6.2.2.1): the PA-10 from its
+#                             home (start absent) to a goal in minimum time (durationS 0: the
+#                             slowest joint sets the time), every joint on one synchronised profile
+#   linear_move_ur5.json      PlanRequest with a linearMove (thesis 6.2.2.2): the UR5's tool on a
+#                             straight line from its home pose (start absent), turning 90 degrees
+#                             about z, in 2 s
+# Each works with StreamSamples too (the joints in every sample): StreamSamples refuses a
+# motion the robot cannot follow unless robot.reportOnly is set.
 set -euo pipefail
 
 address="${1:-${GEOTRAJ_ADDRESS:-127.0.0.1:50051}}"
@@ -36,6 +50,12 @@ for path in a b c; do
 done
 call AnalyzePath "$here/analyze_demo_path_a.json"
 
+echo "== ListRobots"
+grpcurl -plaintext -d '{}' "$address" geotraj.v1.TrajectoryService/ListRobots
+for request in plan_pa10_path_c joint_move_pa10 linear_move_ur5; do
+  call PlanTrajectory "$here/$request.json"
+done
+
 # The bad request fails on purpose: grpcurl prints the code, the message and the
 # google.rpc.BadRequest field violations.
 if call PlanTrajectory "$here/bad_request.json"; then
@@ -43,3 +63,13 @@ if call PlanTrajectory "$here/bad_request.json"; then
   exit 1
 fi
 echo "== bad_request.json failed as expected"
+
+# Without reportOnly the PA-10 plan fails on purpose: FAILED_PRECONDITION naming the first
+# broken limit (joint, time, sample), every one in the google.rpc.PreconditionFailure.
+echo "== PlanTrajectory < plan_pa10_path_c.json without reportOnly"
+if sed 's/"reportOnly": true/"reportOnly": false/' "$here/plan_pa10_path_c.json" |
+    grpcurl -plaintext -d @ "$address" geotraj.v1.TrajectoryService/PlanTrajectory; then
+  echo "examples.sh: plan_pa10_path_c.json without reportOnly was accepted, but it should fail with FailedPrecondition" >&2
+  exit 1
+fi
+echo "== plan_pa10_path_c.json without reportOnly failed as expected"

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 
 #include <chrono>
 #include <fstream>
@@ -67,15 +68,9 @@ void print_json(const google::protobuf::Message& message) {
   if (json.empty() || json.back() != '\n') std::cout << '\n';
 }
 
-// Reads the request, makes the call, prints the response or the error.
-template <class Request, class Response, class Call>
-int run(const CallOptions& options, Call call) {
-  Request request;
-  if (!read_request(options.input, request)) return 2;
-  grpc::ClientContext context;
-  set_deadline(context, options.timeout_s);
-  Response response;
-  const grpc::Status status = call(context, request, response);
+// Prints the response (table or JSON) or the error; the exit code.
+template <class Response>
+int answer(const CallOptions& options, const grpc::Status& status, const Response& response) {
   if (!status.ok()) {
     print_error(status, std::cerr);
     return 1;
@@ -86,6 +81,17 @@ int run(const CallOptions& options, Call call) {
     print_table(response, std::cout);
   }
   return 0;
+}
+
+// Reads the request, makes the call, prints the response or the error.
+template <class Request, class Response, class Call>
+int run(const CallOptions& options, Call call) {
+  Request request;
+  if (!read_request(options.input, request)) return 2;
+  grpc::ClientContext context;
+  set_deadline(context, options.timeout_s);
+  Response response;
+  return answer(options, call(context, request, response), response);
 }
 
 }  // namespace
@@ -127,9 +133,7 @@ int run_stream(const Connection& connection, const CallOptions& options) {
   grpc::ClientContext context;
   set_deadline(context, options.timeout_s);
   auto reader = stub->StreamSamples(&context, request);
-  if (!options.json) {
-    std::cout << "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz\n";
-  }
+  bool header_written = options.json;
   google::protobuf::util::JsonPrintOptions print;
   print.add_whitespace = false;
   v1::SampleBatch batch;
@@ -143,6 +147,14 @@ int run_stream(const Connection& connection, const CallOptions& options) {
         (void)google::protobuf::util::MessageToJsonString(s, &json, print);
         std::cout << json << '\n';
       } else {
+        if (!header_written) {  // joint columns q1.., qd1.., qdd1.. when the samples carry joints
+          std::cout << "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz";
+          for (const char* name : {"q", "qd", "qdd"}) {
+            for (int j = 1; j <= s.joints_size(); ++j) std::cout << ',' << name << j;
+          }
+          std::cout << '\n';
+          header_written = true;
+        }
         const auto& p = s.position();
         const auto& q = s.orientation();
         const auto& v = s.velocity();
@@ -153,7 +165,14 @@ int run_stream(const Connection& connection, const CallOptions& options) {
                       "%.17g,%.17g,%.17g,%.17g,%.17g\n",
                       s.t(), s.u(), s.s(), s.segment(), p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z(), v.x(), v.y(),
                       v.z(), a.x(), a.y(), a.z(), s.speed(), w.x(), w.y(), w.z());
-        std::cout << line;
+        std::cout.write(line, static_cast<std::streamsize>(std::strlen(line) - 1));  // without the newline
+        for (const auto* values : {&s.joints(), &s.joint_velocities(), &s.joint_accelerations()}) {
+          for (double x : *values) {
+            std::snprintf(line, sizeof line, ",%.17g", x);
+            std::cout << line;
+          }
+        }
+        std::cout << '\n';
       }
     }
     received += static_cast<std::uint64_t>(batch.samples_size());
@@ -174,6 +193,14 @@ int run_stream(const Connection& connection, const CallOptions& options) {
     return 1;
   }
   return 0;
+}
+
+int run_robots(const Connection& connection, const CallOptions& options) {
+  auto stub = v1::TrajectoryService::NewStub(connection.channel);
+  grpc::ClientContext context;
+  set_deadline(context, options.timeout_s);
+  v1::ListRobotsResponse response;
+  return answer(options, stub->ListRobots(&context, v1::ListRobotsRequest{}, &response), response);
 }
 
 int run_health(const Connection& connection, const std::string& service, double timeout_s) {

@@ -21,6 +21,8 @@ int run_analyze(const Connection& connection, const CallOptions& options);
 /// StreamSamples: one line per sample on stdout, CSV with a header (default) or proto JSON
 /// lines (`json`); a progress bar on stderr when stderr is a terminal.
 int run_stream(const Connection& connection, const CallOptions& options);
+/// ListRobots: the models' DH tables and limits (or the response as proto JSON).
+int run_robots(const Connection& connection, const CallOptions& options);
 /// Checks grpc.health.v1.Health for `service` ("" is the whole server); 0 when SERVING.
 int run_health(const Connection& connection, const std::string& service, double timeout_s);
 

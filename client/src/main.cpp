@@ -33,6 +33,7 @@ int main(int argc, char** argv) {
   request_arg(analyze, "a PlanRequest");
   auto* stream = app.add_subcommand("stream", "StreamSamples: the motion sampled at the cycle rate, as CSV (or JSON lines with --json)");
   request_arg(stream, "a PlanRequest with `motion`");
+  auto* robots = app.add_subcommand("robots", "ListRobots: the robot models the server knows, with DH tables and limits");
   auto* health = app.add_subcommand("health", "grpc.health.v1 Check: prints the serving status, exit 0 if SERVING");
   health->add_option("--service", health_service, "service name; empty: the whole server");
   CLI11_PARSE(app, argc, argv);
@@ -46,5 +47,6 @@ int main(int argc, char** argv) {
   if (plan->parsed()) return geotraj::cli::run_plan(*connection, options);
   if (analyze->parsed()) return geotraj::cli::run_analyze(*connection, options);
   if (stream->parsed()) return geotraj::cli::run_stream(*connection, options);
+  if (robots->parsed()) return geotraj::cli::run_robots(*connection, options);
   return geotraj::cli::run_health(*connection, health_service, options.timeout_s);
 }

@@ -118,6 +118,61 @@ void print_table(const v1::PlanResponse& response, std::ostream& out) {
         << " m/s, peak tangential acceleration" << num(m.peak_acceleration(), 1) << " m/s^2, "
         << m.sample_count() << " samples\n";
   }
+  if (response.has_robot()) print_table(response.robot(), out);
+}
+
+namespace {
+
+std::string event_text(const v1::LimitEvent& e) {
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "%-12s joint %u  t = %.4f s (sample %llu)  value %.6g  limit %.6g  margin %.6g",
+                short_enum(v1::LimitKind_Name(e.kind()), "LIMIT_KIND_").c_str(), e.joint(), e.t(),
+                static_cast<unsigned long long>(e.sample()), e.value(), e.limit(), e.margin());
+  return buf;
+}
+
+}  // namespace
+
+void print_table(const v1::RobotReport& robot, std::ostream& out) {
+  out << "\nrobot " << robot.name() << ": " << robot.samples() << " samples, "
+      << (robot.feasible() ? "within every limit" : "LIMITS BROKEN") << '\n'
+      << "joint     min q       max q    q margin   peak |qd|  vel usage  peak |qdd|  acc usage\n";
+  for (const auto& j : robot.joints()) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "%5u %11.5f %11.5f %11.5f %11.5f %9.1f%% %11.5f %9.1f%%\n", j.joint(),
+                  j.min_position(), j.max_position(), j.position_margin(), j.peak_velocity(),
+                  100.0 * j.velocity_usage(), j.peak_acceleration(), 100.0 * j.acceleration_usage());
+    out << buf;
+  }
+  out << "tightest position:     " << event_text(robot.tightest_position()) << '\n'
+      << "tightest velocity:     " << event_text(robot.tightest_velocity()) << '\n'
+      << "tightest acceleration: " << event_text(robot.tightest_acceleration()) << '\n';
+  char buf[240];
+  std::snprintf(buf, sizeof buf,
+                "IK residuals: max %.3g m, %.3g rad; joint-interpolation midpoint deviation: max %.3g m at t = %.4f s\n"
+                "manipulability: min %.4g at t = %.4f s\n",
+                robot.max_ik_position_error(), robot.max_ik_orientation_error(), robot.max_midpoint_deviation(),
+                robot.max_midpoint_deviation_t(), robot.min_manipulability(), robot.min_manipulability_t());
+  out << buf;
+  for (const auto& v : robot.violations()) out << "VIOLATION " << event_text(v) << '\n';
+}
+
+void print_table(const v1::ListRobotsResponse& robots, std::ostream& out) {
+  for (const auto& m : robots.robots()) {
+    out << m.name() << "  (" << m.links_size() << " joints, "
+        << short_enum(v1::DhConvention_Name(m.dh_convention()), "DH_CONVENTION_") << " DH)\n  " << m.description()
+        << "\n  joint  type          a [m]  alpha [rad]       d [m]  theta [rad]     min q     max q  max qd  max qdd\n";
+    for (int i = 0; i < m.links_size(); ++i) {
+      const auto& l = m.links(i);
+      const auto& lim = m.limits(i);
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "  %5d  %-9s %9.5f %12.6f %11.5f %12.6f %9.4f %9.4f %7.4f %8.4f\n", i,
+                    short_enum(v1::JointType_Name(l.joint_type()), "JOINT_TYPE_").c_str(), l.a(), l.alpha(), l.d(),
+                    l.theta() + l.offset(), lim.min_position(), lim.max_position(), lim.max_velocity(),
+                    lim.max_acceleration());
+      out << buf;
+    }
+  }
 }
 
 void print_table(const v1::PathProfile& profile, std::ostream& out) {
@@ -142,8 +197,14 @@ void print_error(const grpc::Status& status, std::ostream& err) {
   if (status.error_details().empty() || !details.ParseFromString(status.error_details())) return;
   for (const auto& any : details.details()) {
     google::rpc::BadRequest bad_request;
-    if (!any.UnpackTo(&bad_request)) continue;
-    for (const auto& v : bad_request.field_violations()) err << "  " << v.field() << ": " << v.description() << '\n';
+    google::rpc::PreconditionFailure failure;
+    if (any.UnpackTo(&bad_request)) {
+      for (const auto& v : bad_request.field_violations()) err << "  " << v.field() << ": " << v.description() << '\n';
+    } else if (any.UnpackTo(&failure)) {
+      for (const auto& v : failure.violations()) {
+        err << "  " << short_enum(v.type(), "LIMIT_KIND_") << ", " << v.subject() << ": " << v.description() << '\n';
+      }
+    }
   }
 }
 

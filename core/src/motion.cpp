@@ -418,6 +418,8 @@ bool MotionSampler::next(MotionSample& out) {
   out.v_W = jet_[1] * u_t;                         // (2.29) dp/dt = p' du/dt
   out.a_W = jet_[2] * (u_t * u_t) + jet_[1] * u_tt;  // (2.31) d2p/dt2
   out.speed = out.v_W.norm();
+  // d2s/dt2 = d/dt(|p'| u_t) = |p'| u_tt + (p' . p'' / |p'|) u_t^2 (2.36 differentiated).
+  out.s_ddot = sp > 0.0 ? sp * u_tt + jet_[1].dot(jet_[2]) / sp * (u_t * u_t) : 0.0;
   t_prev_ = t;
   ++k_;
   return true;

@@ -408,7 +408,7 @@ Expected<OrientationPlan> plan_orientation(const Path& path) {
 }
 
 OrientationSample orientation_at(const OrientationPlan& plan, const Path& path, std::size_t segment, double u_local,
-                                 double s, double s_dot) {
+                                 double s, double s_dot, double s_ddot) {
   GEOTRAJ_CHECK(plan.segments.size() == path.segment_count() && segment < plan.segments.size());
   const SegmentOrientation& so = plan.segments[segment];
   const double u = std::clamp(u_local, 0.0, 1.0);
@@ -427,16 +427,23 @@ OrientationSample orientation_at(const OrientationPlan& plan, const Path& path, 
       // q(sigma) = exp(sigma theta a / 2) q_start; exactly q_end at sigma = 1.
       out.q_WT = sigma >= 1.0 ? so.q_end
                               : Quaterniond(Eigen::AngleAxisd(sigma * so.theta, so.axis_W) * so.q_start).normalized();
-      const double sigma_dot = length > 0.0 ? s_dot / length : 0.0;  // [1/s]
-      out.omega_W = so.axis_W * (so.theta * sigma_dot);                // [rad/s]
+      const double sigma_dot = length > 0.0 ? s_dot / length : 0.0;     // [1/s]
+      const double sigma_ddot = length > 0.0 ? s_ddot / length : 0.0;   // [1/s^2]
+      out.omega_W = so.axis_W * (so.theta * sigma_dot);                   // [rad/s]
+      out.alpha_W = so.axis_W * (so.theta * sigma_ddot);                  // [rad/s^2], fixed axis
       return out;
     }
 
     case OrientationMode::kFrenet: {
-      const LocalGeometry g = geometry_at(path, segment, u);
+      Jet jet;
+      evaluate(path.segments[segment], u, 4, jet);  // order 4 for tau_s
+      const LocalGeometry g = local_geometry(jet, path.p_uu_noise[segment]);
       if (g.regular && g.has_normal) {
         out.q_WT = frenet_frame(g, so.flipped);                  // (6.21)
-        out.omega_W = s_dot * (g.tau * g.T + g.kappa * g.B);    // Darboux vector (6.22) times ds/dt
+        const Vector3d darboux = g.tau * g.T + g.kappa * g.B;    // [1/m]
+        out.omega_W = s_dot * darboux;                           // Darboux vector (6.22) times ds/dt
+        // d/dt (s_dot D) = s_ddot D + s_dot^2 dD/ds, dD/ds = tau_s T + kappa_s B [1/m^2]
+        out.alpha_W = s_ddot * darboux + (s_dot * s_dot) * (g.tau_ds * g.T + g.kappa_ds * g.B);
         return out;
       }
       break;  // rounding ate the normal at a point plan_orientation found regular: the grid
@@ -460,7 +467,7 @@ OrientationSample orientation_at(const OrientationPlan& plan, const Path& path, 
   Jet jet;
   jet[4].setZero();
   evaluate(path.segments[segment], u, 3, jet);
-  const LocalGeometry g = local_geometry(jet, path.p_uu_noise[segment]);
+  const LocalGeometry g = local_geometry(jet, path.p_uu_noise[segment]);  // tau, kappa_s need order 3 only
   Quaterniond q;
   if (g.regular) {
     const CurvePoint here{jet[0], g.T};
@@ -476,7 +483,16 @@ OrientationSample orientation_at(const OrientationPlan& plan, const Path& path, 
     q = so.grid_q[lo].slerp(f, so.grid_q[hi]);
   }
   out.q_WT = q.normalized();
-  if (g.has_normal) out.omega_W = s_dot * g.kappa * g.B;  // rotation-minimising: no twist (7.22)
+  if (g.has_normal) {
+    out.omega_W = s_dot * g.kappa * g.B;  // rotation-minimising: no twist (7.22)
+    // d/dt (s_dot kappa B) = s_ddot kappa B + s_dot^2 (kappa_s B - kappa tau N) (B_s = -tau N)
+    out.alpha_W = s_ddot * g.kappa * g.B + (s_dot * s_dot) * (g.kappa_ds * g.B - g.kappa * g.tau * g.N);
+  } else if (g.regular) {
+    // Straight to rounding: kappa B = p' x p'' / |p'|^3 is 0 here; its arc-length
+    // derivative is (p' x p''' - 3 C (p'.p'') / |p'|^2) / |p'|^4 with C = p' x p'' = 0.
+    const double v4 = g.speed * g.speed * g.speed * g.speed;
+    out.alpha_W = (s_dot * s_dot) * jet[1].cross(jet[3]) / v4;
+  }
   return out;
 }
 

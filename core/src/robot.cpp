@@ -59,8 +59,13 @@ RobotModel pa10() {
               revolute_limits(137, 114, 228), revolute_limits(255, 360, 720), revolute_limits(165, 360, 720),
               revolute_limits(255, 360, 720)};
   m.tool.translation() = Eigen::Vector3d(0.0, 0.0, 0.07);
-  // Elbow and wrist bent, away from the straight-arm and wrist singularities.
-  m.home = {0.0, 0.5, 0.0, 1.2, 0.0, 0.9, 0.0};
+  // The thesis's start pose (frame 1 of Table 7.8, "home": p_WT = (0.106, 0, 0.975) m with
+  // the base at the world origin, tool z along +x, tool y along -y, R_WT = [-B N T]) to
+  // 2e-7 m and 4e-7 rad: the arm in the x-z plane (S1 = S3 = E2 = 0), shoulder back
+  // -43.6 deg, elbow 89.8 deg, wrist 43.8 deg (pitches summing to 90 deg), and W2 = -180 deg
+  // (W2 = +180 deg is the same pose, but the demo paths then turn W2 to within 0.02 rad of
+  // its +255 deg limit; from -180 deg they keep it 1.3 rad away).
+  m.home = {0.0, -0.761313, 0.0, 1.567648, 0.0, 0.764461, -std::numbers::pi};
   return m;
 }
 

@@ -181,6 +181,21 @@ Expected<SpeedProfile> min_time_trapezoid(double length, double v_max, double a_
   return b.finish(length);
 }
 
+Expected<SpeedProfile> min_time_scurve(double length, double ramp_fraction, double v_max, double a_max) {
+  Violations v;
+  check_length(length, v);
+  if (!std::isfinite(ramp_fraction) || !(ramp_fraction > 0.0) || ramp_fraction > 0.5)
+    v.push_back({"rampFraction", "must be in (0, 0.5] (ramp time over move time), got " + num(ramp_fraction)});
+  check_positive("maxSpeed", v_max, "m/s", v);
+  check_positive("maxAcceleration", a_max, "m/s^2", v);
+  if (!v.empty()) return tl::make_unexpected(v);
+  if (length == 0.0) return Builder{}.finish(0.0);
+  const double f = ramp_fraction;
+  const double t_speed = length / ((1.0 - f) * v_max);                     // v_max = L / (T - t_b)  (6.11)
+  const double t_accel = std::sqrt(2.0 * length / (f * (1.0 - f) * a_max));  // a_peak = 2 v_max / t_b
+  return scurve_profile(length, std::max(t_speed, t_accel), f);
+}
+
 Expected<SpeedProfile> min_time_double_s(double length, double v_max, double a_max, double j_max) {
   Violations v;
   check_length(length, v);

@@ -11,7 +11,10 @@
 #include <utility>
 #include <variant>
 
+#include "geotraj/core/kinematics.hpp"
 #include "geotraj/core/validate.hpp"
+
+#include <google/protobuf/util/json_util.h>
 
 namespace geotraj::server {
 namespace {
@@ -276,6 +279,9 @@ core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& requ
   if (m.has_max_speed()) spec.max_speed = m.max_speed();
   if (m.has_max_acceleration()) spec.max_acceleration = m.max_acceleration();
   if (m.has_max_jerk()) spec.max_jerk = m.max_jerk();
+  // A joint move's minimum time comes from the joint limits: core::plan_joint_move checks
+  // the spec without asking for the Cartesian ones.
+  if (request.has_joint_move()) return spec;
   auto violations = core::validate_motion(spec);
   if (!violations.empty()) return tl::unexpected(std::move(violations));
   return spec;
@@ -290,24 +296,6 @@ void to_proto(const core::MotionPlan& plan, v1::MotionSummary& summary) {
   summary.set_peak_speed(plan.peak_speed);
   summary.set_peak_acceleration(plan.peak_acceleration);
   summary.set_sample_count(plan.sample_count);
-}
-
-void to_proto(const core::MotionSample& sample, const core::OrientationSample& orientation, v1::Sample& out) {
-  out.set_t(sample.t);
-  out.set_u(sample.u);
-  out.set_s(sample.s);
-  out.set_segment(static_cast<std::uint32_t>(sample.segment));
-  set(out.mutable_position(), sample.p_W);
-  set(out.mutable_velocity(), sample.v_W);
-  set(out.mutable_acceleration(), sample.a_W);
-  out.set_speed(sample.speed);
-  // Wire order (w, x, y, z) by name.
-  auto* q = out.mutable_orientation();
-  q->set_w(orientation.q_WT.w());
-  q->set_x(orientation.q_WT.x());
-  q->set_y(orientation.q_WT.y());
-  q->set_z(orientation.q_WT.z());
-  set(out.mutable_angular_velocity(), orientation.omega_W);
 }
 
 std::size_t analysis_points(const v1::PlanRequest& request) {
@@ -374,6 +362,331 @@ void to_proto(const core::Path& path, const std::vector<core::ProfilePoint>& poi
     set_geometry(p.geometry, /*per_arc_length=*/true, out);
   }
   profile.set_arc_length(path.length());
+}
+
+// --- robots ---------------------------------------------------------------------------------
+
+namespace {
+
+// A Pose message as an isometry; violations under `field` (`robot.base`).
+Eigen::Isometry3d pose_from_proto(const v1::Pose& pose, const std::string& field, core::Violations& out) {
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  const Vector3d p = to_core(pose.position());
+  if (!p.allFinite()) out.push_back({field + ".position", "must be finite"});
+  X.translation() = p;
+  if (pose.has_orientation()) {
+    const auto& q = pose.orientation();
+    Eigen::Quaterniond quat(q.w(), q.x(), q.y(), q.z());  // wire order (w, x, y, z) by name
+    const double norm = quat.norm();
+    if (!std::isfinite(norm) || std::abs(norm - 1.0) > kUnitQuaternionTolerance) {
+      out.push_back({field + ".orientation", "must be a unit quaternion (w, x, y, z), got norm " + fmt(norm)});
+    } else {
+      X.linear() = quat.normalized().toRotationMatrix();
+    }
+  }
+  return X;
+}
+
+void set(v1::Pose* out, const Eigen::Isometry3d& X) {
+  set(out->mutable_position(), X.translation());
+  const Eigen::Quaterniond q(X.linear());
+  auto* o = out->mutable_orientation();
+  o->set_w(q.w());
+  o->set_x(q.x());
+  o->set_y(q.y());
+  o->set_z(q.z());
+}
+
+v1::LimitKind to_proto(core::LimitKind k) {
+  switch (k) {
+    case core::LimitKind::kPosition: return v1::LIMIT_KIND_POSITION;
+    case core::LimitKind::kVelocity: return v1::LIMIT_KIND_VELOCITY;
+    case core::LimitKind::kAcceleration: return v1::LIMIT_KIND_ACCELERATION;
+    case core::LimitKind::kIk: return v1::LIMIT_KIND_IK;
+    case core::LimitKind::kBranch: return v1::LIMIT_KIND_BRANCH;
+  }
+  return v1::LIMIT_KIND_UNSPECIFIED;
+}
+
+}  // namespace
+
+const core::RobotModel* RobotCatalog::find(std::string_view name) const {
+  for (const auto& m : models) {
+    if (m.name == name) return &m;
+  }
+  return nullptr;
+}
+
+core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& model, const std::string& prefix) {
+  WireCheck check;
+  check_enum(check, prefix + "dhConvention", model.dh_convention(), v1::DhConvention_descriptor());
+  core::RobotModel m;
+  m.name = model.name();
+  m.description = model.description();
+  m.convention = model.dh_convention() == v1::DH_CONVENTION_MODIFIED ? core::DhConvention::kModified
+                                                                     : core::DhConvention::kStandard;
+  for (int i = 0; i < model.links_size(); ++i) {
+    const auto& l = model.links(i);
+    check_enum(check, prefix + "links[" + std::to_string(i) + "].jointType", l.joint_type(),
+               v1::JointType_descriptor());
+    m.links.push_back({l.a(), l.alpha(), l.d(), l.theta(),
+                       l.joint_type() == v1::JOINT_TYPE_PRISMATIC ? core::JointType::kPrismatic
+                                                                  : core::JointType::kRevolute,
+                       l.offset()});
+  }
+  for (const auto& l : model.limits()) {
+    core::JointLimits limits{l.min_position(), l.max_position(), l.max_velocity(), l.max_acceleration(),
+                             std::nullopt};
+    if (l.has_max_jerk()) limits.max_jerk = l.max_jerk();
+    m.limits.push_back(limits);
+  }
+  m.home.assign(model.home().begin(), model.home().end());
+  core::Violations poses;
+  if (model.has_base()) m.base = pose_from_proto(model.base(), prefix + "base", poses);
+  if (model.has_tool()) m.tool = pose_from_proto(model.tool(), prefix + "tool", poses);
+  for (auto& v : poses) check.violations.push_back(std::move(v));
+  for (auto& v : core::prefixed(core::validate_robot(m), prefix)) check.violations.push_back(std::move(v));
+  if (!check.violations.empty()) return tl::unexpected(std::move(check.violations));
+  return m;
+}
+
+core::Expected<core::RobotModel> robot_model_from_json(std::string_view json) {
+  v1::RobotModel model;
+  const auto status = google::protobuf::util::JsonStringToMessage(std::string(json), &model);
+  if (!status.ok()) {
+    return tl::unexpected(core::Violations{{"", "is not a RobotModel in proto3 JSON: " + std::string(status.message())}});
+  }
+  if (model.name().empty()) return tl::unexpected(core::Violations{{"name", "is required: the model's name"}});
+  return robot_model_from_proto(model, "");
+}
+
+void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
+  out.set_name(model.name);
+  out.set_description(model.description);
+  out.set_dh_convention(model.convention == core::DhConvention::kModified ? v1::DH_CONVENTION_MODIFIED
+                                                                          : v1::DH_CONVENTION_STANDARD);
+  for (const auto& l : model.links) {
+    auto* link = out.add_links();
+    link->set_a(l.a);
+    link->set_alpha(l.alpha);
+    link->set_d(l.d);
+    link->set_theta(l.theta);
+    link->set_joint_type(l.type == core::JointType::kPrismatic ? v1::JOINT_TYPE_PRISMATIC : v1::JOINT_TYPE_REVOLUTE);
+    link->set_offset(l.offset);
+  }
+  for (const auto& l : model.limits) {
+    auto* limits = out.add_limits();
+    limits->set_min_position(l.min_position);
+    limits->set_max_position(l.max_position);
+    limits->set_max_velocity(l.max_velocity);
+    limits->set_max_acceleration(l.max_acceleration);
+    if (l.max_jerk) limits->set_max_jerk(*l.max_jerk);
+  }
+  set(out.mutable_base(), model.base);
+  set(out.mutable_tool(), model.tool);
+  for (double q : model.home) out.add_home(q);
+}
+
+core::Expected<RobotRequest> robot_from_request(const v1::PlanRequest& request, const RobotCatalog& catalog) {
+  const auto& spec = request.robot();
+  core::Violations out;
+  RobotRequest resolved;
+  switch (spec.model_source_case()) {
+    case v1::RobotSpec::kName: {
+      const auto* model = catalog.find(spec.name());
+      if (model == nullptr) {
+        std::string names;
+        for (const auto& m : catalog.models) names += (names.empty() ? "" : ", ") + m.name;
+        out.push_back({"robot.name", "unknown robot '" + spec.name() + "'; the server knows: " + names});
+      } else {
+        resolved.model = *model;
+      }
+      break;
+    }
+    case v1::RobotSpec::kModel: {
+      auto model = robot_model_from_proto(spec.model(), "robot.model.");
+      if (model) {
+        resolved.model = std::move(*model);
+      } else {
+        out = std::move(model.error());
+      }
+      break;
+    }
+    default:
+      out.push_back({"robot", "needs a model: `name` of a built-in model (see ListRobots) or an inline `model`"});
+  }
+  if (spec.has_base()) resolved.model.base = pose_from_proto(spec.base(), "robot.base", out);
+  if (spec.has_tool()) resolved.model.tool = pose_from_proto(spec.tool(), "robot.tool", out);
+  resolved.report_only = spec.report_only();
+  if (spec.has_branch_tolerance()) {
+    resolved.branch_tolerance = spec.branch_tolerance();
+    if (!(std::isfinite(resolved.branch_tolerance) && resolved.branch_tolerance > 0.0)) {
+      out.push_back({"robot.branchTolerance", "must be finite and > 0 [m], got " + fmt(resolved.branch_tolerance)});
+    }
+  }
+  const std::size_t n = resolved.model.dof();
+  if (n > 0) {
+    if (spec.initial_joints_size() == 0) {
+      resolved.seed = core::home_configuration(resolved.model);
+    } else if (static_cast<std::size_t>(spec.initial_joints_size()) != n) {
+      out.push_back({"robot.initialJoints", "has " + std::to_string(spec.initial_joints_size()) + " values for a " +
+                                                std::to_string(n) + "-joint robot"});
+    } else {
+      resolved.seed.resize(static_cast<Eigen::Index>(n));
+      for (std::size_t i = 0; i < n; ++i) {
+        const double q = spec.initial_joints(static_cast<int>(i));
+        const auto& l = resolved.model.limits[i];
+        if (!std::isfinite(q)) {
+          out.push_back({"robot.initialJoints[" + std::to_string(i) + "]", "must be finite, got " + fmt(q)});
+        } else if (q < l.min_position || q > l.max_position) {
+          out.push_back({"robot.initialJoints[" + std::to_string(i) + "]",
+                         fmt(q) + " is outside the joint's limits [" + fmt(l.min_position) + ", " +
+                             fmt(l.max_position) + "]"});
+        }
+        resolved.seed(static_cast<Eigen::Index>(i)) = q;
+      }
+    }
+  }
+  if (!out.empty()) return tl::unexpected(std::move(out));
+  return resolved;
+}
+
+void to_proto(const core::LimitEvent& event, v1::LimitEvent& out) {
+  out.set_kind(to_proto(event.kind));
+  out.set_joint(static_cast<std::uint32_t>(event.joint));
+  out.set_sample(event.sample);
+  out.set_t(event.t);
+  out.set_value(event.value);
+  out.set_limit(event.limit);
+  out.set_margin(event.margin);
+}
+
+std::string describe(const core::LimitEvent& e) {
+  const std::string where = " at t = " + fmt(e.t) + " s (sample " + std::to_string(e.sample) + ")";
+  const std::string joint = "joint " + std::to_string(e.joint);
+  switch (e.kind) {
+    case core::LimitKind::kPosition:
+      return joint + " position " + fmt(e.value) + " is outside its limits" + where + " (by " + fmt(-e.margin) + ")";
+    case core::LimitKind::kVelocity:
+      return joint + " speed " + fmt(e.value) + " exceeds maxVelocity " + fmt(e.limit) + where;
+    case core::LimitKind::kAcceleration:
+      return joint + " acceleration " + fmt(e.value) + " exceeds maxAcceleration " + fmt(e.limit) + where;
+    case core::LimitKind::kIk:
+      return "the inverse kinematics did not converge" + where + " (position residual " + fmt(e.value) +
+             " m): the pose is out of reach or at a singularity";
+    case core::LimitKind::kBranch:
+      return "joint interpolation strays " + fmt(e.value) + " m from the path" + where +
+             " (tolerance " + fmt(e.limit) + " m): a branch change or a singularity crossing";
+  }
+  return "limit event" + where;
+}
+
+void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out) {
+  out.set_name(robot_name);
+  for (std::size_t j = 0; j < report.joints.size(); ++j) {
+    const auto& u = report.joints[j];
+    auto* r = out.add_joints();
+    r->set_joint(static_cast<std::uint32_t>(j));
+    r->set_min_position(u.min_position);
+    r->set_max_position(u.max_position);
+    r->set_peak_velocity(u.peak_velocity);
+    r->set_peak_acceleration(u.peak_acceleration);
+    r->set_velocity_usage(u.velocity_usage);
+    r->set_acceleration_usage(u.acceleration_usage);
+    r->set_position_margin(u.position_margin);
+  }
+  out.set_samples(report.samples);
+  to_proto(report.tightest_position, *out.mutable_tightest_position());
+  to_proto(report.tightest_velocity, *out.mutable_tightest_velocity());
+  to_proto(report.tightest_acceleration, *out.mutable_tightest_acceleration());
+  out.set_max_ik_position_error(report.max_position_error);
+  out.set_max_ik_orientation_error(report.max_orientation_error);
+  out.set_max_midpoint_deviation(report.max_midpoint_deviation);
+  out.set_max_midpoint_deviation_t(report.max_midpoint_deviation_t);
+  out.set_min_manipulability(report.min_manipulability);
+  out.set_min_manipulability_t(report.min_manipulability_t);
+  out.set_feasible(report.feasible());
+  for (const auto& v : report.violations) to_proto(v, *out.add_violations());
+}
+
+core::Expected<core::JointMoveSpec> joint_move_from_request(const v1::PlanRequest& request,
+                                                             const core::RobotModel& /*model*/,
+                                                             const core::JointVector& seed) {
+  const auto& move = request.joint_move();
+  core::JointMoveSpec spec;
+  if (move.start_size() == 0) {
+    spec.start.assign(seed.data(), seed.data() + seed.size());
+  } else {
+    spec.start.assign(move.start().begin(), move.start().end());
+  }
+  spec.goal.assign(move.goal().begin(), move.goal().end());
+  if (spec.goal.empty()) {
+    return tl::unexpected(core::Violations{{"jointMove.goal", "is required: the joint values at the goal, one per joint"}});
+  }
+  return spec;  // sizes and limits: core::plan_joint_move
+}
+
+core::Expected<core::LinearMoveSpec> linear_move_from_request(const v1::PlanRequest& request,
+                                                               const RobotRequest* robot) {
+  const auto& move = request.linear_move();
+  core::Violations out;
+  core::LinearMoveSpec spec;
+  auto tool_pose = [](const v1::Pose& pose) {
+    core::ToolPose p;
+    p.p_WT = to_core(pose.position());
+    if (pose.has_orientation()) {
+      const auto& q = pose.orientation();
+      p.q_WT = Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z());  // by name; core checks its norm
+    }
+    return p;
+  };
+  if (move.has_start()) {
+    spec.start = tool_pose(move.start());
+  } else if (robot != nullptr) {
+    const Eigen::Isometry3d X = core::forward_kinematics(robot->model, robot->seed);
+    spec.start.p_WT = X.translation();
+    spec.start.q_WT = Eigen::Quaterniond(X.linear());
+  } else {
+    out.push_back({"linearMove.start", "is required without a robot (with one, the pose of its initialJoints)"});
+  }
+  if (move.has_goal()) {
+    spec.goal = tool_pose(move.goal());
+  } else {
+    out.push_back({"linearMove.goal", "is required: the tool pose at the end of the move"});
+  }
+  if (!out.empty()) return tl::unexpected(std::move(out));
+  return spec;
+}
+
+void to_proto(const core::TrajectorySample& sample, v1::Sample& out) {
+  out.set_t(sample.t);
+  out.set_u(sample.u);
+  out.set_s(sample.s);
+  out.set_segment(static_cast<std::uint32_t>(sample.segment));
+  set(out.mutable_position(), sample.tool.X_WT.translation());
+  set(out.mutable_velocity(), sample.tool.v_WT);
+  set(out.mutable_acceleration(), sample.tool.a_WT);
+  out.set_speed(sample.speed);
+  auto* q = out.mutable_orientation();  // wire order (w, x, y, z) by name
+  q->set_w(sample.q_WT.w());
+  q->set_x(sample.q_WT.x());
+  q->set_y(sample.q_WT.y());
+  q->set_z(sample.q_WT.z());
+  set(out.mutable_angular_velocity(), sample.tool.omega_WT);
+  if (!sample.has_joints) return;
+  const core::JointSample& joints = sample.joints;
+  const auto n = joints.q.size();
+  auto* qs = out.mutable_joints();
+  auto* qd = out.mutable_joint_velocities();
+  auto* qdd = out.mutable_joint_accelerations();
+  qs->Reserve(static_cast<int>(n));
+  qd->Reserve(static_cast<int>(n));
+  qdd->Reserve(static_cast<int>(n));
+  for (Eigen::Index i = 0; i < n; ++i) {
+    qs->Add(joints.q(i));
+    qd->Add(joints.q_dot(i));
+    qdd->Add(joints.q_ddot(i));
+  }
 }
 
 }  // namespace geotraj::server

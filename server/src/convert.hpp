@@ -6,6 +6,8 @@
 #pragma once
 
 #include <cstddef>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "geotraj/core/analysis.hpp"
@@ -15,6 +17,9 @@
 #include "geotraj/core/motion.hpp"
 #include "geotraj/core/orientation.hpp"
 #include "geotraj/core/path.hpp"
+#include "geotraj/core/joint_motion.hpp"
+#include "geotraj/core/robot.hpp"
+#include "geotraj/core/trajectory.hpp"
 #include "geotraj/v1/geotraj.pb.h"
 
 namespace geotraj::server {
@@ -50,8 +55,6 @@ std::size_t samples_per_batch(const v1::PlanRequest& request);
 /// PlanTrajectory's motion summary.
 void to_proto(const core::MotionPlan& plan, v1::MotionSummary& summary);
 
-/// One streamed sample: the translational sample and the tool orientation at it.
-void to_proto(const core::MotionSample& sample, const core::OrientationSample& orientation, v1::Sample& out);
 
 /// ConvertConstraints' answer: the parametric constraints of every frame, per side.
 void to_proto(const std::vector<core::FrameConstraints>& frames, v1::ConvertResponse& response);
@@ -64,5 +67,64 @@ void to_proto(const core::Path& path, const std::vector<core::AchievedFrame>& ac
 /// AnalyzePath's answer; derivatives per arc length.
 void to_proto(const core::Path& path, const std::vector<core::ProfilePoint>& points,
               v1::PathProfile& profile);
+
+// --- robots ---------------------------------------------------------------------------------
+
+/// The robot models a server knows by name: the built-in ones and those loaded from files.
+struct RobotCatalog {
+  std::vector<core::RobotModel> models;
+  const core::RobotModel* find(std::string_view name) const;
+};
+
+/// A RobotModel message as a core model, or every violation with field paths under
+/// `prefix` (`robot.model.limits[2].minPosition`): enum ranges, orientations that are not
+/// unit quaternions, then core's validate_robot.
+core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& model, const std::string& prefix);
+
+/// A robot model file: the proto3 JSON form of RobotModel (the form ListRobots returns, and
+/// `robot.model` of a request). Errors name the JSON problem or the field.
+core::Expected<core::RobotModel> robot_model_from_json(std::string_view json);
+
+/// The full model in its wire form (ListRobots, `geotraj robots`).
+void to_proto(const core::RobotModel& model, v1::RobotModel& out);
+
+/// What PlanRequest.robot asks for, resolved.
+struct RobotRequest {
+  core::RobotModel model;    ///< with the request's base and tool applied
+  core::JointVector seed;    ///< initialJoints, or the model's home
+  bool report_only = false;
+  double branch_tolerance = 1e-3;  ///< [m]
+};
+
+/// Default RobotSpec.branchTolerance [m].
+inline constexpr double kDefaultBranchTolerance = 1e-3;
+
+/// PlanRequest.robot resolved against `catalog`, or every violation (`robot.name` unknown,
+/// `robot.model...`, `robot.base.orientation`, `robot.initialJoints` size or limits,
+/// `robot.branchTolerance`). Precondition: request.has_robot().
+core::Expected<RobotRequest> robot_from_request(const v1::PlanRequest& request, const RobotCatalog& catalog);
+
+/// PlanTrajectory's joint-space report.
+void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out);
+
+/// One limit event (also used in error messages).
+void to_proto(const core::LimitEvent& event, v1::LimitEvent& out);
+
+/// A sentence naming a limit event: kind, joint, sample, time, value and limit.
+std::string describe(const core::LimitEvent& event);
+
+/// One streamed sample of any trajectory, with the joints when it has them.
+void to_proto(const core::TrajectorySample& sample, v1::Sample& out);
+
+/// PlanRequest.jointMove as a core spec: an empty start takes `seed` (initialJoints or the
+/// home configuration); sizes and limits are checked (`jointMove.goal[3]`, ...).
+core::Expected<core::JointMoveSpec> joint_move_from_request(const v1::PlanRequest& request,
+                                                             const core::RobotModel& model,
+                                                             const core::JointVector& seed);
+
+/// PlanRequest.linearMove as a core spec: an absent start takes the pose of the robot's
+/// seed configuration (with a robot); poses are checked (`linearMove.goal.orientation`).
+core::Expected<core::LinearMoveSpec> linear_move_from_request(const v1::PlanRequest& request,
+                                                               const RobotRequest* robot);
 
 }  // namespace geotraj::server

@@ -28,6 +28,11 @@ int main(int argc, char** argv) {
       ->envname("GEOTRAJ_MAX_REQUEST_BYTES")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  app.add_option("--robot-model", options.robot_model_files,
+                 "robot model file (proto3 JSON of geotraj.v1.RobotModel, as ListRobots prints it), served by its "
+                 "name beside the built-in models; repeat for several (environment: comma-separated)")
+      ->envname("GEOTRAJ_ROBOT_MODELS")
+      ->delimiter(',');
   CLI11_PARSE(app, argc, argv);
 
   // Block the stop signals in every thread (gRPC's threads inherit the mask) and take them

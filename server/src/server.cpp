@@ -5,6 +5,9 @@
 #include <grpcpp/security/server_credentials.h>
 #include <grpcpp/server_builder.h>
 
+#include <fstream>
+#include <sstream>
+
 #include "grpc/health/v1/health.pb.h"
 #include "service.hpp"
 
@@ -18,8 +21,25 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
   // describe grpc.health.v1.Health too (its messages are otherwise unused by the server).
   (void)grpc::health::v1::HealthCheckRequest::descriptor();
 
+  RobotCatalog robots{core::builtin_robots()};
+  for (const auto& file : options.robot_model_files) {
+    std::ifstream in(file);
+    if (!in) return tl::unexpected("cannot read the robot model file \"" + file + "\"");
+    std::ostringstream text;
+    text << in.rdbuf();
+    auto model = robot_model_from_json(text.str());
+    if (!model) {
+      std::string why;
+      for (const auto& v : model.error()) why += (why.empty() ? "" : "; ") + (v.field.empty() ? "" : v.field + ": ") + v.description;
+      return tl::unexpected("robot model file \"" + file + "\": " + why);
+    }
+    if (robots.find(model->name) != nullptr) {
+      return tl::unexpected("robot model file \"" + file + "\": a model named \"" + model->name + "\" is already known");
+    }
+    robots.models.push_back(std::move(*model));
+  }
   RunningServer running;
-  running.service = make_trajectory_service();
+  running.service = make_trajectory_service(std::move(robots));
   grpc::ServerBuilder builder;
   if (!options.address.empty()) {
     builder.AddListeningPort(options.address, grpc::InsecureServerCredentials(), &running.port);

@@ -3,6 +3,7 @@
 // violations to a status in status.cpp.
 #include "service.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <functional>
 #include <memory>
@@ -16,6 +17,7 @@
 #include "geotraj/core/motion.hpp"
 #include "geotraj/core/orientation.hpp"
 #include "geotraj/core/path.hpp"
+#include "geotraj/core/trajectory.hpp"
 #include "status.hpp"
 
 namespace geotraj::server {
@@ -41,12 +43,9 @@ class Abandon {
 
 // Features of the contract that later work adds; until then they get UNIMPLEMENTED naming
 // the request field.
-grpc::Status unsupported_parts(const v1::PlanRequest& request, bool robot_allowed) {
+grpc::Status unsupported_parts(const v1::PlanRequest& request) {
   if (request.has_optimize()) {
     return unimplemented("optimization is not available yet: send the PlanRequest without `optimize`");
-  }
-  if (request.has_robot() && !robot_allowed) {
-    return unimplemented("robot kinematics is not available yet: send the PlanRequest without `robot`");
   }
   return grpc::Status::OK;
 }
@@ -69,50 +68,179 @@ class FinishedWriter final : public grpc::ServerWriteReactor<v1::SampleBatch> {
   void OnDone() override { delete this; }
 };
 
-// Everything a motion needs, planned from one request: the path, the timing along it and
-// the tool orientation. Used by PlanTrajectory (with `motion`) and StreamSamples.
-struct PlannedMotion {
-  core::Path path;
-  core::MotionPlan timing;
-  core::OrientationPlan orientation;
+// Everything a request plans: the trajectory (along the path, or a move) and, with a
+// robot, the resolved robot. Used by PlanTrajectory (with `motion`) and StreamSamples.
+// The robot is shared so that its model keeps one address: a joint move's plan points to it.
+struct Planned {
+  core::Trajectory trajectory;
+  std::shared_ptr<const RobotRequest> robot;
 };
 
-// Plans the path and its motion, or the status to finish with (every violation of path and
-// motion together).
-tl::expected<PlannedMotion, grpc::Status> plan_motion(const v1::PlanRequest& request) {
-  const auto spec = path_from_request(request);
-  const auto motion = motion_from_request(request);
-  if (!spec || !motion) {
-    core::Violations all = spec ? core::Violations{} : spec.error();
-    if (!motion) all.insert(all.end(), motion.error().begin(), motion.error().end());
-    return tl::unexpected(invalid_argument(all));
+core::Violations joined(core::Violations a, const core::Violations& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+// Plans the trajectory of a request with `motion`, or the status to finish with (every
+// violation of the request's parts together).
+tl::expected<Planned, grpc::Status> plan_request(const v1::PlanRequest& request, const RobotCatalog& catalog) {
+  const int kinds = int(request.has_path()) + int(request.has_joint_move()) + int(request.has_linear_move());
+  if (kinds != 1) {
+    return tl::unexpected(invalid_argument(core::Violations{
+        {"path", kinds == 0 ? "is required: give the key frames of a `path`, or a `jointMove` or a `linearMove`"
+                            : "give exactly one of `path`, `jointMove` and `linearMove`"}}));
   }
+  core::Violations violations;
+  auto motion = motion_from_request(request);
+  if (!motion) violations = joined(std::move(violations), motion.error());
+  std::shared_ptr<const RobotRequest> robot;
+  if (request.has_robot()) {
+    auto resolved = robot_from_request(request, catalog);
+    if (resolved) {
+      robot = std::make_shared<const RobotRequest>(std::move(*resolved));
+    } else {
+      violations = joined(std::move(violations), resolved.error());
+    }
+  }
+  if (request.has_joint_move()) {
+    if (!request.has_robot()) {
+      violations.push_back({"robot", "is required by a jointMove: the joints belong to a robot model"});
+    }
+    if (!violations.empty()) return tl::unexpected(invalid_argument(violations));
+    auto move = joint_move_from_request(request, robot->model, robot->seed);
+    if (!move) return tl::unexpected(invalid_argument(move.error()));
+    auto plan = core::plan_joint_move(robot->model, *move, *motion);
+    if (!plan) return tl::unexpected(invalid_argument(plan.error()));
+    return Planned{core::Trajectory(std::in_place_type<core::JointMovePlan>, std::move(*plan)), std::move(robot)};
+  }
+  // Following a Cartesian pose (a path or a straight line) takes six joints at least.
+  if (robot && !request.has_joint_move() && robot->model.dof() < 6) {
+    violations.push_back({request.robot().has_model() ? "robot.model.links" : "robot",
+                          "the robot has " + std::to_string(robot->model.dof()) +
+                              " joints; following a tool pose (position and orientation) needs at least 6"});
+  }
+  if (request.has_linear_move()) {
+    if (!violations.empty()) return tl::unexpected(invalid_argument(violations));
+    auto move = linear_move_from_request(request, robot.get());
+    if (!move) return tl::unexpected(invalid_argument(move.error()));
+    auto plan = core::plan_linear_move(*move, *motion);
+    if (!plan) return tl::unexpected(invalid_argument(plan.error()));
+    return Planned{core::Trajectory(std::in_place_type<core::LinearMovePlan>, std::move(*plan)), std::move(robot)};
+  }
+  const auto spec = path_from_request(request);
+  if (!spec) violations = joined(spec.error(), violations);
+  if (!violations.empty()) return tl::unexpected(invalid_argument(violations));
   auto path = core::build_path(*spec);
   if (!path) return tl::unexpected(invalid_argument(core::prefixed(path.error(), "path.")));
   auto timing = core::plan_motion(*path, *motion);
   auto orientation = core::plan_orientation(*path);
   if (!timing || !orientation) {
     core::Violations all = timing ? core::Violations{} : timing.error();
-    if (!orientation) {
-      const auto more = core::prefixed(orientation.error(), "path.");
-      all.insert(all.end(), more.begin(), more.end());
-    }
+    if (!orientation) all = joined(std::move(all), core::prefixed(orientation.error(), "path."));
     return tl::unexpected(invalid_argument(all));
   }
-  return PlannedMotion{std::move(*path), std::move(*timing), std::move(*orientation)};
+  return Planned{core::Trajectory(std::in_place_type<core::PathMotion>,
+                                  core::PathMotion{std::move(*path), std::move(*timing), std::move(*orientation)}),
+                 std::move(robot)};
 }
 
-// The geometry, and with `motion` the motion summary too.
-grpc::Status plan_trajectory(const Abandon& abandon, const v1::PlanRequest& request, v1::PlanResponse& response) {
+// Samples between two checks of cancellation and deadline in the joint-space pass.
+constexpr std::size_t kSamplesPerCheck = 2048;
+
+// The joint-space pass over every sample: the report, or the status when the call was
+// abandoned. Also measures the tool's peak speed and acceleration (for the summary of
+// moves, whose Cartesian speed is known only by sampling).
+struct RobotPass {
+  core::JointMotionReport report;
+  double peak_speed = 0.0;
+  double peak_acceleration = 0.0;
+};
+
+tl::expected<RobotPass, grpc::Status> robot_pass(const Abandon& abandon, const Planned& planned) {
+  const RobotRequest& robot = *planned.robot;
+  core::TrajectorySampler sampler(planned.trajectory, &robot.model, robot.seed);
+  core::JointReportBuilder builder(robot.model, robot.branch_tolerance);
+  core::TrajectorySample sample;
+  RobotPass pass;
+  while (sampler.next(sample)) {
+    const std::size_t k = sampler.index() - 1;
+    builder.add(k, sample.t, sample.joints);
+    pass.peak_speed = std::max(pass.peak_speed, sample.speed);
+    pass.peak_acceleration = std::max(pass.peak_acceleration, sample.tool.a_WT.norm());
+    if (k % kSamplesPerCheck == 0) {
+      if (auto stop = abandon.check()) return tl::unexpected(*stop);
+    }
+  }
+  pass.report = builder.report();
+  return pass;
+}
+
+// FAILED_PRECONDITION naming the first broken limit (time, sample, joint) in the message
+// and every one in the details.
+grpc::Status robot_cannot_follow(const std::string& robot_name, const core::JointMotionReport& report) {
+  std::vector<PreconditionViolation> details;
+  for (const auto& v : report.violations) {
+    v1::LimitEvent event;
+    to_proto(v, event);
+    const bool per_joint = v.kind != core::LimitKind::kIk && v.kind != core::LimitKind::kBranch;
+    details.push_back({v1::LimitKind_Name(event.kind()),
+                       per_joint ? "joint " + std::to_string(v.joint) : "sample " + std::to_string(v.sample),
+                       describe(v)});
+  }
+  std::string message = "robot '" + robot_name + "' cannot follow the plan: " + describe(report.violations.front());
+  if (report.violations.size() > 1) {
+    message += "; and " + std::to_string(report.violations.size() - 1) +
+               " more in the PreconditionFailure details (set robot.reportOnly for the full report)";
+  }
+  return failed_precondition(message, details);
+}
+
+void summarize(const core::Trajectory& trajectory, const RobotPass* pass, v1::MotionSummary& summary) {
+  if (const auto* path = std::get_if<core::PathMotion>(&trajectory)) {
+    to_proto(path->timing, summary);
+    return;
+  }
+  summary.set_duration_s(core::duration(trajectory));
+  summary.set_sample_count(core::sample_count(trajectory));
+  if (const auto* linear = std::get_if<core::LinearMovePlan>(&trajectory)) {
+    summary.set_peak_speed(linear->peak_speed);
+    summary.set_peak_acceleration(linear->peak_acceleration);
+  } else if (pass != nullptr) {
+    summary.set_peak_speed(pass->peak_speed);
+    summary.set_peak_acceleration(pass->peak_acceleration);
+  }
+}
+
+// PlanTrajectory: the geometry; with `motion`, the motion summary; with a robot, the joint
+// report (or FAILED_PRECONDITION when the robot cannot follow, unless reportOnly).
+grpc::Status plan_trajectory(const Abandon& abandon, const RobotCatalog& catalog, const v1::PlanRequest& request,
+                             v1::PlanResponse& response) {
   if (auto stop = abandon.check()) return *stop;
-  if (auto status = unsupported_parts(request, /*robot_allowed=*/false); !status.ok()) return status;
-  if (request.has_motion()) {
-    auto planned = plan_motion(request);
+  if (auto status = unsupported_parts(request); !status.ok()) return status;
+  const bool motion_needed = request.has_robot() || request.has_joint_move() || request.has_linear_move();
+  if (request.has_motion() || motion_needed) {
+    if (!request.has_motion()) {
+      return invalid_argument(core::Violations{
+          {"motion", "is required with a robot or a move: give durationS (s), or the limits for a minimum-time move"}});
+    }
+    auto planned = plan_request(request, catalog);
     if (!planned) return planned.error();
     if (auto stop = abandon.check()) return *stop;
-    const auto achieved = core::achieved_geometry(planned->path);
-    to_proto(planned->path, achieved, core::closed_loop_error(planned->path, achieved), response);
-    to_proto(planned->timing, *response.mutable_motion());
+    if (const auto* path = std::get_if<core::PathMotion>(&planned->trajectory)) {
+      const auto achieved = core::achieved_geometry(path->path);
+      to_proto(path->path, achieved, core::closed_loop_error(path->path, achieved), response);
+    }
+    std::optional<RobotPass> pass;
+    if (planned->robot) {
+      auto result = robot_pass(abandon, *planned);
+      if (!result) return result.error();
+      pass = std::move(*result);
+      if (!pass->report.feasible() && !planned->robot->report_only) {
+        return robot_cannot_follow(planned->robot->model.name, pass->report);
+      }
+      to_proto(planned->robot->model.name, pass->report, *response.mutable_robot());
+    }
+    summarize(planned->trajectory, pass ? &*pass : nullptr, *response.mutable_motion());
     return grpc::Status::OK;
   }
   const auto spec = path_from_request(request);
@@ -127,16 +255,19 @@ grpc::Status plan_trajectory(const Abandon& abandon, const v1::PlanRequest& requ
 
 // StreamSamples: samples are produced batch by batch while the previous batch is being
 // written (one write in flight), so memory is bounded by one batch whatever the motion's
-// length. Cancellation or a passed deadline ends the stream at the next batch.
+// length. Cancellation or a passed deadline ends the stream at the next batch. With a
+// robot, the whole motion has been checked (robot_pass) before the first sample is sent, so
+// a controller never receives the beginning of a motion the robot cannot finish.
 //
 // Real-time pacing: a sample is sent when due (t seconds after the stream started); while
 // the next one is not due, an alarm wakes the reactor, and cancellation cancels the alarm.
 class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
  public:
-  SampleStreamer(grpc::CallbackServerContext& context, PlannedMotion planned, std::size_t batch_size, bool real_time)
+  SampleStreamer(grpc::CallbackServerContext& context, Planned planned, std::size_t batch_size, bool real_time)
       : abandon_(context),
-        planned_(std::make_unique<PlannedMotion>(std::move(planned))),
-        sampler_(planned_->path, planned_->timing),
+        planned_(std::make_unique<Planned>(std::move(planned))),
+        sampler_(planned_->trajectory, planned_->robot ? &planned_->robot->model : nullptr,
+                 planned_->robot ? planned_->robot->seed : core::JointVector()),
         batch_size_(batch_size),
         real_time_(real_time),
         start_(std::chrono::system_clock::now()) {
@@ -184,13 +315,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
           return;
         }
       }
-      auto orientation = core::orientation_at(planned_->orientation, planned_->path, pending_.segment,
-                                              pending_.u - static_cast<double>(pending_.segment), pending_.s,
-                                              pending_.speed);
-      // q and -q are one rotation: keep successive samples in one hemisphere.
-      if (orientation.q_WT.coeffs().dot(previous_q_.coeffs()) < 0.0) orientation.q_WT.coeffs() *= -1.0;
-      previous_q_ = orientation.q_WT;
-      to_proto(pending_, orientation, *batch_.add_samples());
+      to_proto(pending_, *batch_.add_samples());
       has_pending_ = false;
     }
     if (batch_.samples_size() == 0) {
@@ -201,24 +326,23 @@ class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
   }
 
   Abandon abandon_;
-  std::unique_ptr<PlannedMotion> planned_;  // stable address: the sampler refers to it
-  core::MotionSampler sampler_;
+  std::unique_ptr<Planned> planned_;  // stable address: the sampler refers to it
+  core::TrajectorySampler sampler_;
   std::size_t batch_size_;
   bool real_time_;
   std::chrono::system_clock::time_point start_;
   grpc::Alarm alarm_;
-  core::MotionSample pending_;  // taken from the sampler, not yet sent
+  core::TrajectorySample pending_;  // taken from the sampler, not yet sent
   bool has_pending_ = false;
   v1::SampleBatch batch_;
-  Eigen::Quaterniond previous_q_ = Eigen::Quaterniond::Identity();
 };
 
 grpc::ServerWriteReactor<v1::SampleBatch>* stream_samples(grpc::CallbackServerContext& context,
+                                                          const RobotCatalog& catalog,
                                                           const v1::PlanRequest& request) {
-  if (auto stop = Abandon(context).check()) return new FinishedWriter(*stop);
-  if (auto status = unsupported_parts(request, /*robot_allowed=*/false); !status.ok()) {
-    return new FinishedWriter(status);
-  }
+  const Abandon abandon(context);
+  if (auto stop = abandon.check()) return new FinishedWriter(*stop);
+  if (auto status = unsupported_parts(request); !status.ok()) return new FinishedWriter(status);
   if (!request.has_motion()) {
     return new FinishedWriter(invalid_argument(core::Violations{
         {"motion", "is required to stream samples: give durationS (s), or maxSpeed and maxAcceleration"}}));
@@ -228,8 +352,21 @@ grpc::ServerWriteReactor<v1::SampleBatch>* stream_samples(grpc::CallbackServerCo
         core::Violations{{"pacing", "unknown value " + std::to_string(request.pacing()) +
                                         "; use STREAM_PACING_AS_FAST_AS_POSSIBLE or STREAM_PACING_REAL_TIME"}}));
   }
-  auto planned = plan_motion(request);
+  auto planned = plan_request(request, catalog);
   if (!planned) return new FinishedWriter(planned.error());
+  if (planned->robot) {
+    auto pass = robot_pass(abandon, *planned);
+    if (!pass) return new FinishedWriter(pass.error());
+    // reportOnly streams a motion that breaks joint limits (for simulation and analysis),
+    // never one whose IK failed or jumped branches: those joints would be meaningless.
+    const auto& violations = pass->report.violations;
+    const bool only_limits = std::all_of(violations.begin(), violations.end(), [](const core::LimitEvent& e) {
+      return e.kind != core::LimitKind::kIk && e.kind != core::LimitKind::kBranch;
+    });
+    if (!pass->report.feasible() && !(planned->robot->report_only && only_limits)) {
+      return new FinishedWriter(robot_cannot_follow(planned->robot->model.name, pass->report));
+    }
+  }
   return new SampleStreamer(context, std::move(*planned), samples_per_batch(request),
                             request.pacing() == v1::STREAM_PACING_REAL_TIME);
 }
@@ -237,7 +374,7 @@ grpc::ServerWriteReactor<v1::SampleBatch>* stream_samples(grpc::CallbackServerCo
 // The analysis is the path's geometry: a robot, when given, does not change it.
 grpc::Status analyze_path(const Abandon& abandon, const v1::PlanRequest& request, v1::PathProfile& profile) {
   if (auto stop = abandon.check()) return *stop;
-  if (auto status = unsupported_parts(request, /*robot_allowed=*/true); !status.ok()) return status;
+  if (auto status = unsupported_parts(request); !status.ok()) return status;
   const auto spec = path_from_request(request);
   if (!spec) return invalid_argument(spec.error());
   const auto path = core::build_path(*spec);
@@ -259,13 +396,13 @@ class TrajectoryService final : public v1::TrajectoryService::CallbackService {
   grpc::ServerUnaryReactor* PlanTrajectory(grpc::CallbackServerContext* context, const v1::PlanRequest* request,
                                            v1::PlanResponse* response) override {
     auto* reactor = context->DefaultReactor();
-    reactor->Finish(plan_trajectory(Abandon(*context), *request, *response));
+    reactor->Finish(plan_trajectory(Abandon(*context), robots_, *request, *response));
     return reactor;
   }
 
   grpc::ServerWriteReactor<v1::SampleBatch>* StreamSamples(grpc::CallbackServerContext* context,
                                                            const v1::PlanRequest* request) override {
-    return stream_samples(*context, *request);
+    return stream_samples(*context, robots_, *request);
   }
 
   grpc::ServerUnaryReactor* AnalyzePath(grpc::CallbackServerContext* context, const v1::PlanRequest* request,
@@ -276,18 +413,24 @@ class TrajectoryService final : public v1::TrajectoryService::CallbackService {
   }
 
   grpc::ServerUnaryReactor* ListRobots(grpc::CallbackServerContext* context, const v1::ListRobotsRequest* /*request*/,
-                                       v1::ListRobotsResponse* /*response*/) override {
+                                       v1::ListRobotsResponse* response) override {
     auto* reactor = context->DefaultReactor();
-    reactor->Finish(
-        unimplemented("ListRobots is not available yet: the built-in robot models (PA-10) are future work"));
+    for (const auto& model : robots_.models) to_proto(model, *response->add_robots());
+    reactor->Finish(grpc::Status::OK);
     return reactor;
   }
+
+ public:
+  explicit TrajectoryService(RobotCatalog robots) : robots_(std::move(robots)) {}
+
+ private:
+  const RobotCatalog robots_;
 };
 
 }  // namespace
 
-std::unique_ptr<v1::TrajectoryService::CallbackService> make_trajectory_service() {
-  return std::make_unique<TrajectoryService>();
+std::unique_ptr<v1::TrajectoryService::CallbackService> make_trajectory_service(RobotCatalog robots) {
+  return std::make_unique<TrajectoryService>(std::move(robots));
 }
 
 }  // namespace geotraj::server

@@ -41,6 +41,21 @@ grpc::Status invalid_argument(const core::Violations& violations) {
   return {grpc::StatusCode::INVALID_ARGUMENT, status.message(), status.SerializeAsString()};
 }
 
+grpc::Status failed_precondition(const std::string& message, const std::vector<PreconditionViolation>& violations) {
+  google::rpc::PreconditionFailure failure;
+  for (const auto& v : violations) {
+    auto* out = failure.add_violations();
+    out->set_type(v.type);
+    out->set_subject(v.subject);
+    out->set_description(v.description);
+  }
+  google::rpc::Status status;
+  status.set_code(grpc::StatusCode::FAILED_PRECONDITION);
+  status.set_message(message);
+  status.add_details()->PackFrom(failure);
+  return {grpc::StatusCode::FAILED_PRECONDITION, message, status.SerializeAsString()};
+}
+
 grpc::Status unimplemented(const std::string& what) {
   return {grpc::StatusCode::UNIMPLEMENTED, what};
 }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <grpcpp/support/status.h>
 
@@ -15,6 +16,18 @@ namespace geotraj::server {
 /// one google.rpc.BadRequest whose field violations are `violations`, in order. The field
 /// paths must already be complete (`path.frames[2].torsion`).
 grpc::Status invalid_argument(const core::Violations& violations);
+
+/// One unmet precondition of a plan (google.rpc.PreconditionFailure.Violation).
+struct PreconditionViolation {
+  std::string type;         ///< e.g. "LIMIT_KIND_VELOCITY"
+  std::string subject;      ///< e.g. "joint 3"
+  std::string description;  ///< a sentence naming time, sample, value and limit
+};
+
+/// FAILED_PRECONDITION: work the request describes well but that cannot be done (the robot
+/// cannot follow the plan). The message is `message`; the details hold a
+/// google.rpc.PreconditionFailure with `violations`.
+grpc::Status failed_precondition(const std::string& message, const std::vector<PreconditionViolation>& violations);
 
 /// UNIMPLEMENTED for a feature that this server does not provide yet, named in `what`.
 grpc::Status unimplemented(const std::string& what);

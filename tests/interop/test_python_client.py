@@ -2,7 +2,9 @@
 """geotraj from a client in another language: Python's grpcio against a real geotrajd.
 
 Checks the thesis's numbers, the closed loop, the analysis profile recomputed here from its
-own positions, and the error details (google.rpc.BadRequest) that clients depend on.
+own positions, the robots (the streamed joints through a forward kinematics written here
+from the ListRobots answer), and the error details (google.rpc.BadRequest,
+google.rpc.PreconditionFailure) that clients depend on.
 Run: test_python_client.py --server build/server/geotrajd --stubs build/tests/interop/pystubs
 """
 import argparse
@@ -247,6 +249,150 @@ class PythonClient(unittest.TestCase):
         call.cancel()
         self.assertEqual(call.code(), grpc.StatusCode.CANCELLED)
         self.assertLess(self.stub.PlanTrajectory(pb.PlanRequest(path=self.demo_path("A"))).closed_loop.max_error, 1e-9)
+
+    # --- robots --------------------------------------------------------------------------
+
+    def robot_models(self):
+        return {m.name: m for m in self.stub.ListRobots(pb.ListRobotsRequest()).robots}
+
+    def test_list_robots(self):
+        models = self.robot_models()
+        self.assertEqual(set(models), {"pa10", "ur5"})
+        for name, dof, convention in (("pa10", 7, pb.DH_CONVENTION_MODIFIED), ("ur5", 6, pb.DH_CONVENTION_STANDARD)):
+            m = models[name]
+            self.assertEqual(m.dh_convention, convention)
+            self.assertEqual((len(m.links), len(m.limits), len(m.home)), (dof, dof, dof))
+            self.assertTrue(m.description)
+            for lim, q in zip(m.limits, m.home):
+                self.assertLess(lim.min_position, lim.max_position)
+                self.assertGreater(lim.max_velocity, 0.0)
+                self.assertGreater(lim.max_acceleration, 0.0)
+                self.assertTrue(lim.min_position <= q <= lim.max_position)
+        # The PA-10's home holds the tool at the demonstration's first key frame.
+        self.assertLess(math.dist(translation(forward_kinematics(models["pa10"], models["pa10"].home)),
+                                  (0.106, 0.0, 0.975)), 1e-6)
+
+    def test_stream_joints_reproduce_the_path(self):
+        # Joint-space motions of the PA-10 within its limits: path C of the demonstration over
+        # 60 s (IK at every sample) and a 3 s joint move. The streamed joints go through the
+        # forward kinematics above, built from the ListRobots answer only.
+        pa10 = self.robot_models()["pa10"]
+        path_c = self.motion_request("C", 60.0)
+        path_c.robot.name = "pa10"
+        joint_move = pb.PlanRequest(joint_move=pb.JointMove(goal=[0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8]))
+        joint_move.robot.name = "pa10"
+        joint_move.motion.duration_s = 3.0
+        joint_move.motion.cycle_rate_hz = 500.0
+        for name, req, count in (("path C", path_c, 6001), ("joint move", joint_move, 1501)):
+            with self.subTest(name):
+                plan = self.stub.PlanTrajectory(req)
+                self.assertTrue(plan.robot.feasible)
+                samples = [s for batch in self.stub.StreamSamples(req, timeout=60) for s in batch.samples]
+                self.assertEqual(len(samples), count)
+                self.assertEqual(plan.motion.sample_count, count)
+                fk = []
+                for s in samples:
+                    self.assertEqual((len(s.joints), len(s.joint_velocities), len(s.joint_accelerations)), (7, 7, 7))
+                    p = translation(forward_kinematics(pa10, s.joints))
+                    # The IK's residual is at most 1e-9 m.
+                    self.assertLess(math.dist(p, (s.position.x, s.position.y, s.position.z)), 1e-8, f"t = {s.t}")
+                    fk.append(p)
+                # The speed measured on the recomputed path (chord over period) against the
+                # streamed speed, averaged over the period: they differ by the chord's
+                # shortfall on the arc and the change of speed within the period, both
+                # second order in the period; loosely, 1 % of the peak speed.
+                peak = max(s.speed for s in samples)
+                self.assertAlmostEqual(peak, plan.motion.peak_speed, delta=1e-3 * peak)
+                worst = 0.0
+                for a, b, p_a, p_b in zip(samples, samples[1:], fk, fk[1:]):
+                    if name == "path C" and a.u < 2.0 < b.u:
+                        continue  # the path reverses at the cusp inside this period
+                    measured = math.dist(p_a, p_b) / (b.t - a.t)
+                    worst = max(worst, abs(measured - 0.5 * (a.speed + b.speed)))
+                self.assertLess(worst, 1e-2 * peak)
+
+    def test_robot_cannot_follow_details(self):
+        # Path A in the thesis's 10 s is too fast for the PA-10: FAILED_PRECONDITION with a
+        # google.rpc.PreconditionFailure listing the report's violations.
+        req = self.motion_request("A", 10.0)
+        req.robot.name = "pa10"
+        with self.assertRaises(grpc.RpcError) as ctx:
+            self.stub.PlanTrajectory(req)
+        err = ctx.exception
+        self.assertEqual(err.code(), grpc.StatusCode.FAILED_PRECONDITION)
+        for words in ("pa10", "joint", "t =", "sample"):
+            self.assertIn(words, err.details())
+        details = dict(err.trailing_metadata()).get("grpc-status-details-bin")
+        self.assertIsNotNone(details, "no google.rpc.Status in the trailers")
+        status = status_pb2.Status.FromString(details)
+        self.assertEqual(status.code, grpc.StatusCode.FAILED_PRECONDITION.value[0])
+        violations = []
+        for any_detail in status.details:
+            failure = error_details_pb2.PreconditionFailure()
+            if any_detail.Unpack(failure):
+                violations.extend(failure.violations)
+        req.robot.report_only = True
+        report = self.stub.PlanTrajectory(req).robot
+        self.assertFalse(report.feasible)
+        self.assertEqual([(v.type, v.subject) for v in violations],
+                         [(pb.LimitKind.Name(e.kind), f"joint {e.joint}") for e in report.violations])
+        for v, e in zip(violations, report.violations):
+            self.assertIn(f"sample {e.sample}", v.description)
+
+
+# Forward kinematics of a geotraj.v1.RobotModel, from the conventions the proto states, with
+# 4x4 homogeneous matrices as lists (no numpy): X_WT = base A_1(q_1) ... A_n(q_n) tool,
+# modified DH A_i = RotX(alpha) TransX(a) RotZ(theta) TransZ(d), standard DH
+# A_i = RotZ(theta) TransZ(d) TransX(a) RotX(alpha); theta = theta_i + offset_i + q_i
+# (revolute) or d = d_i + offset_i + q_i (prismatic). Units: m, rad.
+def matmul(a, b):
+    return [[sum(a[i][k] * b[k][j] for k in range(4)) for j in range(4)] for i in range(4)]
+
+
+def rot_x(angle):
+    c, s = math.cos(angle), math.sin(angle)
+    return [[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1]]
+
+
+def rot_z(angle):
+    c, s = math.cos(angle), math.sin(angle)
+    return [[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+
+
+def trans(x, y, z):
+    return [[1, 0, 0, x], [0, 1, 0, y], [0, 0, 1, z], [0, 0, 0, 1]]
+
+
+def pose_matrix(pose):
+    m = trans(pose.position.x, pose.position.y, pose.position.z)
+    if pose.HasField("orientation"):
+        q = pose.orientation  # (w, x, y, z) by name
+        n = math.sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z)
+        w, x, y, z = q.w / n, q.x / n, q.y / n, q.z / n
+        r = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+             [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+             [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+        for i in range(3):
+            m[i][:3] = r[i]
+    return m
+
+
+def forward_kinematics(model, q):
+    x = pose_matrix(model.base)
+    for link, qi in zip(model.links, q):
+        prismatic = link.joint_type == pb.JOINT_TYPE_PRISMATIC
+        theta = link.theta + (0.0 if prismatic else link.offset + qi)
+        d = link.d + (link.offset + qi if prismatic else 0.0)
+        if model.dh_convention == pb.DH_CONVENTION_MODIFIED:
+            a = matmul(matmul(rot_x(link.alpha), trans(link.a, 0, 0)), matmul(rot_z(theta), trans(0, 0, d)))
+        else:
+            a = matmul(matmul(rot_z(theta), trans(0, 0, d)), matmul(trans(link.a, 0, 0), rot_x(link.alpha)))
+        x = matmul(x, a)
+    return matmul(x, pose_matrix(model.tool))
+
+
+def translation(x):
+    return (x[0][3], x[1][3], x[2][3])
 
 
 if __name__ == "__main__":

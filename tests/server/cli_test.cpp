@@ -3,7 +3,10 @@
 #include <sys/wait.h>
 
 #include <cstdio>
+#include <sstream>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <gmock/gmock.h>
 
@@ -84,6 +87,91 @@ TEST(Cli, UnreadableRequestExitsWithUsageError) {
   const CliRun run = run_cli("plan -", /*merge_stderr=*/true, R"({"path": {"frames": 3}})");
   EXPECT_EQ(run.exit_code, 2);
   EXPECT_THAT(run.out, HasSubstr("geotraj.v1.PlanRequest"));
+}
+
+// --- robots ---------------------------------------------------------------------------------
+
+TEST(Cli, RobotsListsTheBuiltInModels) {
+  const CliRun run = run_cli("robots");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_THAT(run.out, HasSubstr("pa10  (7 joints, MODIFIED DH)"));
+  EXPECT_THAT(run.out, HasSubstr("ur5  (6 joints, STANDARD DH)"));
+
+  const CliRun json = run_cli("--json robots");
+  ASSERT_EQ(json.exit_code, 0) << json.out;
+  const auto robots = from_json<v1::ListRobotsResponse>(json.out);
+  ASSERT_EQ(robots.robots_size(), 2);
+  EXPECT_EQ(robots.robots(0).links_size() + robots.robots(1).links_size(), 13);
+}
+
+// The fields of one CSV line.
+std::vector<std::string> csv_fields(const std::string& line) {
+  std::vector<std::string> fields;
+  std::stringstream in(line);
+  for (std::string field; std::getline(in, field, ',');) fields.push_back(field);
+  return fields;
+}
+
+TEST(Cli, StreamOfARobotRequestHasJointColumns) {
+  // A 3 s joint move of the PA-10 at 100 Hz (within its limits): 301 samples.
+  const CliRun run = run_cli("stream -", /*merge_stderr=*/false,
+                             R"({"jointMove": {"goal": [0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8]},
+                                 "robot": {"name": "pa10"}, "motion": {"durationS": 3}})");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  std::stringstream out(run.out);
+  std::string header;
+  ASSERT_TRUE(std::getline(out, header));
+  std::string expected = "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz";
+  for (const char* name : {"q", "qd", "qdd"}) {
+    for (int j = 1; j <= 7; ++j) expected += "," + std::string(name) + std::to_string(j);
+  }
+  EXPECT_EQ(header, expected);
+  std::vector<std::string> last;
+  int rows = 0;
+  for (std::string line; std::getline(out, line); ++rows) {
+    last = csv_fields(line);
+    ASSERT_EQ(last.size(), 42u) << line;
+  }
+  EXPECT_EQ(rows, 301);
+  ASSERT_EQ(last.size(), 42u);
+  const double goal[7] = {0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8};
+  for (int j = 0; j < 7; ++j) {
+    EXPECT_EQ(std::stod(last[21 + j]), goal[j]) << "q" << j + 1;  // %.17g: exact
+    EXPECT_EQ(std::stod(last[28 + j]), 0.0) << "qd" << j + 1;
+  }
+}
+
+TEST(Cli, PlanWithAReportOnlyRobotPrintsTheJointTable) {
+  // Path C in the thesis's 10 s is too fast for the PA-10; the example asks for the report.
+  const CliRun run = run_cli("plan " + example_path("plan_pa10_path_c.json"));
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_THAT(run.out, HasSubstr("robot pa10: 1001 samples, LIMITS BROKEN"));
+  EXPECT_THAT(run.out, HasSubstr("joint     min q       max q"));
+  EXPECT_THAT(run.out, HasSubstr("tightest acceleration: ACCELERATION"));
+  EXPECT_THAT(run.out, HasSubstr("VIOLATION ACCELERATION"));
+}
+
+TEST(Cli, RobotThatCannotFollowFailsWithFailedPrecondition) {
+  std::string request = example_text("plan_pa10_path_c.json");
+  const std::string report_only = "\"reportOnly\": true";
+  const auto at = request.find(report_only);
+  ASSERT_NE(at, std::string::npos);
+  request.replace(at, report_only.size(), "\"reportOnly\": false");
+  const CliRun run = run_cli("plan -", /*merge_stderr=*/true, request);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_THAT(run.out, HasSubstr("FAILED_PRECONDITION"));
+  EXPECT_THAT(run.out, HasSubstr("robot 'pa10' cannot follow the plan: joint"));
+}
+
+// Every robot example file beside examples.sh plans with the CLI.
+TEST(Cli, RobotExamplesPlan) {
+  for (const auto& [file, robot] : {std::pair<std::string, std::string>{"plan_pa10_path_c.json", "pa10"},
+                                    {"joint_move_pa10.json", "pa10"},
+                                    {"linear_move_ur5.json", "ur5"}}) {
+    const CliRun run = run_cli("plan " + example_path(file), /*merge_stderr=*/true);
+    EXPECT_EQ(run.exit_code, 0) << file << "\n" << run.out;
+    EXPECT_THAT(run.out, HasSubstr("robot " + robot + ": ")) << file;
+  }
 }
 
 // The same CLI against a server on a loopback port.

@@ -135,17 +135,11 @@ TEST_F(ErrorTest, AllViolationsAreCollected) {
   }
 }
 
-TEST_F(ErrorTest, RobotAndOptimizeAreNotAvailableYet) {
+TEST_F(ErrorTest, OptimizeIsNotAvailableYet) {
   auto request = demo_request('a');
-  request.mutable_robot()->set_name("pa10");
   v1::PlanResponse response;
-  auto status = plan(request, response);
-  EXPECT_EQ(status.error_code(), grpc::StatusCode::UNIMPLEMENTED);
-  EXPECT_THAT(status.error_message(), HasSubstr("robot kinematics is not available yet"));
-
-  request.clear_robot();
   request.mutable_optimize()->mutable_tangent_scales();
-  status = plan(request, response);
+  auto status = plan(request, response);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::UNIMPLEMENTED);
   EXPECT_THAT(status.error_message(), HasSubstr("optimize"));
 
@@ -181,15 +175,6 @@ TEST_F(ErrorTest, StreamSamplesNamesBadMotionFields) {
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(status.error_message(), HasSubstr("motion.rampFraction"));
   EXPECT_THAT(status.error_message(), HasSubstr("motion.cycleRateHz"));
-}
-
-TEST_F(ErrorTest, ListRobotsIsNotAvailableYet) {
-  grpc::Status status;
-  v1::ListRobotsResponse robots;
-  auto context = ServerTest::context();
-  status = stub_->ListRobots(context.get(), v1::ListRobotsRequest{}, &robots);
-  EXPECT_EQ(status.error_code(), grpc::StatusCode::UNIMPLEMENTED);
-  EXPECT_THAT(status.error_message(), HasSubstr("ListRobots"));
 }
 
 }  // namespace

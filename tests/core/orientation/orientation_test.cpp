@@ -3,8 +3,11 @@
 // unit quaternions, continuity along the path and across frames and cusps, Frenet frames
 // against local_geometry, parallel transport (z on the tangent, no twist, no flip through a
 // straight stretch), SLERP targets at segment ends, angular velocity against central
-// differences, the errors that name their field, and no heap allocation per sample.
+// differences, angular acceleration against central differences of the angular velocity
+// along a timed motion, the errors that name their field, and no heap allocation per sample.
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <string>
 #include <vector>
@@ -13,6 +16,7 @@
 
 #include "geotraj/core/arc_length.hpp"
 #include "geotraj/core/differential_geometry.hpp"
+#include "geotraj/core/motion.hpp"
 #include "geotraj/core/orientation.hpp"
 #include "test_support.hpp"
 #include "allocation_counter.hpp"
@@ -124,7 +128,7 @@ std::vector<Sampled> sample_path(const Path& path, const OrientationPlan& plan, 
       const double u = static_cast<double>(k) / per_segment;
       s += core::segment_arc_length(path.segments[i], prev, u);
       prev = u;
-      out.push_back({i, u, s, core::orientation_at(plan, path, i, u, s, s_dot)});
+      out.push_back({i, u, s, core::orientation_at(plan, path, i, u, s, s_dot, 0.0)});
     }
   }
   return out;
@@ -176,9 +180,9 @@ void check_angular_velocity(const Path& path, const OrientationPlan& plan, const
       const double s0 = path.cumulative_lengths[i] + core::segment_arc_length(path.segments[i], 0.0, u);
       const double sm = s0 - core::segment_arc_length(path.segments[i], u - h, u);
       const double sp = s0 + core::segment_arc_length(path.segments[i], u, u + h);
-      const auto o = core::orientation_at(plan, path, i, u, s0, s_dot);
-      const auto om = core::orientation_at(plan, path, i, u - h, sm, s_dot);
-      const auto op = core::orientation_at(plan, path, i, u + h, sp, s_dot);
+      const auto o = core::orientation_at(plan, path, i, u, s0, s_dot, 0.0);
+      const auto om = core::orientation_at(plan, path, i, u - h, sm, s_dot, 0.0);
+      const auto op = core::orientation_at(plan, path, i, u + h, sp, s_dot, 0.0);
       const Vector3d fd = rotation_vector(op.q_WT * om.q_WT.conjugate()) / ((sp - sm) / s_dot);
       EXPECT_LE((fd - o.omega_W).norm(), 1e-6 + 1e-5 * o.omega_W.norm())
           << what << " segment " << i << " u " << u << "\n analytic " << o.omega_W.transpose() << "\n differences "
@@ -238,7 +242,7 @@ void check_mode(const Path& path, const OrientationPlan& plan, OrientationMode m
       const Quaterniond target = mode == OrientationMode::kCustom
                                      ? custom_target(i)
                                      : core::tool_frame(frames[next].T_W, *frames[next].N_W);
-      const auto end = core::orientation_at(plan, path, i, 1.0, path.cumulative_lengths[i + 1], 1.0);
+      const auto end = core::orientation_at(plan, path, i, 1.0, path.cumulative_lengths[i + 1], 1.0, 0.0);
       EXPECT_LT(end.q_WT.angularDistance(target), 1e-12) << what << " segment " << i;
       // Angular velocity about the fixed SLERP axis: theta / L_i at s_dot = 1.
       EXPECT_NEAR(end.omega_W.norm(), plan.segments[i].theta / path.segment_lengths[i], 1e-12);
@@ -298,8 +302,8 @@ TEST(Orientation, CuspKeepsToolZAlongKeyFrameTangent) {
     EXPECT_FALSE(plan->segments[1].flipped);
     EXPECT_TRUE(plan->segments[2].flipped);
     const Vector3d T2 = path.spec.frames[2].T_W;
-    const auto before = core::orientation_at(*plan, path, 1, 1.0, path.cumulative_lengths[2], 0.0);
-    const auto after = core::orientation_at(*plan, path, 2, 0.0, path.cumulative_lengths[2], 0.0);
+    const auto before = core::orientation_at(*plan, path, 1, 1.0, path.cumulative_lengths[2], 0.0, 0.0);
+    const auto after = core::orientation_at(*plan, path, 2, 0.0, path.cumulative_lengths[2], 0.0, 0.0);
     EXPECT_TRUE(VecNear(before.q_WT * Vector3d::UnitZ(), T2, 1e-9)) << name(mode);
     EXPECT_TRUE(VecNear(after.q_WT * Vector3d::UnitZ(), T2, 1e-9)) << name(mode);
     // The direction of motion after the cusp is -T2.
@@ -314,10 +318,10 @@ TEST(Orientation, ParallelTransportThroughStraightStretch) {
   const auto plan = core::plan_orientation(path);
   ASSERT_TRUE(plan) << plan.error().front().field << ": " << plan.error().front().description;
   check_mode(path, *plan, OrientationMode::kParallelTransport, "straight stretch");
-  const auto start = core::orientation_at(*plan, path, 1, 0.0, path.cumulative_lengths[1], 1.0);
+  const auto start = core::orientation_at(*plan, path, 1, 0.0, path.cumulative_lengths[1], 1.0, 0.0);
   for (const double u : {0.1, 0.37, 0.5, 0.81, 1.0}) {
     const double s = path.cumulative_lengths[1] + core::segment_arc_length(path.segments[1], 0.0, u);
-    const auto o = core::orientation_at(*plan, path, 1, u, s, 1.0);
+    const auto o = core::orientation_at(*plan, path, 1, u, s, 1.0, 0.0);
     EXPECT_LT(o.q_WT.angularDistance(start.q_WT), 1e-12) << u;
     EXPECT_LT(o.omega_W.norm(), 1e-12) << u;
   }
@@ -338,7 +342,7 @@ TEST(Orientation, ParallelTransportIsFrenetOnPlaneCurve) {
   for (std::size_t i = 0; i < path.segment_count(); ++i) {
     for (const double u : {0.0, 0.21, 0.5, 0.93, 1.0}) {
       const auto g = geometry(path, i, u);
-      const auto o = core::orientation_at(*plan, path, i, u, 0.0, 1.0);
+      const auto o = core::orientation_at(*plan, path, i, u, 0.0, 1.0, 0.0);
       EXPECT_LT(o.q_WT.angularDistance(core::tool_frame(g.T, g.N)), 1e-9) << i << " " << u;
       EXPECT_TRUE(VecNear(o.omega_W, g.kappa * g.B, 1e-12));
     }
@@ -366,7 +370,7 @@ TEST(Orientation, FrameBasedUsesMeasuredNormalWhereNoneIsGiven) {
   ASSERT_TRUE(plan);
   const auto g = geometry(path, 2, 1.0);
   ASSERT_TRUE(g.has_normal);
-  const auto end = core::orientation_at(*plan, path, 2, 1.0, path.length(), 1.0);
+  const auto end = core::orientation_at(*plan, path, 2, 1.0, path.length(), 1.0, 0.0);
   EXPECT_LT(end.q_WT.angularDistance(core::tool_frame(g.T, g.N)), 1e-9);
 }
 
@@ -413,6 +417,65 @@ TEST(Orientation, TangentFollowingJoinMustBeContinuous) {
   }
 }
 
+// alpha_W against central differences of omega_W in time along a timed motion (10 s,
+// trapezoidal profile, 1 kHz), every mode, on the helix and the demo path C. Bound: where
+// alpha is smooth the difference errs by h^2/6 |alpha''|; where alpha's slope jumps (S-curve
+// corners) by at most h/4 |jump of alpha'|, and where alpha itself jumps (trapezoid
+// corners: s_ddot jumps) by at most |jump| / 2. The second difference of the analytic
+// alpha, |alpha_{k+1} - 2 alpha_k + alpha_{k-1}|, is at least twice each of these, so it is
+// the tolerance (plus 1e-9 rad/s^2 for rounding). A wrong analytic term (say the s_dot^2
+// part) is smooth and does not hide in it. Samples next to another segment are skipped:
+// omega_W jumps at a frame where the SLERP rate theta / L changes.
+TEST(Orientation, AngularAccelerationMatchesDifferencesOfOmega) {
+  const Case cases[] = {{"helix", helix_spec}, {"demoC", demo_c}};
+  for (const auto& c : cases) {
+    for (const auto mode : {OrientationMode::kFixed, OrientationMode::kFrameBased, OrientationMode::kCustom,
+                            OrientationMode::kFrenet, OrientationMode::kParallelTransport}) {
+      const std::string what = std::string(c.name) + "/" + name(mode);
+      const Path path = build_or_fail(with_mode(c.spec(), mode));
+      const auto plan = core::plan_orientation(path);
+      ASSERT_TRUE(plan) << what;
+      core::MotionSpec spec;
+      spec.duration_s = 10.0;
+      spec.cycle_rate_hz = 1000.0;
+      const auto timing = core::plan_motion(path, spec);
+      ASSERT_TRUE(timing) << what;
+      core::MotionSampler sampler(path, *timing);
+      std::vector<core::MotionSample> ms;
+      std::vector<OrientationSample> os;
+      core::MotionSample m;
+      while (sampler.next(m)) {
+        ms.push_back(m);
+        os.push_back(core::orientation_at(*plan, path, m.segment, m.u - static_cast<double>(m.segment), m.s, m.speed,
+                                          m.s_ddot));
+      }
+      const double h = 1.0 / spec.cycle_rate_hz;
+      double worst_ratio = 0.0, peak_alpha = 0.0;
+      int checked = 0;
+      for (std::size_t k = 1; k + 1 < ms.size(); ++k) {
+        if (ms[k - 1].segment != ms[k].segment || ms[k + 1].segment != ms[k].segment) continue;
+        if (std::abs((ms[k + 1].t - ms[k].t) - h) > 1e-9 || std::abs((ms[k].t - ms[k - 1].t) - h) > 1e-9) continue;
+        const Vector3d fd = (os[k + 1].omega_W - os[k - 1].omega_W) / (ms[k + 1].t - ms[k - 1].t);
+        const double tol = (os[k + 1].alpha_W - 2.0 * os[k].alpha_W + os[k - 1].alpha_W).norm() + 1e-9;
+        const double err = (fd - os[k].alpha_W).norm();
+        worst_ratio = std::max(worst_ratio, err / tol);
+        peak_alpha = std::max(peak_alpha, os[k].alpha_W.norm());
+        ++checked;
+        ASSERT_LE(err, tol) << what << " t " << ms[k].t << " segment " << ms[k].segment << "\n analytic "
+                            << os[k].alpha_W.transpose() << "\n differences " << fd.transpose();
+      }
+      EXPECT_GT(checked, 9000) << what;
+      if (mode == OrientationMode::kFixed) {
+        EXPECT_EQ(peak_alpha, 0.0) << what;
+      } else {
+        EXPECT_GT(peak_alpha, 1e-3) << what;  // the check saw a turning tool
+      }
+      std::printf("alpha vs differences of omega, %s: %d samples, peak |alpha| %.3g rad/s^2, worst error / bound %.3f\n",
+                  what.c_str(), checked, peak_alpha, worst_ratio);
+    }
+  }
+}
+
 TEST(Orientation, NoHeapAllocationPerSample) {
   for (const auto mode : {OrientationMode::kFixed, OrientationMode::kFrameBased, OrientationMode::kCustom,
                           OrientationMode::kFrenet, OrientationMode::kParallelTransport}) {
@@ -424,8 +487,8 @@ TEST(Orientation, NoHeapAllocationPerSample) {
     for (int k = 0; k <= 300; ++k) {
       const double u = 3.0 * k / 300.0;
       const auto [seg, ul] = core::locate(path, u);
-      const auto o = core::orientation_at(*plan, path, seg, ul, path.length() * k / 300.0, 1.0);
-      sink += o.q_WT.w() + o.omega_W.x();
+      const auto o = core::orientation_at(*plan, path, seg, ul, path.length() * k / 300.0, 1.0, 0.5);
+      sink += o.q_WT.w() + o.omega_W.x() + o.alpha_W.x();
     }
     EXPECT_EQ(geotraj::testing::allocation_count(), before) << name(mode);
     EXPECT_TRUE(std::isfinite(sink));

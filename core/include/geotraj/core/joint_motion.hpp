@@ -3,17 +3,48 @@
 // accelerations from the Cartesian ones through the Jacobian and the second-order term
 // (Eqs. 1.8-1.11, never finite differences), and the certificates a user needs before
 // streaming to a controller: IK residuals, the deviation of joint interpolation between
-// samples, manipulability, joint-limit margins.
+// samples, manipulability, joint-limit margins. Frames and units: everything Cartesian in
+// the world frame W (the robot's base pose is part of the model); [m], [rad], [s].
+//
+// Redundancy (n > 6, the PA-10), docs/kinematics.md: the self-motion is the null-space
+// projection of a joint-limit avoidance velocity,
+//   z(q, v) = -k |v_WT| grad H(q),  H(q) = sum_i ((q_i - mid_i) / range_i)^2,
+//   grad H_i = 2 (q_i - mid_i) / range_i^2,       (mid, range of joint i's position limits)
+// k = IkOptions::limit_avoidance_gain [rad^2/m]. Deviation from a time-based z(q): the
+// gain follows the tool speed |v_WT| [m/s], so the self-motion is per metre of travel, the
+// joints rest when the tool rests (start, end, cusps, stops) and the joint path does not
+// depend on the timing. With J^+ = J^T (J J^T)^-1 and N = I - J^+ J (both at q), the same
+// choice is applied to positions, velocities and accelerations:
+//   velocity      q_dot  = J^+ [v; omega] + N z                                      (1.8)
+//   acceleration  q_ddot = J^+ ([a; alpha] - J_dot q_dot) + N (J_dot^T w + z_dot),     (1.10)
+//                 w = (J J^T)^-1 ([v; omega] - J z),
+//                 z_dot_i = -k (d|v|/dt grad H_i + |v| 2 q_dot_i / range_i^2),
+//                 d|v|/dt = v . a / |v| (|a| at a rest: the motion leaves it forwards);
+//   position      q_k = Newton projection (ik.hpp, minimum-norm corrections) of the
+//                 second-order predictor q_{k-1} + q_dot_{k-1} dt + q_ddot_{k-1} dt^2 / 2.
+// The term N J_dot^T w is d/dt of the projector (N dJ^+/dt = N J_dot^T (J J^T)^-1): without
+// it q_ddot would not be the time derivative of q_dot (deviation from the plain N z_dot).
+// Hence, where the solves are undamped (away from singularities), J q_dot = [v; omega] and
+// J q_ddot + J_dot q_dot = [a; alpha] to rounding, q_dot is the derivative of the q samples
+// and q_ddot that of q_dot: the q samples integrate
+// q_dot = J^+ [v; omega] + N z with local error O(dt^3) (the predictor) and Newton
+// corrections in the row space of J, so central differences of q match q_dot to O(dt^2)
+// where the Cartesian motion is smooth. A non-redundant arm (n = 6) has N = 0: q_dot =
+// J^-1 [v; omega].
 #pragma once
 
 #include <cstddef>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
 #include "geotraj/core/ik.hpp"
+#include "geotraj/core/motion.hpp"
+#include "geotraj/core/orientation.hpp"
+#include "geotraj/core/path.hpp"
 #include "geotraj/core/robot.hpp"
 
 namespace geotraj::core {
@@ -29,47 +60,67 @@ struct CartesianState {
   Eigen::Vector3d alpha_WT = Eigen::Vector3d::Zero();
 };
 
+/// The tool's Cartesian state at a motion sample (motion.hpp) with the orientation plan of
+/// the same path (orientation.hpp): p, v, a from the sample; R_WT, omega, alpha from
+/// orientation_at with s_dot = sample.speed [m/s] and s_ddot = sample.s_ddot [m/s^2].
+/// No heap allocation.
+CartesianState cartesian_state(const Path& path, const OrientationPlan& orientation, const MotionSample& sample);
+
 /// One joint-space sample.
 struct JointSample {
   JointVector q;      ///< [rad or m]
   JointVector q_dot;  ///< [rad/s or m/s]
   JointVector q_ddot; ///< [rad/s^2 or m/s^2]
   bool converged = false;
-  int iterations = 0;
-  double position_error = 0.0;     ///< IK residual [m]
-  double orientation_error = 0.0;  ///< IK residual [rad]
-  double manipulability = 0.0;     ///< sqrt(det(J J^T)) at q
+  int iterations = 0;              ///< Newton steps (all attempts)
+  double position_error = 0.0;     ///< IK residual |p_target - p_WT(q)| [m]
+  double orientation_error = 0.0;  ///< IK residual, angle of R_target R_WT(q)^T [rad]
+  double manipulability = 0.0;     ///< sqrt(det(J J^T)) at q (Yoshikawa; [m^3 rad^3] mixed)
   /// |p_WT((q_prev + q) / 2) - (p_prev + p) / 2| [m]: how far linear joint interpolation
   /// between the previous sample and this one strays from the Cartesian chord (0 for the
-  /// first sample). Large values mean a branch change or a singularity.
+  /// first sample). On one smooth branch it is O(dt^2) (the chord's sagitta and the
+  /// curvature of the joint map); a branch change or a singularity makes it large.
   double midpoint_deviation = 0.0;
 };
 
 /// Follows a Cartesian motion sample by sample (a reusable workspace: no heap allocation per
 /// sample). The first call solves from `q_seed` (the branch seed, e.g. the request's
 /// initialJoints or the model's home) with IkOptions::restarts allowed; later calls
-/// warm-start from the previous sample and stay on its branch.
-/// Redundant arms: documented null-space choice (docs/kinematics.md), the same in positions
-/// and in velocities/accelerations, so q_dot matches finite differences of q.
+/// warm-start from the previous sample (second-order predictor, above) and stay on its
+/// branch: no restarts and no 2 pi wrapping, only the Newton projection (and, if the
+/// predicted start fails, one more attempt from the previous configuration).
+/// Redundant arms: the null-space choice above, the same in positions and in
+/// velocities/accelerations, so q_dot matches finite differences of q.
 /// Joint velocities: J q_dot = [v; omega]; accelerations: J q_ddot = [a; alpha] - J_dot q_dot
-/// (1.8-1.11), minimum-norm plus the null-space term.
+/// (1.8-1.11), minimum-norm plus the null-space term. Near a singularity (smallest Cholesky
+/// pivot of J J^T below 1e-8, ik.hpp) the same damping applies to the velocity solves, and
+/// these equations hold only approximately (the manipulability says so).
+/// Limits: positions are projected onto the limits like every Newton step (ik.hpp), so q
+/// never leaves them. A joint that sits at a limit and whose velocity would take it out is
+/// held there (q_dot_i = q_ddot_i = 0) and, while at least 6 joints are left, the others
+/// follow the tool with the same formulas on the reduced arm J W (W = diag(1, .., 0, ..)):
+/// the motion stays consistent, and the report shows a zero position margin. A motion that
+/// needs more than the remaining joints can give fails the IK (kIk).
 class JointTracker {
  public:
   /// `model` must outlive the tracker and be valid (validate_robot); q_seed.size() == dof.
+  /// With fewer than 6 joints every track() reports not converged (ik.hpp). Allocates its
+  /// workspace here, once.
   JointTracker(const RobotModel& model, const JointVector& q_seed, const IkOptions& options = {});
-  /// Computes the joint sample for `x` (the next sample in time order) into `out`;
-  /// returns out.converged. After a failure the tracker keeps the last good configuration.
+  ~JointTracker();
+  JointTracker(JointTracker&&) noexcept;
+  JointTracker& operator=(JointTracker&&) noexcept;
+
+  /// Computes the joint sample for `x` (the next sample in time order, x.t increasing)
+  /// into `out`; returns out.converged. After a failure the tracker keeps the last good
+  /// configuration (and the next call predicts from it); out holds the failed attempt.
   bool track(const CartesianState& x, JointSample& out);
   /// Starts again from a new seed (the next track() is a first call).
   void reset(const JointVector& q_seed);
 
  private:
-  const RobotModel* model_;
-  IkOptions options_;
-  JointVector seed_;
-  JointVector q_prev_;
-  Eigen::Vector3d p_prev_ = Eigen::Vector3d::Zero();
-  bool first_ = true;
+  struct State;
+  std::unique_ptr<State> state_;
 };
 
 /// Which limit an event is about.
@@ -125,17 +176,33 @@ struct JointMotionReport {
 };
 
 /// Accumulates a JointMotionReport sample by sample (O(joints) memory, whatever the
-/// motion's length). `branch_tolerance` [m] bounds midpoint_deviation.
+/// motion's length; no heap allocation in add()). The limits are the model's (pass a copy
+/// with other limits to check against them).
+///  - `branch_tolerance` [m] bounds midpoint_deviation (kBranch above it). The default
+///    1 mm is 10x the chord sagitta kappa ds^2 / 8 <= 1e-4 m of the thesis's demo paths at
+///    100 Hz (measured on the PA-10: at most 4e-6 m) and far below the deviation of a
+///    branch flip (a joint turning by a sizeable angle between samples: centimetres).
+///  - `ik_position_tolerance` [m]: the kIk event's limit (the tracker's
+///    IkOptions::position_tolerance); kIk is raised by a sample that did not converge.
+/// Before the first sample the tightest events have margin +infinity.
 class JointReportBuilder {
  public:
-  explicit JointReportBuilder(const RobotModel& model, double branch_tolerance = 1e-3);
+  explicit JointReportBuilder(const RobotModel& model, double branch_tolerance = 1e-3,
+                              double ik_position_tolerance = IkOptions{}.position_tolerance);
+  /// Adds sample number `sample` (zero-based, increasing) at time t [s].
   void add(std::size_t sample, double t, const JointSample& s);
   const JointMotionReport& report() const { return report_; }
 
  private:
+  static constexpr std::size_t kKinds = 5;  ///< LimitKind values
+  void record(LimitKind kind, std::size_t joint, std::size_t sample, double t, double value, double limit,
+              double margin);
+
   const RobotModel* model_;
   double branch_tolerance_;
+  double ik_position_tolerance_;
   JointMotionReport report_;
+  std::vector<bool> reported_;  ///< (joint, kind) already in violations: joint * kKinds + kind
 };
 
 }  // namespace geotraj::core

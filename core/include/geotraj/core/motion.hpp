@@ -122,6 +122,9 @@ struct MotionSample {
   Eigen::Vector3d v_W = Eigen::Vector3d::Zero();  ///< velocity [m/s]
   Eigen::Vector3d a_W = Eigen::Vector3d::Zero();  ///< acceleration [m/s^2]
   double speed = 0.0;          ///< |v_W| [m/s]; 0 at rests (except kLinear, 6.3)
+  /// Path acceleration d2s/dt2 [m/s^2] (the profile's tangential acceleration for
+  /// kArcLength): what the tool's angular acceleration needs (orientation_at).
+  double s_ddot = 0.0;
 };
 
 /// Streams the samples of a plan (a workspace: no heap allocation per sample). `path` and

@@ -6,7 +6,7 @@
 //
 // Each segment i (frame i leaving -> frame i+1 approach, or frame 0 for the last segment of a
 // closed path) turns the tool by frames[i].orientation_mode:
-//   kFixed              keep the orientation the segment starts with; omega_W = 0.
+//   kFixed              keep the orientation the segment starts with; omega_W = alpha_W = 0.
 //   kFrameBased         SLERP (6.18, errata of 6.2) from the start orientation to key frame
 //                       i+1's [-B N T] (its tangent and normal; where the frame gives no
 //                       normal, the normal measured on the blended curve there, see
@@ -33,7 +33,22 @@
 // segment start, L_i its length), so the tool turns at a rate proportional to the path
 // speed: q(sigma) = exp(sigma theta a / 2) q_start with the world-frame axis a and angle
 // theta in [0, pi] of q_end q_start^-1 (the shorter way round), and
-// omega_W = a theta sigma_dot, sigma_dot = s_dot / L_i.
+// omega_W = a theta sigma_dot, sigma_dot = s_dot / L_i; the axis is fixed, so
+// alpha_W = a theta sigma_ddot, sigma_ddot = s_ddot / L_i.
+//
+// Angular acceleration alpha_W = d omega_W / dt [rad/s^2] (needed for joint accelerations,
+// joint_motion.hpp), analytic in every mode, with s_dot = ds/dt and s_ddot = d2s/dt2 of the
+// motion and the Frenet apparatus of the curve (T, N, B, kappa, tau, kappa_s = dkappa/ds,
+// tau_s = dtau/ds; Frenet-Serret T_s = kappa N, N_s = -kappa T + tau B, B_s = -tau N):
+//   SLERP modes         alpha_W = s_ddot (theta / L_i) a
+//   kFrenet             alpha_W = s_ddot (tau T + kappa B) + s_dot^2 (tau_s T + kappa_s B)
+//                       (d/ds of the Darboux vector: the tau kappa N terms cancel)
+//   kParallelTransport  alpha_W = s_ddot kappa B + s_dot^2 (kappa_s B - kappa tau N)
+//                       (d/ds of kappa B); where the curve is straight to rounding (no
+//                       normal) kappa B = p' x p'' / |p'|^3 vanishes and its arc-length
+//                       derivative is its limit (p' x p''') / |p'|^4, finite through an
+//                       inflection.
+//   kFixed              0.
 //
 // The orientation at the start of the path is key frame 0's [-B N T] (normal as for
 // kFrameBased). Deviation: when segment 0 is kFrenet the path starts in the curve's Frenet
@@ -102,6 +117,7 @@ struct OrientationPlan {
 struct OrientationSample {
   Eigen::Quaterniond q_WT = Eigen::Quaterniond::Identity();  ///< R_WT, unit
   Eigen::Vector3d omega_W = Eigen::Vector3d::Zero();           ///< angular velocity in W [rad/s]
+  Eigen::Vector3d alpha_W = Eigen::Vector3d::Zero();           ///< angular acceleration in W [rad/s^2]
 };
 
 /// Plans the tool orientation of every segment of `path` (thesis Table 6.3; see above).
@@ -115,11 +131,14 @@ struct OrientationSample {
 Expected<OrientationPlan> plan_orientation(const Path& path);
 
 /// The tool orientation on `segment` at local parameter u_local in [0, 1], arc length s [m]
-/// from the path start (the same point), and path speed s_dot = ds/dt [m/s].
-/// q_WT is R_WT (unit); omega_W [rad/s] in W. No heap allocation.
+/// from the path start (the same point), path speed s_dot = ds/dt [m/s] and path
+/// acceleration s_ddot = d2s/dt2 [m/s^2] (the tangential acceleration a_W . T of the
+/// motion sample, see cartesian_state in joint_motion.hpp).
+/// q_WT is R_WT (unit); omega_W [rad/s] and alpha_W [rad/s^2] in W, analytic (above; never
+/// finite differences). No heap allocation.
 /// Preconditions (checked): `plan` was planned for `path`, segment < path.segment_count().
 OrientationSample orientation_at(const OrientationPlan& plan, const Path& path, std::size_t segment,
-                                 double u_local, double s, double s_dot);
+                                 double u_local, double s, double s_dot, double s_ddot);
 
 /// The tool frame [-B N T] (6.21) as a unit quaternion; T and N unit and perpendicular (W).
 Eigen::Quaterniond tool_frame(const Eigen::Vector3d& T_W, const Eigen::Vector3d& N_W);

@@ -83,6 +83,14 @@ Expected<SpeedProfile> scurve_profile(double length, double duration, double ram
 /// sqrt(L a_max). Errors name `length`, `maxSpeed`, `maxAcceleration`.
 Expected<SpeedProfile> min_time_trapezoid(double length, double v_max, double a_max);
 
+/// The fastest scurve_profile(length, T, f) whose speed stays within v_max [m/s] and whose
+/// acceleration stays within a_max [m/s^2] (for a minimum-time S-curve without a jerk
+/// limit). Its peaks are v = L / ((1 - f) T) and a = 2 L / (f (1 - f) T^2), so
+///   T = max(L / ((1 - f) v_max), sqrt(2 L / (f (1 - f) a_max))).
+/// A zero length gives the empty profile (zero duration). Errors name `length`,
+/// `rampFraction`, `maxSpeed`, `maxAcceleration`.
+Expected<SpeedProfile> min_time_scurve(double length, double ramp_fraction, double v_max, double a_max);
+
 /// Minimum-time double S (seven phases, rest to rest; Biagiotti & Melchiorri 3.4) under
 /// v_max, a_max and |jerk| <= j_max [m/s^3]. Cases: v_max reached or not (then the peak
 /// speed v_lim < v_max and there is no cruise), and a_max reached or not (then each

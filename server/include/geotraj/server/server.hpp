@@ -6,6 +6,7 @@
 #include <chrono>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <grpcpp/impl/service_type.h>
 #include <grpcpp/server.h>
@@ -20,6 +21,9 @@ struct ServerOptions {
   std::string address = "127.0.0.1:50051";
   /// Largest request message [bytes].
   int max_receive_message_bytes = 64 * 1024 * 1024;
+  /// Robot model files (proto3 JSON of geotraj.v1.RobotModel) served beside the built-in
+  /// models, by their `name`.
+  std::vector<std::string> robot_model_files;
 };
 
 /// A started server. Destroying it shuts the server down (immediately, cancelling calls in
@@ -32,7 +36,8 @@ struct RunningServer {
 
 /// Builds and starts the server; the health service reports SERVING for "" and for
 /// "geotraj.v1.TrajectoryService" when it returns. Error: a sentence saying why the server
-/// could not start (for example, the address is in use).
+/// could not start (for example, the address is in use, or a robot model file is unreadable
+/// or invalid: the file and the field are named).
 tl::expected<RunningServer, std::string> start_server(const ServerOptions& options);
 
 /// Reports NOT_SERVING on the health service, then shuts down: calls in flight may finish

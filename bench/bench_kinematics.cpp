@@ -1,0 +1,257 @@
+// Kinematics and IK (core/kinematics.hpp, core/ik.hpp, core/joint_motion.hpp), one thread:
+//  - forward kinematics, FK with the Jacobian, and J_dot q_dot per call, PA-10 and UR5, at
+//    64 random configurations within the limits, cycled;
+//  - the IK of every sample of the thesis's demo path C (10 s, 100 Hz, 1001 samples) on the
+//    PA-10 from its home, warm-started: JointTracker::track (positions by the second-order
+//    predictor and Newton, velocities, accelerations, midpoint certificate, manipulability),
+//    solve_ik alone (seeded with the previous solution, no predictor), and Orocos KDL's
+//    ChainIkSolverPos_NR_JL (Debian's liborocos-kdl, with ChainIkSolverVel_pinv and
+//    ChainFkSolverPos_recursive, the same chain built from the DH table, seeded with the
+//    previous solution) on the same poses. KDL's eps = 1e-9 applies to each twist component
+//    (a norm up to sqrt(3) e-9, slightly looser than our 1e-9 m and 1e-9 rad norms).
+// The counter `per_sample` is the time per sample [s] (CPU time over the samples of an
+// iteration); `not_converged` counts failed samples. BM_TrackPathCWorstSample times every
+// sample alone and reports the median, 99th percentile and worst.
+// Run: build/bench/bench_kinematics --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <algorithm>
+#include <chrono>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+#if GEOTRAJ_BENCH_KDL
+#include <kdl/chain.hpp>
+#include <kdl/chainfksolverpos_recursive.hpp>
+#include <kdl/chainiksolverpos_nr_jl.hpp>
+#include <kdl/chainiksolvervel_pinv.hpp>
+#include <kdl/frames.hpp>
+#include <kdl/jntarray.hpp>
+#endif
+
+#include "geotraj/core/ik.hpp"
+#include "geotraj/core/joint_motion.hpp"
+#include "geotraj/core/kinematics.hpp"
+#include "geotraj/core/motion.hpp"
+#include "geotraj/core/orientation.hpp"
+#include "geotraj/core/path.hpp"
+#include "thesis_paths.hpp"
+
+namespace {
+
+using namespace geotraj;
+
+const core::RobotModel& robot(int which) { return *core::find_builtin_robot(which == 0 ? "pa10" : "ur5"); }
+
+std::vector<core::JointVector> random_configurations(const core::RobotModel& m) {
+  std::mt19937_64 rng(20240611);
+  std::vector<core::JointVector> out;
+  for (int k = 0; k < 64; ++k) {
+    core::JointVector q(static_cast<Eigen::Index>(m.dof()));
+    for (std::size_t i = 0; i < m.dof(); ++i) {
+      q(static_cast<Eigen::Index>(i)) =
+          std::uniform_real_distribution<double>(m.limits[i].min_position, m.limits[i].max_position)(rng);
+    }
+    out.push_back(q);
+  }
+  return out;
+}
+
+// Argument: 0 = PA-10, 1 = UR5.
+void BM_ForwardKinematics(benchmark::State& state) {
+  const auto& m = robot(static_cast<int>(state.range(0)));
+  const auto qs = random_configurations(m);
+  std::size_t k = 0;
+  for (auto _ : state) {
+    auto X = core::forward_kinematics(m, qs[k++ % qs.size()]);
+    benchmark::DoNotOptimize(X);
+  }
+  state.SetLabel(m.name);
+}
+BENCHMARK(BM_ForwardKinematics)->Arg(0)->Arg(1);
+
+void BM_ForwardKinematicsJacobian(benchmark::State& state) {
+  const auto& m = robot(static_cast<int>(state.range(0)));
+  const auto qs = random_configurations(m);
+  Eigen::Isometry3d X;
+  core::JointJacobian J;
+  std::size_t k = 0;
+  for (auto _ : state) {
+    core::forward_kinematics(m, qs[k++ % qs.size()], X, J);
+    benchmark::DoNotOptimize(X);
+    benchmark::DoNotOptimize(J);
+  }
+  state.SetLabel(m.name);
+}
+BENCHMARK(BM_ForwardKinematicsJacobian)->Arg(0)->Arg(1);
+
+void BM_JacobianDotQdot(benchmark::State& state) {
+  const auto& m = robot(static_cast<int>(state.range(0)));
+  const auto qs = random_configurations(m);
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const auto& q = qs[k % qs.size()];
+    const auto& q_dot = qs[(k + 1) % qs.size()];
+    ++k;
+    auto a = core::jacobian_dot_qdot(m, q, q_dot);
+    benchmark::DoNotOptimize(a);
+  }
+  state.SetLabel(m.name);
+}
+BENCHMARK(BM_JacobianDotQdot)->Arg(0)->Arg(1);
+
+// The Cartesian samples of demo path C, 10 s at 100 Hz (the thesis's rate).
+const std::vector<core::CartesianState>& path_c_samples() {
+  static const std::vector<core::CartesianState> samples = [] {
+    const core::Path path = *core::build_path(testing::thesis_demo_path('C'));
+    core::MotionSpec spec;
+    spec.duration_s = 10.0;
+    const core::MotionPlan plan = *core::plan_motion(path, spec);
+    const core::OrientationPlan orientation = *core::plan_orientation(path);
+    core::MotionSampler sampler(path, plan);
+    std::vector<core::CartesianState> out;
+    core::MotionSample s;
+    while (sampler.next(s)) out.push_back(core::cartesian_state(path, orientation, s));
+    return out;
+  }();
+  return samples;
+}
+
+void per_sample_counters(benchmark::State& state, std::size_t samples, std::size_t failures) {
+  state.counters["per_sample"] = benchmark::Counter(static_cast<double>(samples),
+                                                    benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["not_converged"] = static_cast<double>(failures);
+}
+
+void BM_TrackPathC(benchmark::State& state) {
+  const auto& m = robot(0);
+  const auto& xs = path_c_samples();
+  core::JointTracker tracker(m, core::home_configuration(m));
+  core::JointSample s;
+  std::size_t samples = 0, failures = 0;
+  for (auto _ : state) {
+    tracker.reset(core::home_configuration(m));
+    for (const auto& x : xs) {
+      failures += tracker.track(x, s) ? 0 : 1;
+      benchmark::DoNotOptimize(s);
+    }
+    samples += xs.size();
+  }
+  per_sample_counters(state, samples, failures);
+  state.SetLabel("pa10, JointTracker::track");
+}
+BENCHMARK(BM_TrackPathC)->Unit(benchmark::kMicrosecond);
+
+// The same, each sample timed on its own (steady_clock, ~20 ns of overhead per sample):
+// the median, 99th percentile and worst sample [s], the first (cold) sample included.
+void BM_TrackPathCWorstSample(benchmark::State& state) {
+  const auto& m = robot(0);
+  const auto& xs = path_c_samples();
+  core::JointTracker tracker(m, core::home_configuration(m));
+  core::JointSample s;
+  std::vector<double> times;
+  times.reserve(xs.size() * 64);
+  for (auto _ : state) {
+    tracker.reset(core::home_configuration(m));
+    for (const auto& x : xs) {
+      const auto start = std::chrono::steady_clock::now();
+      tracker.track(x, s);
+      benchmark::DoNotOptimize(s);
+      const auto stop = std::chrono::steady_clock::now();
+      times.push_back(std::chrono::duration<double>(stop - start).count());
+    }
+  }
+  std::sort(times.begin(), times.end());
+  state.counters["median_sample"] = times[times.size() / 2];
+  state.counters["p99_sample"] = times[times.size() * 99 / 100];
+  state.counters["worst_sample"] = times.back();
+  state.SetLabel("pa10, JointTracker::track, per-sample times");
+}
+BENCHMARK(BM_TrackPathCWorstSample)->Unit(benchmark::kMicrosecond);
+
+void BM_SolveIkPathC(benchmark::State& state) {
+  const auto& m = robot(0);
+  const auto& xs = path_c_samples();
+  std::size_t samples = 0, failures = 0;
+  for (auto _ : state) {
+    core::JointVector q = core::home_configuration(m);
+    for (const auto& x : xs) {
+      const core::IkResult r = core::solve_ik(m, x.X_WT, q);
+      failures += r.converged ? 0 : 1;
+      q = r.q;
+      benchmark::DoNotOptimize(q);
+    }
+    samples += xs.size();
+  }
+  per_sample_counters(state, samples, failures);
+  state.SetLabel("pa10, solve_ik from the previous solution");
+}
+BENCHMARK(BM_SolveIkPathC)->Unit(benchmark::kMicrosecond);
+
+#if GEOTRAJ_BENCH_KDL
+// The chain of robot.hpp in KDL: a segment's joint is at its start (pose = joint(q) * f_tip).
+// Modified DH: A_i = DH_Craig1989(link i) RotZ(q_i) (RotZ(q) commutes with the link's
+// RotZ(theta) TransZ(d)), so joint i sits at the start of the segment that ends with link
+// i+1's frame. Standard DH: A_i = RotZ(q_i) DH(link i).
+KDL::Frame to_kdl(const Eigen::Isometry3d& X) {
+  const Eigen::Matrix3d R = X.linear();
+  return KDL::Frame(KDL::Rotation(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)),
+                    KDL::Vector(X.translation().x(), X.translation().y(), X.translation().z()));
+}
+
+KDL::Chain kdl_chain(const core::RobotModel& m) {
+  const bool modified = m.convention == core::DhConvention::kModified;
+  auto frame = [&](const core::DhLink& l) {
+    return modified ? KDL::Frame::DH_Craig1989(l.a, l.alpha, l.d, l.theta) : KDL::Frame::DH(l.a, l.alpha, l.d, l.theta);
+  };
+  auto joint = [](const core::DhLink& l) { return KDL::Joint(KDL::Joint::RotZ, 1.0, l.offset); };
+  KDL::Chain chain;
+  chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(m.base)));
+  const std::size_t n = m.links.size();
+  if (modified) {
+    chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), frame(m.links[0])));
+    for (std::size_t i = 0; i < n; ++i) {
+      chain.addSegment(KDL::Segment(joint(m.links[i]), i + 1 < n ? frame(m.links[i + 1]) : KDL::Frame::Identity()));
+    }
+  } else {
+    for (std::size_t i = 0; i < n; ++i) chain.addSegment(KDL::Segment(joint(m.links[i]), frame(m.links[i])));
+  }
+  chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(m.tool)));
+  return chain;
+}
+
+void BM_KdlNrJlPathC(benchmark::State& state) {
+  const auto& m = robot(0);
+  const auto& xs = path_c_samples();
+  const KDL::Chain chain = kdl_chain(m);
+  const unsigned n = chain.getNrOfJoints();
+  KDL::JntArray q_min(n), q_max(n), q(n), q_out(n);
+  for (unsigned i = 0; i < n; ++i) {
+    q_min(i) = m.limits[i].min_position;
+    q_max(i) = m.limits[i].max_position;
+  }
+  KDL::ChainFkSolverPos_recursive fk(chain);
+  KDL::ChainIkSolverVel_pinv ik_vel(chain);
+  KDL::ChainIkSolverPos_NR_JL ik(chain, q_min, q_max, fk, ik_vel, 100, 1e-9);
+  std::vector<KDL::Frame> targets;
+  for (const auto& x : xs) targets.push_back(to_kdl(x.X_WT));
+  const core::JointVector home = core::home_configuration(m);
+  std::size_t samples = 0, failures = 0;
+  for (auto _ : state) {
+    for (unsigned i = 0; i < n; ++i) q(i) = home(i);
+    for (const auto& target : targets) {
+      failures += ik.CartToJnt(q, target, q_out) < 0 ? 1 : 0;
+      q = q_out;
+      benchmark::DoNotOptimize(q_out.data.data());
+    }
+    samples += targets.size();
+  }
+  per_sample_counters(state, samples, failures);
+  state.SetLabel("pa10, KDL ChainIkSolverPos_NR_JL from the previous solution");
+}
+BENCHMARK(BM_KdlNrJlPathC)->Unit(benchmark::kMicrosecond);
+#endif
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,733 @@
+// Robots through the real service: ListRobots' built-in models; PlanTrajectory's joint report
+// and FAILED_PRECONDITION (with a google.rpc.PreconditionFailure) when the arm cannot follow;
+// StreamSamples' joints checked against an independent Denavit-Hartenberg forward kinematics
+// written here from the ListRobots answer, and against finite differences; bad robot input
+// named field by field; the joint move and the straight-line move; robot model files served
+// by geotrajd.
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <limits>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <gmock/gmock.h>
+
+#include "test_server.hpp"
+
+namespace geotraj::testing {
+namespace {
+
+using ::testing::HasSubstr;
+
+Eigen::Vector3d vec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+// Wire order (w, x, y, z), by name.
+Eigen::Quaterniond quat(const v1::Quaternion& q) { return {q.w(), q.x(), q.y(), q.z()}; }
+
+// A Pose message as X_PC (child C in parent P); an absent orientation is the identity.
+Eigen::Isometry3d pose(const v1::Pose& p) {
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.translation() = vec(p.position());
+  if (p.has_orientation()) X.linear() = quat(p.orientation()).normalized().toRotationMatrix();
+  return X;
+}
+
+// Forward kinematics X_WT(q) of a RobotModel as ListRobots describes it, written from the
+// conventions in the proto, independently of the server's kinematics:
+//   X_WT = base * A_1(q_1) * ... * A_n(q_n) * tool,
+//   modified (Craig): A_i = RotX(alpha) TransX(a) RotZ(theta) TransZ(d),
+//   standard:         A_i = RotZ(theta) TransZ(d) TransX(a) RotX(alpha),
+// with theta = theta_i + offset_i + q_i (revolute) or d = d_i + offset_i + q_i (prismatic).
+// Units: [m], [rad].
+template <class Joints>
+Eigen::Isometry3d forward_kinematics(const v1::RobotModel& model, const Joints& q) {
+  Eigen::Isometry3d X_WT = pose(model.base());
+  for (int i = 0; i < model.links_size(); ++i) {
+    const auto& l = model.links(i);
+    const bool prismatic = l.joint_type() == v1::JOINT_TYPE_PRISMATIC;
+    const double theta = l.theta() + (prismatic ? 0.0 : l.offset() + q[i]);
+    const double d = l.d() + (prismatic ? l.offset() + q[i] : 0.0);
+    const Eigen::AngleAxisd rot_x(l.alpha(), Eigen::Vector3d::UnitX());
+    const Eigen::AngleAxisd rot_z(theta, Eigen::Vector3d::UnitZ());
+    const Eigen::Translation3d trans_x(l.a(), 0.0, 0.0);
+    const Eigen::Translation3d trans_z(0.0, 0.0, d);
+    if (model.dh_convention() == v1::DH_CONVENTION_MODIFIED) {
+      X_WT = X_WT * rot_x * trans_x * rot_z * trans_z;
+    } else {
+      X_WT = X_WT * rot_z * trans_z * trans_x * rot_x;
+    }
+  }
+  return X_WT * pose(model.tool());
+}
+
+// The unmet preconditions of a FAILED_PRECONDITION status: its google.rpc.Status detail
+// (grpc-status-details-bin) with one google.rpc.PreconditionFailure.
+std::vector<google::rpc::PreconditionFailure::Violation> precondition_violations(const grpc::Status& status) {
+  std::vector<google::rpc::PreconditionFailure::Violation> out;
+  google::rpc::Status details;
+  EXPECT_TRUE(details.ParseFromString(status.error_details())) << "no google.rpc.Status in the details";
+  EXPECT_EQ(details.code(), static_cast<int>(grpc::StatusCode::FAILED_PRECONDITION));
+  EXPECT_EQ(details.message(), status.error_message());
+  for (const auto& any : details.details()) {
+    google::rpc::PreconditionFailure failure;
+    if (!any.UnpackTo(&failure)) continue;
+    out.insert(out.end(), failure.violations().begin(), failure.violations().end());
+  }
+  return out;
+}
+
+class RobotTest : public ServerTest {
+ protected:
+  v1::ListRobotsResponse list_robots() {
+    v1::ListRobotsResponse response;
+    const auto status = stub_->ListRobots(context().get(), v1::ListRobotsRequest{}, &response);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    return response;
+  }
+
+  v1::RobotModel model(const std::string& name) {
+    const auto robots = list_robots();
+    for (const auto& m : robots.robots()) {
+      if (m.name() == name) return m;
+    }
+    ADD_FAILURE() << "ListRobots has no model " << name;
+    return {};
+  }
+
+  std::vector<v1::Sample> stream_all(const v1::PlanRequest& request, grpc::Status& status) {
+    auto ctx = context();
+    auto reader = stub_->StreamSamples(ctx.get(), request);
+    std::vector<v1::Sample> samples;
+    v1::SampleBatch batch;
+    while (reader->Read(&batch)) samples.insert(samples.end(), batch.samples().begin(), batch.samples().end());
+    status = reader->Finish();
+    return samples;
+  }
+
+  // PlanTrajectory's and StreamSamples' field violations for a request both must refuse.
+  std::vector<Violation> refused(const v1::PlanRequest& request) {
+    v1::PlanResponse response;
+    const auto status = plan(request, response);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+    grpc::Status stream_status;
+    const auto samples = stream_all(request, stream_status);
+    EXPECT_TRUE(samples.empty());
+    EXPECT_EQ(stream_status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << stream_status.error_message();
+    EXPECT_EQ(stream_status.error_message(), status.error_message());
+    return bad_request_violations(status);
+  }
+};
+
+// The thesis's demonstration path A with the PA-10.
+v1::PlanRequest pa10_path_a(double duration_s, bool report_only) {
+  auto request = demo_request('a');
+  request.mutable_motion()->set_duration_s(duration_s);
+  request.mutable_robot()->set_name("pa10");
+  request.mutable_robot()->set_report_only(report_only);
+  return request;
+}
+
+// ---------------------------------------------------------------------------------------
+// ListRobots
+
+TEST_F(RobotTest, ListRobotsReturnsTheBuiltInModelsInFull) {
+  const auto robots = list_robots();
+  std::set<std::string> names;
+  for (const auto& m : robots.robots()) names.insert(m.name());
+  EXPECT_EQ(names, (std::set<std::string>{"pa10", "ur5"}));
+
+  struct Expected {
+    std::string name;
+    int dof;
+    v1::DhConvention convention;
+  };
+  for (const Expected& e : {Expected{"pa10", 7, v1::DH_CONVENTION_MODIFIED}, Expected{"ur5", 6, v1::DH_CONVENTION_STANDARD}}) {
+    SCOPED_TRACE(e.name);
+    const auto m = model(e.name);
+    EXPECT_EQ(m.dh_convention(), e.convention);
+    ASSERT_EQ(m.links_size(), e.dof);
+    ASSERT_EQ(m.limits_size(), e.dof);
+    ASSERT_EQ(m.home_size(), e.dof);
+    EXPECT_FALSE(m.description().empty());
+    EXPECT_TRUE(m.has_base());
+    EXPECT_TRUE(m.has_tool());
+    for (int i = 0; i < e.dof; ++i) {
+      const auto& l = m.links(i);
+      const auto& lim = m.limits(i);
+      EXPECT_EQ(l.joint_type(), v1::JOINT_TYPE_REVOLUTE) << "joint " << i;
+      EXPECT_TRUE(std::isfinite(l.a()) && std::isfinite(l.alpha()) && std::isfinite(l.d()) && std::isfinite(l.theta()));
+      EXPECT_LT(lim.min_position(), lim.max_position()) << "joint " << i;
+      EXPECT_GT(lim.max_velocity(), 0.0) << "joint " << i;
+      EXPECT_GT(lim.max_acceleration(), 0.0) << "joint " << i;
+      EXPECT_GE(m.home(i), lim.min_position()) << "joint " << i;
+      EXPECT_LE(m.home(i), lim.max_position()) << "joint " << i;
+    }
+  }
+  // The PA-10's home puts the tool on the first key frame of the thesis's demonstration
+  // paths (Table 7.8: (0.106, 0, 0.975) m), so a demo plan starts where the arm rests.
+  const auto pa10 = model("pa10");
+  const Eigen::Vector3d p_home = forward_kinematics(pa10, pa10.home()).translation();
+  EXPECT_LT((p_home - Eigen::Vector3d(0.106, 0.0, 0.975)).norm(), 1e-6) << p_home.transpose();
+}
+
+// ---------------------------------------------------------------------------------------
+// PlanTrajectory with a robot
+
+// Path A in the thesis's 10 s is too fast for the PA-10's accelerations: reportOnly gives the
+// report, which says so.
+TEST_F(RobotTest, ReportOnlyGivesTheJointReport) {
+  v1::PlanResponse response;
+  const auto status = plan(pa10_path_a(10.0, /*report_only=*/true), response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_TRUE(response.has_robot());
+  ASSERT_TRUE(response.has_motion());
+  const auto& r = response.robot();
+  EXPECT_EQ(r.name(), "pa10");
+  EXPECT_EQ(r.samples(), response.motion().sample_count());
+  EXPECT_EQ(r.samples(), 1001u);
+  // The IK converges to its tolerance at every sample (1e-9 m, 1e-9 rad).
+  EXPECT_LE(r.max_ik_position_error(), 1e-9);
+  EXPECT_LE(r.max_ik_orientation_error(), 1e-9);
+  // On one smooth branch the midpoint deviation is O(dt^2): below the chord sagitta bound
+  // kappa ds^2 / 8 <= 1e-4 m of the demo paths at 100 Hz, far below the 1 mm tolerance.
+  EXPECT_LT(r.max_midpoint_deviation(), 1e-4);
+  EXPECT_GT(r.min_manipulability(), 0.0);
+  const auto pa10 = model("pa10");
+  ASSERT_EQ(r.joints_size(), 7);
+  bool over = false;
+  for (int j = 0; j < 7; ++j) {
+    const auto& u = r.joints(j);
+    EXPECT_EQ(u.joint(), static_cast<unsigned>(j));
+    EXPECT_LE(u.min_position(), u.max_position());
+    EXPECT_NEAR(u.velocity_usage(), u.peak_velocity() / pa10.limits(j).max_velocity(), 1e-12);
+    EXPECT_NEAR(u.acceleration_usage(), u.peak_acceleration() / pa10.limits(j).max_acceleration(), 1e-12);
+    over = over || u.velocity_usage() > 1.0 || u.acceleration_usage() > 1.0;
+  }
+  EXPECT_TRUE(over);
+  EXPECT_FALSE(r.feasible());
+  ASSERT_GT(r.violations_size(), 0);
+  for (const auto& v : r.violations()) {
+    EXPECT_LT(v.margin(), 0.0);
+    EXPECT_LT(v.sample(), r.samples());
+    EXPECT_NEAR(v.t(), 0.01 * static_cast<double>(v.sample()), 1e-9);
+  }
+  EXPECT_LT(r.tightest_acceleration().margin(), 0.0);
+}
+
+TEST_F(RobotTest, WithoutReportOnlyTheBrokenLimitsAreAFailedPrecondition) {
+  v1::PlanResponse report;
+  ASSERT_TRUE(plan(pa10_path_a(10.0, /*report_only=*/true), report).ok());
+
+  v1::PlanResponse response;
+  const auto status = plan(pa10_path_a(10.0, /*report_only=*/false), response);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << status.error_message();
+  EXPECT_THAT(status.error_message(), HasSubstr("joint"));
+  EXPECT_THAT(status.error_message(), HasSubstr("t ="));
+  EXPECT_THAT(status.error_message(), HasSubstr("sample"));
+  EXPECT_THAT(status.error_message(), HasSubstr("pa10"));
+
+  // The details list every violation of the report, in its order.
+  const auto violations = precondition_violations(status);
+  ASSERT_EQ(static_cast<int>(violations.size()), report.robot().violations_size());
+  for (std::size_t i = 0; i < violations.size(); ++i) {
+    const auto& event = report.robot().violations(static_cast<int>(i));
+    EXPECT_EQ(violations[i].type(), v1::LimitKind_Name(event.kind()));
+    EXPECT_EQ(violations[i].subject(), "joint " + std::to_string(event.joint()));
+    EXPECT_THAT(violations[i].description(), HasSubstr("sample " + std::to_string(event.sample())));
+    EXPECT_THAT(violations[i].description(), HasSubstr("t ="));
+  }
+
+  // StreamSamples refuses the same motion before its first sample; with reportOnly it
+  // streams it (broken position, velocity or acceleration limits only: for simulation).
+  grpc::Status stream_status;
+  auto samples = stream_all(pa10_path_a(10.0, /*report_only=*/false), stream_status);
+  EXPECT_TRUE(samples.empty());
+  EXPECT_EQ(stream_status.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_EQ(stream_status.error_message(), status.error_message());
+  EXPECT_EQ(precondition_violations(stream_status).size(), violations.size());
+
+  samples = stream_all(pa10_path_a(10.0, /*report_only=*/true), stream_status);
+  ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+  ASSERT_EQ(samples.size(), 1001u);
+  for (const auto& s : samples) ASSERT_EQ(s.joints_size(), 7) << "t = " << s.t();
+}
+
+// ---------------------------------------------------------------------------------------
+// StreamSamples with a robot
+
+// Path A over 60 s is within every limit of the PA-10 (accelerations scale with 1 / T^2: the
+// 10 s plan's worst usage, 2.36, becomes 0.07).
+TEST_F(RobotTest, SlowDemoStreamsJointsThatReproduceTheTool) {
+  const auto request = pa10_path_a(60.0, /*report_only=*/false);
+  v1::PlanResponse response;
+  const auto plan_status = plan(request, response);
+  ASSERT_TRUE(plan_status.ok()) << plan_status.error_message();
+  ASSERT_TRUE(response.robot().feasible());
+  EXPECT_LE(response.robot().max_ik_position_error(), 1e-9);
+
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_EQ(samples.size(), response.motion().sample_count());
+  ASSERT_EQ(samples.size(), 6001u);
+
+  const auto pa10 = model("pa10");
+  const double dt = 0.01;  // 100 Hz
+  double worst_position = 0.0, worst_angle = 0.0, worst_fd = 0.0, peak_qd = 0.0;
+  for (std::size_t k = 0; k < samples.size(); ++k) {
+    const auto& s = samples[k];
+    ASSERT_EQ(s.joints_size(), 7) << "sample " << k;
+    ASSERT_EQ(s.joint_velocities_size(), 7) << "sample " << k;
+    ASSERT_EQ(s.joint_accelerations_size(), 7) << "sample " << k;
+    // Forward kinematics of the streamed joints is the streamed tool pose: the IK's
+    // residuals (<= 1e-9 m, 1e-9 rad) plus rounding.
+    const Eigen::Isometry3d X_WT = forward_kinematics(pa10, s.joints());
+    worst_position = std::max(worst_position, (X_WT.translation() - vec(s.position())).norm());
+    worst_angle = std::max(worst_angle, Eigen::Quaterniond(X_WT.linear()).angularDistance(quat(s.orientation())));
+    for (int j = 0; j < 7; ++j) peak_qd = std::max(peak_qd, std::abs(s.joint_velocities(j)));
+    if (k == 0 || k + 1 == samples.size()) continue;
+    // Central differences of the joint positions against the streamed joint velocities.
+    // Their error is (h/4) osc(q_ddot) over [t - h, t + h] (integral form of Taylor's
+    // remainder): h^2/6 |q'''| where q_ddot is smooth, and (h/4) times the jump where the
+    // trapezoid's acceleration switches between two samples. The oscillation of the three
+    // sampled accelerations estimates it; a factor 1.5 covers what happens between samples,
+    // and 1e-6 rad/s covers the IK's 1e-9 residuals over 2h = 0.02 s.
+    const auto& prev = samples[k - 1];
+    const auto& next = samples[k + 1];
+    for (int j = 0; j < 7; ++j) {
+      const double fd = (next.joints(j) - prev.joints(j)) / (next.t() - prev.t());
+      const double a[3] = {prev.joint_accelerations(j), s.joint_accelerations(j), next.joint_accelerations(j)};
+      const double osc = *std::max_element(a, a + 3) - *std::min_element(a, a + 3);
+      const double error = std::abs(fd - s.joint_velocities(j));
+      EXPECT_LE(error, 1.5 * dt / 4.0 * osc + 1e-6) << "joint " << j << " at t = " << s.t();
+      worst_fd = std::max(worst_fd, error);
+    }
+  }
+  EXPECT_LT(worst_position, 1e-8);
+  EXPECT_LT(worst_angle, 1e-8);
+  // As a relative figure: the trapezoid's acceleration steps (at most about the peak joint
+  // acceleration, 0.13 rad/s^2 here) bound it by (h/4) 0.13 / 0.10 rad/s = 3e-3.
+  EXPECT_LT(worst_fd / peak_qd, 3e-3) << "worst " << worst_fd << " rad/s of a peak " << peak_qd << " rad/s";
+  // Starts at home (the IK seed), at rest.
+  for (int j = 0; j < 7; ++j) {
+    EXPECT_NEAR(samples.front().joints(j), pa10.home(j), 1e-6) << "joint " << j;
+    EXPECT_EQ(samples.front().joint_velocities(j), 0.0) << "joint " << j;
+    EXPECT_NEAR(samples.back().joint_velocities(j), 0.0, 1e-12) << "joint " << j;
+  }
+}
+
+// A limit broken on purpose: an inline copy of the PA-10 whose joint 2 may barely move.
+TEST_F(RobotTest, ABrokenLimitNamesItsJoint) {
+  auto slow = model("pa10");
+  slow.set_name("pa10-slow-joint-2");
+  slow.mutable_limits(2)->set_max_velocity(1e-3);  // [rad/s]; path A over 60 s needs 0.10
+  auto request = pa10_path_a(60.0, /*report_only=*/false);
+  *request.mutable_robot()->mutable_model() = slow;
+
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << status.error_message();
+  EXPECT_THAT(status.error_message(), HasSubstr("pa10-slow-joint-2"));
+  EXPECT_THAT(status.error_message(), HasSubstr("joint 2 speed"));
+  EXPECT_THAT(status.error_message(), HasSubstr("maxVelocity 0.001"));
+  const auto violations = precondition_violations(status);
+  ASSERT_EQ(violations.size(), 1u);
+  EXPECT_EQ(violations[0].type(), "LIMIT_KIND_VELOCITY");
+  EXPECT_EQ(violations[0].subject(), "joint 2");
+
+  grpc::Status stream_status;
+  EXPECT_TRUE(stream_all(request, stream_status).empty());
+  EXPECT_EQ(stream_status.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_THAT(stream_status.error_message(), HasSubstr("joint 2"));
+
+  request.mutable_robot()->set_report_only(true);
+  ASSERT_TRUE(plan(request, response).ok());
+  ASSERT_EQ(response.robot().violations_size(), 1);
+  const auto& v = response.robot().violations(0);
+  EXPECT_EQ(v.kind(), v1::LIMIT_KIND_VELOCITY);
+  EXPECT_EQ(v.joint(), 2u);
+  EXPECT_EQ(v.limit(), 1e-3);
+  EXPECT_GT(v.value(), 1e-3);
+  EXPECT_NEAR(v.margin(), v.limit() - v.value(), 1e-15);
+  EXPECT_EQ(response.robot().name(), "pa10-slow-joint-2");
+}
+
+// ---------------------------------------------------------------------------------------
+// Bad robot input: INVALID_ARGUMENT naming the field
+
+TEST_F(RobotTest, UnknownRobotNameListsTheKnownOnes) {
+  auto request = pa10_path_a(60.0, false);
+  request.mutable_robot()->set_name("pa11");
+  const auto violations = refused(request);
+  ASSERT_EQ(violations.size(), 1u) << describe(violations);
+  EXPECT_EQ(violations[0].field, "robot.name");
+  EXPECT_THAT(violations[0].description, HasSubstr("pa11"));
+  EXPECT_THAT(violations[0].description, HasSubstr("pa10"));
+  EXPECT_THAT(violations[0].description, HasSubstr("ur5"));
+}
+
+TEST_F(RobotTest, InitialJointsOfTheWrongSize) {
+  auto request = pa10_path_a(60.0, false);
+  for (double q : {0.0, 0.1, 0.2}) request.mutable_robot()->add_initial_joints(q);
+  const auto violations = refused(request);
+  ASSERT_EQ(violations.size(), 1u) << describe(violations);
+  EXPECT_EQ(violations[0].field, "robot.initialJoints");
+  EXPECT_THAT(violations[0].description, HasSubstr("3 values"));
+  EXPECT_THAT(violations[0].description, HasSubstr("7-joint"));
+}
+
+TEST_F(RobotTest, InlineModelWithANaNLink) {
+  auto request = pa10_path_a(60.0, false);
+  auto m = model("pa10");
+  m.mutable_links(1)->set_a(std::numeric_limits<double>::quiet_NaN());
+  *request.mutable_robot()->mutable_model() = m;
+  const auto violations = refused(request);
+  EXPECT_THAT(violation_of(violations, "robot.model.links[1].a"), HasSubstr("finite")) << describe(violations);
+}
+
+TEST_F(RobotTest, InlineModelWithMinPositionAboveMaxPosition) {
+  auto request = pa10_path_a(60.0, false);
+  auto m = model("pa10");
+  m.mutable_limits(3)->set_min_position(1.0);
+  m.mutable_limits(3)->set_max_position(-1.0);
+  *request.mutable_robot()->mutable_model() = m;
+  const auto violations = refused(request);
+  EXPECT_NE(violation_of(violations, "robot.model.limits[3].minPosition"), "") << describe(violations);
+}
+
+TEST_F(RobotTest, JointMoveNeedsARobot) {
+  auto request = from_json<v1::PlanRequest>(
+      R"({"jointMove": {"goal": [0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8]}, "motion": {"durationS": 3}})");
+  const auto violations = refused(request);
+  ASSERT_EQ(violations.size(), 1u) << describe(violations);
+  EXPECT_EQ(violations[0].field, "robot");
+  EXPECT_THAT(violations[0].description, HasSubstr("jointMove"));
+}
+
+TEST_F(RobotTest, JointMoveGoalOutsideTheLimits) {
+  auto request = from_json<v1::PlanRequest>(
+      R"({"jointMove": {"goal": [0.6, 2.0, -0.3, 1.5, 0.4, 0.6, -5.0]}, "robot": {"name": "pa10"},
+          "motion": {"durationS": 3}})");
+  const auto violations = refused(request);
+  ASSERT_EQ(violations.size(), 2u) << describe(violations);
+  EXPECT_THAT(violation_of(violations, "jointMove.goal[1]"), HasSubstr("limits")) << describe(violations);
+  EXPECT_THAT(violation_of(violations, "jointMove.goal[6]"), HasSubstr("limits")) << describe(violations);
+}
+
+TEST_F(RobotTest, LinearMoveWithoutStartNeedsARobot) {
+  auto request = from_json<v1::PlanRequest>(
+      R"({"linearMove": {"goal": {"position": {"x": 0.4, "y": 0.1, "z": 0.5}}}, "motion": {"durationS": 2}})");
+  const auto violations = refused(request);
+  ASSERT_EQ(violations.size(), 1u) << describe(violations);
+  EXPECT_EQ(violations[0].field, "linearMove.start");
+  EXPECT_THAT(violations[0].description, HasSubstr("robot"));
+}
+
+// ---------------------------------------------------------------------------------------
+// The basic moves (thesis 6.2.2)
+
+// A minimum-time joint move of the PA-10 (durationS 0) from its home (start absent).
+v1::PlanRequest minimum_time_joint_move() {
+  return from_json<v1::PlanRequest>(R"({"jointMove": {"goal": [0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8]},
+      "robot": {"name": "pa10"}, "motion": {"durationS": 0, "cycleRateHz": 500}})");
+}
+
+// A minimum-time joint move: the slowest joint moves at one of its limits, the others are
+// scaled to finish with it; the stream starts at home and ends on the goal exactly.
+TEST_F(RobotTest, MinimumTimeJointMoveOnThePa10) {
+  auto request = minimum_time_joint_move();
+  // A joint move does not use the Cartesian maxSpeed and maxAcceleration (moves.hpp): given
+  // with values that would bind a path, they change nothing.
+  request.mutable_motion()->set_max_speed(0.01);
+  request.mutable_motion()->set_max_acceleration(0.01);
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  const auto& r = response.robot();
+  EXPECT_TRUE(r.feasible());
+  ASSERT_EQ(r.joints_size(), 7);
+  double usage = 0.0;
+  for (const auto& j : r.joints()) {
+    EXPECT_LE(j.velocity_usage(), 1.0 + 1e-9) << "joint " << j.joint();
+    EXPECT_LE(j.acceleration_usage(), 1.0 + 1e-9) << "joint " << j.joint();
+    usage = std::max({usage, j.velocity_usage(), j.acceleration_usage()});
+  }
+  EXPECT_GT(usage, 0.999);
+  EXPECT_GT(response.motion().duration_s(), 0.0);
+  EXPECT_GT(response.motion().peak_speed(), 0.01);  // the Cartesian maxSpeed is not applied
+
+  grpc::Status stream_status;
+  const auto samples = stream_all(request, stream_status);
+  ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+  ASSERT_EQ(samples.size(), response.motion().sample_count());
+  EXPECT_DOUBLE_EQ(samples.back().t(), response.motion().duration_s());
+  const auto pa10 = model("pa10");
+  for (int j = 0; j < 7; ++j) {
+    EXPECT_EQ(samples.front().joints(j), pa10.home(j)) << "joint " << j;  // start absent: the home
+    EXPECT_EQ(samples.back().joints(j), request.joint_move().goal(j)) << "joint " << j;
+    EXPECT_EQ(samples.front().joint_velocities(j), 0.0);
+    EXPECT_EQ(samples.back().joint_velocities(j), 0.0);
+  }
+  // The tool follows the joints.
+  for (const auto& s : samples) {
+    EXPECT_LT((forward_kinematics(pa10, s.joints()).translation() - vec(s.position())).norm(), 1e-12);
+  }
+}
+
+// A minimum-time joint move needs no Cartesian limits: its time comes from the joints'.
+TEST_F(RobotTest, MinimumTimeJointMoveNeedsNoCartesianLimits) {
+  const auto request = minimum_time_joint_move();
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_TRUE(response.robot().feasible());
+  grpc::Status stream_status;
+  EXPECT_EQ(stream_all(request, stream_status).size(), response.motion().sample_count());
+  EXPECT_TRUE(stream_status.ok()) << stream_status.error_message();
+}
+
+// A straight line from the UR5's home pose (start absent), 10 cm along x, the orientation
+// kept: the tool stays on the segment and the joints reproduce it.
+TEST_F(RobotTest, LinearMoveOnTheUr5) {
+  const auto ur5 = model("ur5");
+  const Eigen::Isometry3d X_home = forward_kinematics(ur5, ur5.home());
+  const Eigen::Vector3d p0 = X_home.translation();
+  const Eigen::Vector3d p1 = p0 + Eigen::Vector3d(0.1, 0.0, 0.0);
+  const Eigen::Quaterniond q_home(X_home.linear());
+
+  v1::PlanRequest request;
+  auto* goal = request.mutable_linear_move()->mutable_goal();
+  goal->mutable_position()->set_x(p1.x());
+  goal->mutable_position()->set_y(p1.y());
+  goal->mutable_position()->set_z(p1.z());
+  goal->mutable_orientation()->set_w(q_home.w());
+  goal->mutable_orientation()->set_x(q_home.x());
+  goal->mutable_orientation()->set_y(q_home.y());
+  goal->mutable_orientation()->set_z(q_home.z());
+  request.mutable_robot()->set_name("ur5");
+  request.mutable_motion()->set_duration_s(2.0);
+  request.mutable_motion()->set_cycle_rate_hz(500.0);
+
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_TRUE(response.robot().feasible());
+  EXPECT_EQ(response.robot().samples(), 1001u);
+
+  grpc::Status stream_status;
+  const auto samples = stream_all(request, stream_status);
+  ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+  ASSERT_EQ(samples.size(), 1001u);
+  const Eigen::Vector3d d_hat = (p1 - p0).normalized();
+  double previous_s = -1.0;
+  for (const auto& s : samples) {
+    ASSERT_EQ(s.joints_size(), 6);
+    ASSERT_EQ(s.joint_velocities_size(), 6);
+    const Eigen::Vector3d p = vec(s.position());
+    const double along = (p - p0).dot(d_hat);
+    EXPECT_LT((p - p0 - along * d_hat).norm(), 1e-12) << "off the line at t = " << s.t();
+    EXPECT_GE(along, -1e-12);
+    EXPECT_LE(along, 0.1 + 1e-12);
+    EXPECT_GE(along, previous_s - 1e-15) << "goes back at t = " << s.t();
+    previous_s = along;
+    EXPECT_LT(q_home.angularDistance(quat(s.orientation())), 1e-9) << "turns at t = " << s.t();
+    EXPECT_LT((forward_kinematics(ur5, s.joints()).translation() - p).norm(), 1e-8) << "at t = " << s.t();
+  }
+  EXPECT_LT((vec(samples.front().position()) - p0).norm(), 1e-12);
+  EXPECT_LT((vec(samples.back().position()) - p1).norm(), 1e-12);
+  for (int j = 0; j < 6; ++j) EXPECT_NEAR(samples.front().joints(j), ur5.home(j), 1e-9) << "joint " << j;
+}
+
+// ---------------------------------------------------------------------------------------
+// Robot model files served by geotrajd
+
+// A geotrajd child process with `args`, its standard output and error on pipes.
+class Daemon {
+ public:
+  explicit Daemon(const std::vector<std::string>& args) {
+    int out[2], err[2];
+    if (::pipe(out) != 0 || ::pipe(err) != 0) return;
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      ::dup2(out[1], STDOUT_FILENO);
+      ::dup2(err[1], STDERR_FILENO);
+      for (int fd : {out[0], out[1], err[0], err[1]}) ::close(fd);
+      std::vector<char*> argv{const_cast<char*>(GEOTRAJD)};
+      for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+      argv.push_back(nullptr);
+      ::execv(GEOTRAJD, argv.data());
+      std::_Exit(127);
+    }
+    ::close(out[1]);
+    ::close(err[1]);
+    out_ = ::fdopen(out[0], "r");
+    err_ = ::fdopen(err[0], "r");
+  }
+  ~Daemon() {
+    if (pid_ > 0 && !reaped_) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+    if (out_ != nullptr) std::fclose(out_);
+    if (err_ != nullptr) std::fclose(err_);
+  }
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+
+  /// The next line of its standard output ("" at end of file).
+  std::string line() {
+    char buf[512];
+    if (out_ == nullptr || std::fgets(buf, sizeof buf, out_) == nullptr) return "";
+    return buf;
+  }
+  /// Its whole standard error (to end of file).
+  std::string errors() {
+    std::string text;
+    char buf[512];
+    std::size_t n = 0;
+    while (err_ != nullptr && (n = std::fread(buf, 1, sizeof buf, err_)) > 0) text.append(buf, n);
+    return text;
+  }
+  void signal(int sig) { ::kill(pid_, sig); }
+  /// Its exit code, or -1 when a signal ended it.
+  int wait() {
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    reaped_ = true;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  bool started() const { return pid_ > 0 && out_ != nullptr && err_ != nullptr; }
+
+ private:
+  pid_t pid_ = -1;
+  FILE* out_ = nullptr;
+  FILE* err_ = nullptr;
+  bool reaped_ = false;
+};
+
+// The port of the log line "geotrajd: serving ... on HOST:PORT (...)".
+int port_of(const std::string& line) {
+  const auto paren = line.find(" (");
+  const auto colon = line.rfind(':', paren);
+  if (paren == std::string::npos || colon == std::string::npos) return 0;
+  return std::atoi(line.substr(colon + 1, paren - colon - 1).c_str());
+}
+
+// A file in the test's temporary directory, removed at the end of the test.
+class TempFile {
+ public:
+  TempFile(const std::string& name, const std::string& text)
+      : path_(::testing::TempDir() + "geotraj_robot_test_" + std::to_string(::getpid()) + "_" + name) {
+    std::ofstream(path_) << text;
+  }
+  ~TempFile() { std::remove(path_.c_str()); }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+std::string to_json(const google::protobuf::Message& message) {
+  std::string json;
+  google::protobuf::util::JsonPrintOptions options;
+  options.add_whitespace = true;
+  EXPECT_TRUE(google::protobuf::util::MessageToJsonString(message, &json, options).ok());
+  return json;
+}
+
+// Starts geotrajd with `args`, expecting it to exit non-zero without serving; its standard
+// error.
+std::string refused_start(const std::vector<std::string>& args) {
+  Daemon daemon(args);
+  EXPECT_TRUE(daemon.started());
+  const std::string serving = daemon.line();
+  if (!serving.empty()) {  // it serves: stop it rather than wait for its exit
+    ADD_FAILURE() << "geotrajd started: " << serving;
+    daemon.signal(SIGKILL);
+  }
+  std::string errors = daemon.errors();
+  EXPECT_NE(daemon.wait(), 0) << errors;
+  return errors;
+}
+
+TEST_F(RobotTest, GeotrajdServesARobotModelFile) {
+  auto arm = model("pa10");
+  arm.set_name("my-arm");
+  arm.set_description("the PA-10 under another name");
+  const TempFile file("my_arm.json", to_json(arm));
+
+  Daemon daemon({"--address", "127.0.0.1:0", "--shutdown-grace", "0.2", "--robot-model", file.path()});
+  ASSERT_TRUE(daemon.started());
+  const std::string serving = daemon.line();
+  const int port = port_of(serving);
+  ASSERT_GT(port, 0) << serving << daemon.errors();
+  auto stub = v1::TrajectoryService::NewStub(
+      grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials()));
+
+  v1::ListRobotsResponse robots;
+  ASSERT_TRUE(stub->ListRobots(context().get(), v1::ListRobotsRequest{}, &robots).ok());
+  std::vector<std::string> names;
+  const v1::RobotModel* served = nullptr;
+  for (const auto& m : robots.robots()) {
+    names.push_back(m.name());
+    if (m.name() == "my-arm") served = &m;
+  }
+  EXPECT_THAT(names, ::testing::UnorderedElementsAre("pa10", "ur5", "my-arm"));
+  ASSERT_NE(served, nullptr);
+  EXPECT_EQ(served->links_size(), 7);
+  EXPECT_EQ(served->description(), "the PA-10 under another name");
+  EXPECT_EQ(served->dh_convention(), v1::DH_CONVENTION_MODIFIED);
+
+  // Usable by name, with the same answer as the built-in model it copies.
+  auto request = pa10_path_a(60.0, /*report_only=*/false);
+  request.mutable_robot()->set_name("my-arm");
+  v1::PlanResponse mine, builtin;
+  const auto status = stub->PlanTrajectory(context().get(), request, &mine);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_EQ(mine.robot().name(), "my-arm");
+  EXPECT_TRUE(mine.robot().feasible());
+  ASSERT_TRUE(plan(pa10_path_a(60.0, false), builtin).ok());
+  EXPECT_EQ(mine.robot().samples(), builtin.robot().samples());
+  EXPECT_EQ(mine.robot().joints(0).max_position(), builtin.robot().joints(0).max_position());
+
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(), 0);
+}
+
+TEST_F(RobotTest, GeotrajdRefusesABadRobotModelFile) {
+  auto inverted = model("ur5");
+  inverted.set_name("inverted");
+  inverted.mutable_limits(3)->set_min_position(1.0);
+  inverted.mutable_limits(3)->set_max_position(-1.0);
+  auto duplicate = model("ur5");  // a second "ur5"
+  struct Case {
+    std::string file;
+    std::string text;
+    std::string why;  // in geotrajd's message
+  };
+  for (const Case& c : {Case{"not_json.json", "{\"name\": \"x\", \"links\": 3}", "RobotModel"},
+                        Case{"inverted.json", to_json(inverted), "limits[3].minPosition"},
+                        Case{"duplicate.json", to_json(duplicate), "ur5"}}) {
+    SCOPED_TRACE(c.file);
+    const TempFile file(c.file, c.text);
+    const std::string errors = refused_start({"--address", "127.0.0.1:0", "--robot-model", file.path()});
+    EXPECT_THAT(errors, HasSubstr(file.path()));
+    EXPECT_THAT(errors, HasSubstr(c.why));
+  }
+  const std::string errors = refused_start({"--address", "127.0.0.1:0", "--robot-model", "/nonexistent/robot.json"});
+  EXPECT_THAT(errors, HasSubstr("/nonexistent/robot.json"));
+}
+
+}  // namespace
+}  // namespace geotraj::testing

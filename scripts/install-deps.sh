@@ -12,6 +12,7 @@ packages=(
   libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   liborocos-kdl-dev                   # Orocos KDL: the kinematics cross-check (tests only)
+  coinor-libipopt-dev libceres-dev libnlopt-cxx-dev   # the optimisers (optim/)
   python3 python3-grpcio python3-protobuf   # the cross-language client test
 )
 

@@ -3,7 +3,9 @@
 # Table 7.8 with the curvature and torsion of Table 7.18 (paths A, B, C), tangent scale
 # 0.25. For each path: the arc length of every segment and the geometry achieved at every
 # key frame; then an SVG picture of the three paths under out/; then the speed tables
-# (Tables 7.21, 7.22) with their plots (scripts/motion_demo.py).
+# (Tables 7.21, 7.22) with their plots (scripts/motion_demo.py); then the paths on the PA-10
+# in joint space at 10 s and time-optimal (scripts/robot_demo.py); then the optimisers:
+# tangent scales (SVG before/after) and Appendix B.3's breakpoint table.
 #   usage: scripts/demo.sh [BUILD_DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -44,3 +46,18 @@ echo "Wrote $out/thesis_paths.svg (top and side views of paths A, B, C; key fram
 # The same paths on the PA-10 in joint space (thesis 6.4, 7.2): limit margins, IK
 # residuals, manipulability, and SVG plots of the joints.
 /usr/bin/python3 scripts/robot_demo.py "$cli" "$out"
+
+# Optimisation (issue "optimisation"): the tangent scales of path A chosen for the least
+# bending energy (the thesis's 0.25 against the optimised ones, SVG), and Appendix B.3's
+# breakpoint table (uniform, the thesis's hand-tuned B.11 and B.13, optimised).
+echo
+echo "=== Tangent scales of path A: the thesis's 0.25 at every frame against the optimised ones"
+"$cli" plan --optimize-tangent-scales bending-energy "$out/request_a.json" | sed -n '/^optimisation/,$p'
+"$cli" --json analyze --optimize-tangent-scales bending-energy "$out/request_a.json" > "$out/profile_a_optimised.json"
+/usr/bin/python3 scripts/plot_paths.py "$out/tangent_scales_path_a.svg" \
+  "path A, tangent scale 0.25 (thesis)=$out/request_a.json:$out/profile_a.json" \
+  "path A, tangent scales for the least bending energy=$out/request_a.json:$out/profile_a_optimised.json"
+echo "Wrote $out/tangent_scales_path_a.svg"
+echo
+echo "=== Appendix B.3 (Table B.1's path): peak torsion and curvature by breakpoints"
+/usr/bin/python3 scripts/appendix_b_table.py "$cli"

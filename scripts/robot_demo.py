@@ -79,11 +79,12 @@ def panel(svg, y0, title, unit, t, series, limits):
 
 
 def plot(filename, path, t, q, qd, qdd, model):
+    duration = t[-1]
     n = len(q)
     h = TOP + 3 * (PANEL_H + 40) + 20
     svg = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" font-family="sans-serif" '
            f'font-size="12">', f'<rect width="{W}" height="{h}" fill="white"/>',
-           f'<text x="{LEFT}" y="24" font-size="15">PA-10 joint trajectories, thesis path {path}, 10 s, 100 Hz '
+           f'<text x="{LEFT}" y="24" font-size="15">PA-10 joint trajectories, thesis path {path}, {duration:.3g} s, 100 Hz '
            f'(margins to the limits: see the plan report)</text>']
     panel(svg, TOP, "joint position", "rad", t, q, [])
     panel(svg, TOP + PANEL_H + 40, "joint velocity", "rad/s", t, qd, [])
@@ -98,6 +99,38 @@ def plot(filename, path, t, q, qd, qdd, model):
     svg.append("</svg>")
     with open(filename, "w") as f:
         f.write("\n".join(svg) + "\n")
+
+
+def time_optimal(cli, tmp, model, out):
+    """Thesis 6.4 made explicit: the fastest timing of each path within the PA-10's joint
+    limits (exact time-optimal parameterisation), against the thesis's fixed 10 s."""
+    print("\n=== Time-optimal timing on the PA-10 (durationS 0: the joint limits set the time)")
+    print(f"{'path':>4} {'thesis':>8} {'time-optimal':>13} {'feasible':>9}   tightest margins (joint: kind usage)")
+    for path in "ABC":
+        with open(os.path.join(REQUESTS, f"plan_demo_path_{path.lower()}.json")) as f:
+            req = json.load(f)
+        req["motion"] = {"durationS": 0, "cycleRateHz": 100}
+        req["robot"] = {"name": "pa10"}
+        name = os.path.join(tmp, f"topp_{path}.json")
+        with open(name, "w") as f:
+            json.dump(req, f)
+        plan = json.loads(run(cli, "--json", "plan", name))
+        robot = plan["robot"]
+        top = sorted(robot["joints"], key=lambda j: -max(j.get("velocityUsage", 0), j.get("accelerationUsage", 0)))[:3]
+        margins = ", ".join(f"{j.get('joint', 0)}: vel {100 * j.get('velocityUsage', 0):.0f}% "
+                            f"acc {100 * j.get('accelerationUsage', 0):.0f}%" for j in top)
+        print(f"{path:>4} {10:>7.2f}s {plan['motion']['durationS']:>12.3f}s {str(robot.get('feasible', False)):>9}   "
+              f"{margins}")
+        if path == "C":
+            print("\nPath C, which limit binds where (PlanResponse.optimization.timing.binding):")
+            print(run(cli, "plan", name).split("which limit binds where:\n", 1)[1].split("\n\n", 1)[0])
+            rows = list(csv.DictReader(io.StringIO(run(cli, "stream", name))))
+            n = len(model["links"])
+            t = [float(r["t"]) for r in rows]
+            series = [[[float(r[f"{k}{j + 1}"]) for r in rows] for j in range(n)] for k in ("q", "qd", "qdd")]
+            file = os.path.join(out, "joints_path_c_time_optimal.svg")
+            plot(file, "C (time-optimal)", t, *series, model)
+            print(f"wrote {file} ({len(rows)} samples): every joint velocity and acceleration within its limit")
 
 
 def main():
@@ -125,6 +158,7 @@ def main():
             name = os.path.join(out, f"joints_path_{path.lower()}.svg")
             plot(name, path, t, q, qd, qdd, model)
             print(f"wrote {name} ({len(rows)} samples)")
+        time_optimal(cli, tmp, model, out)
 
 
 if __name__ == "__main__":

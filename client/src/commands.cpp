@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <cctype>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -11,6 +12,7 @@
 #include <iostream>
 #include <iterator>
 #include <sstream>
+#include <type_traits>
 
 #include <google/protobuf/util/json_util.h>
 #include <grpcpp/client_context.h>
@@ -53,6 +55,44 @@ bool read_request(const std::string& input, Request& request) {
   return true;
 }
 
+// The `--optimize-*` flags written into the request; false (with a message) for an unknown
+// objective name.
+bool apply(const OptimizeFlags& flags, v1::PlanRequest& request) {
+  auto enum_value = [](const std::string& name, const std::string& prefix,
+                       const google::protobuf::EnumDescriptor* descriptor, int& out) {
+    std::string upper = prefix;
+    for (char c : name) upper += c == '-' ? '_' : static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    const auto* value = descriptor->FindValueByName(upper);
+    if (value == nullptr || value->number() == 0) {
+      std::cerr << "geotraj: unknown objective '" << name << "' (" << prefix << "...)\n";
+      return false;
+    }
+    out = value->number();
+    return true;
+  };
+  const bool any = !flags.tangent_scales.empty() || !flags.breakpoints.empty() || flags.time_optimal ||
+                   flags.jerk_limited || flags.budget_s > 0.0;
+  if (!any) return true;  // the request's own `optimize`, if any, stays as it is
+  auto* optimize = request.mutable_optimize();
+  int value = 0;
+  if (!flags.tangent_scales.empty()) {
+    if (!enum_value(flags.tangent_scales, "TANGENT_SCALE_OBJECTIVE_", v1::TangentScaleObjective_descriptor(), value)) {
+      return false;
+    }
+    optimize->mutable_tangent_scales()->set_objective(static_cast<v1::TangentScaleObjective>(value));
+  }
+  if (!flags.breakpoints.empty()) {
+    if (!enum_value(flags.breakpoints, "BREAKPOINT_OBJECTIVE_", v1::BreakpointObjective_descriptor(), value)) {
+      return false;
+    }
+    optimize->mutable_breakpoints()->set_objective(static_cast<v1::BreakpointObjective>(value));
+  }
+  if (flags.time_optimal) optimize->mutable_timing()->set_time_optimal(true);
+  if (flags.jerk_limited) optimize->mutable_timing()->set_jerk_limited(true);
+  if (flags.budget_s > 0.0) optimize->set_time_budget_s(flags.budget_s);
+  return true;
+}
+
 void set_deadline(grpc::ClientContext& context, double timeout_s) {
   context.set_deadline(std::chrono::system_clock::now() +
                        std::chrono::microseconds(static_cast<long long>(timeout_s * 1e6)));
@@ -88,6 +128,9 @@ template <class Request, class Response, class Call>
 int run(const CallOptions& options, Call call) {
   Request request;
   if (!read_request(options.input, request)) return 2;
+  if constexpr (std::is_same_v<Request, v1::PlanRequest>) {
+    if (!apply(options.optimize, request)) return 2;
+  }
   grpc::ClientContext context;
   set_deadline(context, options.timeout_s);
   Response response;
@@ -119,7 +162,7 @@ int run_analyze(const Connection& connection, const CallOptions& options) {
 
 int run_stream(const Connection& connection, const CallOptions& options) {
   v1::PlanRequest request;
-  if (!read_request(options.input, request)) return 2;
+  if (!read_request(options.input, request) || !apply(options.optimize, request)) return 2;
   auto stub = v1::TrajectoryService::NewStub(connection.channel);
   // The expected count, for the progress bar (a plan costs far less than its stream).
   std::uint64_t expected = 0;

@@ -7,10 +7,20 @@
 
 namespace geotraj::cli {
 
+/// What `--optimize-*` flags add to a PlanRequest's `optimize` block (over the file's own).
+struct OptimizeFlags {
+  std::string tangent_scales;  ///< objective name (bending-energy, peak-curvature, peak-torsion, arc-length); empty: none
+  std::string breakpoints;     ///< objective name (peak-torsion, peak-curvature, peak-derivatives); empty: none
+  bool time_optimal = false;   ///< optimize.timing.timeOptimal
+  bool jerk_limited = false;   ///< optimize.timing.jerkLimited
+  double budget_s = 0.0;       ///< optimize.timeBudgetS when > 0
+};
+
 struct CallOptions {
   std::string input = "-";  ///< request file in the proto JSON mapping; "-" reads stdin
   bool json = false;        ///< print the response as proto JSON instead of a table
   double timeout_s = 60.0;  ///< deadline of the call [s]
+  OptimizeFlags optimize;   ///< applied to PlanRequests
 };
 
 // Each returns the process exit code: 0 on success, 1 when the call failed, 2 when the

@@ -25,14 +25,28 @@ int main(int argc, char** argv) {
     sub->add_option("request", options.input, std::string(type) + " in the proto JSON mapping: a file, or - for stdin")
         ->capture_default_str();
   };
+  const auto optimize_flags = [&](CLI::App* sub) {
+    sub->add_option("--optimize-tangent-scales", options.optimize.tangent_scales,
+                    "optimise the tangent scales: bending-energy, peak-curvature, peak-torsion or arc-length");
+    sub->add_option("--optimize-breakpoints", options.optimize.breakpoints,
+                    "optimise the trapezoid breakpoints: peak-torsion, peak-curvature or peak-derivatives");
+    sub->add_flag("--time-optimal", options.optimize.time_optimal,
+                  "the fastest timing within the robot's joint limits and the Cartesian limits given");
+    sub->add_flag("--jerk-limited", options.optimize.jerk_limited, "time-optimal with jerk limits as well (Ipopt)");
+    sub->add_option("--optimize-budget", options.optimize.budget_s, "wall-clock budget of the optimisers [s]")
+        ->check(CLI::PositiveNumber);
+  };
   auto* convert = app.add_subcommand("convert", "ConvertConstraints: key-frame constraints -> parametric derivatives");
   request_arg(convert, "a ConvertRequest");
   auto* plan = app.add_subcommand("plan", "PlanTrajectory: segments, arc lengths, achieved geometry");
   request_arg(plan, "a PlanRequest");
+  optimize_flags(plan);
   auto* analyze = app.add_subcommand("analyze", "AnalyzePath: curvature, torsion and Frenet frames along the path");
   request_arg(analyze, "a PlanRequest");
+  optimize_flags(analyze);
   auto* stream = app.add_subcommand("stream", "StreamSamples: the motion sampled at the cycle rate, as CSV (or JSON lines with --json)");
   request_arg(stream, "a PlanRequest with `motion`");
+  optimize_flags(stream);
   auto* robots = app.add_subcommand("robots", "ListRobots: the robot models the server knows, with DH tables and limits");
   auto* health = app.add_subcommand("health", "grpc.health.v1 Check: prints the serving status, exit 0 if SERVING");
   health->add_option("--service", health_service, "service name; empty: the whole server");

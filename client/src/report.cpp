@@ -118,7 +118,60 @@ void print_table(const v1::PlanResponse& response, std::ostream& out) {
         << " m/s, peak tangential acceleration" << num(m.peak_acceleration(), 1) << " m/s^2, "
         << m.sample_count() << " samples\n";
   }
+  if (response.has_optimization()) print_table(response.optimization(), out);
   if (response.has_robot()) print_table(response.robot(), out);
+}
+
+namespace {
+
+template <class Report>
+void print_optimizer(const char* what, const char* unit, const Report& r, std::ostream& out) {
+  char row[240];
+  std::snprintf(row, sizeof row, "%-15s %-16s objective %.6g -> %.6g%s%s, %u iterations, %.3f s%s%s\n", what,
+                short_enum(v1::OptimizerStatus_Name(r.status()), "OPTIMIZER_STATUS_").c_str(), r.objective_before(),
+                r.objective_after(), *unit ? " " : "", unit, r.iterations(), r.seconds(),
+                r.message().empty() ? "" : ": ", r.message().c_str());
+  out << row;
+}
+
+}  // namespace
+
+void print_table(const v1::OptimizationReport& report, std::ostream& out) {
+  out << "\noptimisation:\n";
+  if (report.has_tangent_scales()) {
+    const auto& t = report.tangent_scales();
+    print_optimizer("tangent scales", "", t, out);
+    out << "  chosen scales [m]:";
+    for (double x : t.tangent_scales()) out << ' ' << num(x, 1);
+    out << '\n';
+  }
+  if (report.has_breakpoints()) {
+    const auto& b = report.breakpoints();
+    print_optimizer("breakpoints", "", b, out);
+    for (const auto& seg : b.breakpoints()) {
+      const std::pair<const char*, const google::protobuf::RepeatedField<double>*> axes[] = {
+          {"all", &seg.all()}, {"x", &seg.x()}, {"y", &seg.y()}, {"z", &seg.z()}};
+      for (const auto& [name, values] : axes) {
+        if (values->empty()) continue;
+        out << "  segment " << seg.segment() << ' ' << name << ':';
+        for (double x : *values) out << ' ' << num(x, 1);
+        out << '\n';
+      }
+    }
+  }
+  if (report.has_timing()) {
+    const auto& t = report.timing();
+    print_optimizer("timing", "s", t, out);
+    if (t.binding_size() > 0) out << "  which limit binds where:\n";
+    for (const auto& b : t.binding()) {
+      char row[240];
+      std::snprintf(row, sizeof row, "  s %7.4f .. %7.4f m  t %7.3f .. %7.3f s  %-34s joint %u  %.4g of %.4g\n",
+                    b.s_start(), b.s_end(), b.t_start(), b.t_end(),
+                    short_enum(v1::BindingKind_Name(b.kind()), "BINDING_KIND_").c_str(), b.joint(), b.value(),
+                    b.limit());
+      out << row;
+    }
+  }
 }
 
 namespace {
@@ -155,6 +208,14 @@ void print_table(const v1::RobotReport& robot, std::ostream& out) {
                 robot.max_midpoint_deviation_t(), robot.min_manipulability(), robot.min_manipulability_t());
   out << buf;
   for (const auto& v : robot.violations()) out << "VIOLATION " << event_text(v) << '\n';
+  if (robot.binding_size() > 0) out << "the most used limit, stretch by stretch:\n";
+  for (const auto& b : robot.binding()) {
+    char row[200];
+    std::snprintf(row, sizeof row, "  t %8.3f .. %8.3f s  %-20s joint %u  peak %.4g of limit %.4g (%.1f%%)\n",
+                  b.t_start(), b.t_end(), short_enum(v1::BindingKind_Name(b.kind()), "BINDING_KIND_").c_str(),
+                  b.joint(), b.value(), b.limit(), 100.0 * b.usage());
+    out << row;
+  }
 }
 
 void print_table(const v1::ListRobotsResponse& robots, std::ostream& out) {

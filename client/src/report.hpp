@@ -12,6 +12,8 @@ namespace geotraj::cli {
 void print_table(const v1::ConvertResponse& response, std::ostream& out);
 void print_table(const v1::PlanResponse& response, std::ostream& out);
 void print_table(const v1::PathProfile& profile, std::ostream& out);
+/// What the optimisers did.
+void print_table(const v1::OptimizationReport& report, std::ostream& out);
 /// The joint-space report of a plan with a robot.
 void print_table(const v1::RobotReport& robot, std::ostream& out);
 /// The robot models: DH table and limits of each.

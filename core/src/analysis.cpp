@@ -38,7 +38,8 @@ void compare_side(Worst& w, const std::string& at, const KeyFrame& asked, const 
     return;
   }
   w.update(angle_between(g.T, side.T), at + ".tangent");
-  w.update(relative(g.speed, asked.tangent_scale.value_or(1.0)), at + ".tangentScale");
+  // The side's own scale (side_scale: the leaving side of a cusp may have its own).
+  w.update(relative(g.speed, side.d[0].norm()), at + ".tangentScale");
   if (!asked.kappa) return;
   w.update(relative(g.kappa, *asked.kappa), at + ".curvature");
   if (*asked.kappa > 0.0) {

@@ -6,41 +6,13 @@ namespace geotraj::core {
 
 using Eigen::Vector3d;
 
-namespace {
-
-constexpr double binomial(int n, int k) {
-  double r = 1.0;
-  for (int i = 1; i <= k; ++i) r = r * (n - k + i) / i;
-  return r;
-}
-
-// d! / (d - k)!
-constexpr double falling(int d, int k) {
-  double r = 1.0;
-  for (int i = 0; i < k; ++i) r *= d - i;
-  return r;
-}
-
-}  // namespace
-
 BezierSegment hermite_bezier(const Jet& start, int n0, const Jet& end, int n1) {
   GEOTRAJ_CHECK(n0 >= 0 && n0 <= kMaxJetOrder && n1 >= 0 && n1 <= kMaxJetOrder);
   BezierSegment seg;
   const int d = n0 + n1 + 1;  // App. B.2: n0 + n1 + 2 conditions
   seg.degree = d;
-  auto& b = seg.b;
-  // At u = 0: p^(k)(0) = d!/(d-k)! * sum_j (-1)^(k-j) C(k,j) b_j  (forward difference).
-  for (int k = 0; k <= n0; ++k) {
-    Vector3d acc = start[k] / falling(d, k);
-    for (int j = 0; j < k; ++j) acc -= ((k - j) % 2 ? -1.0 : 1.0) * binomial(k, j) * b[j];
-    b[k] = acc;
-  }
-  // At u = 1: p^(k)(1) = d!/(d-k)! * sum_j (-1)^j C(k,j) b_{d-j}  (backward difference).
-  for (int k = 0; k <= n1; ++k) {
-    Vector3d acc = end[k] / falling(d, k);
-    for (int j = 0; j < k; ++j) acc -= (j % 2 ? -1.0 : 1.0) * binomial(k, j) * b[d - j];
-    b[d - k] = (k % 2 ? -1.0 : 1.0) * acc;
-  }
+  hermite_control_points(start, n0, end, n1, seg.b);
+  const auto& b = seg.b;
   // Hodographs d!/(d-k)! Delta^k b, then scaled by their binomial coefficients.
   seg.h[0] = b;
   for (int k = 1; k <= kMaxJetOrder && k <= d; ++k) {

@@ -199,6 +199,7 @@ JointReportBuilder::JointReportBuilder(const RobotModel& model, double branch_to
   report_.joints.resize(n);
   report_.violations.reserve(n * kKinds);  // at most one per (joint, kind): add() never allocates
   reported_.assign(n * kKinds, false);
+  report_.binding.reserve(kMaxUsageStretches);  // add() never allocates
   constexpr double inf = std::numeric_limits<double>::infinity();
   report_.tightest_position.kind = LimitKind::kPosition;
   report_.tightest_position.margin = inf;
@@ -216,7 +217,7 @@ void JointReportBuilder::record(LimitKind kind, std::size_t joint, std::size_t s
   report_.violations.push_back(LimitEvent{kind, joint, sample, t, value, limit, margin});
 }
 
-void JointReportBuilder::add(std::size_t sample, double t, const JointSample& s) {
+void JointReportBuilder::add(std::size_t sample, double t, double s_path, const JointSample& s) {
   JointMotionReport& r = report_;
   ++r.samples;
   r.max_position_error = std::max(r.max_position_error, s.position_error);
@@ -261,20 +262,66 @@ void JointReportBuilder::add(std::size_t sample, double t, const JointSample& s)
     if (margin_p < r.tightest_position.margin) {
       r.tightest_position = LimitEvent{LimitKind::kPosition, j, sample, t, q, bound, margin_p};
     }
-    if (margin_p < 0.0) record(LimitKind::kPosition, j, sample, t, q, bound, margin_p);
+    if (margin_p < -kLimitTolerance * std::max(1.0, std::abs(bound))) {
+      record(LimitKind::kPosition, j, sample, t, q, bound, margin_p);
+    }
 
     const double margin_v = lim.max_velocity - v;
     if (margin_v < r.tightest_velocity.margin) {
       r.tightest_velocity = LimitEvent{LimitKind::kVelocity, j, sample, t, v, lim.max_velocity, margin_v};
     }
-    if (margin_v < 0.0) record(LimitKind::kVelocity, j, sample, t, v, lim.max_velocity, margin_v);
+    if (margin_v < -kLimitTolerance * lim.max_velocity) {
+      record(LimitKind::kVelocity, j, sample, t, v, lim.max_velocity, margin_v);
+    }
 
     const double margin_a = lim.max_acceleration - a;
     if (margin_a < r.tightest_acceleration.margin) {
       r.tightest_acceleration = LimitEvent{LimitKind::kAcceleration, j, sample, t, a, lim.max_acceleration, margin_a};
     }
-    if (margin_a < 0.0) record(LimitKind::kAcceleration, j, sample, t, a, lim.max_acceleration, margin_a);
+    if (margin_a < -kLimitTolerance * lim.max_acceleration) {
+      record(LimitKind::kAcceleration, j, sample, t, a, lim.max_acceleration, margin_a);
+    }
   }
+  update_binding(sample, t, s_path, s);
+}
+
+void JointReportBuilder::update_binding(std::size_t sample, double t, double s_path, const JointSample& s) {
+  // The most used joint limit at this sample.
+  UsageStretch top;
+  for (std::size_t j = 0; j < model_->dof(); ++j) {
+    const auto i = static_cast<Eigen::Index>(j);
+    const JointLimits& lim = model_->limits[j];
+    const double v = std::abs(s.q_dot(i)), a = std::abs(s.q_ddot(i));
+    if (v / lim.max_velocity > top.peak_usage) {
+      top = {LimitKind::kVelocity, j, 0, 0, 0, 0, 0, 0, v / lim.max_velocity, v, lim.max_velocity};
+    }
+    if (a / lim.max_acceleration > top.peak_usage) {
+      top = {LimitKind::kAcceleration, j, 0, 0, 0, 0, 0, 0, a / lim.max_acceleration, a, lim.max_acceleration};
+    }
+  }
+  auto& stretches = report_.binding;
+  if (!stretches.empty()) {
+    UsageStretch& last = stretches.back();
+    last.sample_end = sample;
+    last.t_end = t;
+    last.s_end = s_path;
+    // The current stretch's own limit at this sample.
+    const auto i = static_cast<Eigen::Index>(last.joint);
+    const double own_value = last.kind == LimitKind::kVelocity ? std::abs(s.q_dot(i)) : std::abs(s.q_ddot(i));
+    const double own = own_value / last.limit;
+    if (own > last.peak_usage) {
+      last.peak_usage = own;
+      last.value = own_value;
+    }
+    const bool same = top.kind == last.kind && top.joint == last.joint;
+    if (same || top.peak_usage <= kUsageHysteresis * own || stretches.size() == kMaxUsageStretches) return;
+  } else if (top.peak_usage == 0.0) {
+    return;  // at rest before anything moves
+  }
+  top.sample_start = top.sample_end = sample;
+  top.t_start = top.t_end = t;
+  top.s_start = top.s_end = s_path;
+  stretches.push_back(top);
 }
 
 }  // namespace geotraj::core

@@ -1,5 +1,6 @@
 #include "geotraj/core/validate.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <string>
@@ -111,10 +112,13 @@ void validate_frame(Collector& c, const std::string& at, KeyFrame& f, std::size_
           c.add(at + ".normal", "is required where curvature > 0 (the curve bends towards the normal)");
         }
         // |p' x p''| = kappa scale^3 enters squared in (5.14)-(5.22): keep it a normal double.
+        // Both sides of a cusp: the leaving side may have its own scale.
         const double scale = f.tangent_scale.value_or(1.0);
-        if (kappa_positive && std::isfinite(scale) && scale > 0.0 &&
-            !(*f.kappa * scale * scale * scale > 1e-150)) {
-          c.add(at + ".curvature", "curvature x tangentScale^3 = " + fmt(*f.kappa * scale * scale * scale) +
+        const double leave_scale = f.leave_tangent_scale.value_or(scale);
+        const double smaller = std::min(scale, leave_scale);
+        if (kappa_positive && std::isfinite(scale) && std::isfinite(leave_scale) && smaller > 0.0 &&
+            !(*f.kappa * smaller * smaller * smaller > 1e-150)) {
+          c.add(at + ".curvature", "curvature x tangentScale^3 = " + fmt(*f.kappa * smaller * smaller * smaller) +
                                        " is too small to define the osculating plane in double precision (needs > 1e-150)");
         }
       }
@@ -138,17 +142,22 @@ void validate_frame(Collector& c, const std::string& at, KeyFrame& f, std::size_
     c.add(at + ".torsionDerivative", "needs the torsion at the same frame (give torsion, 0 if it should vanish)");
   }
 
-  if (f.tangent_scale) {
-    if (c.finite(at + ".tangentScale", *f.tangent_scale)) {
-      if (!(*f.tangent_scale > 0.0)) {
-        c.add(at + ".tangentScale", "must be > 0 (it is |dp/du| at the frame), got " + fmt(*f.tangent_scale));
-      } else if (*f.tangent_scale < limits.min_tangent_scale) {
-        c.add(at + ".tangentScale", "must be at least " + fmt(limits.min_tangent_scale) +
-                                        " m (smaller ones lose the tangent in rounding), got " + fmt(*f.tangent_scale));
-      } else if (*f.tangent_scale > limits.max_tangent_scale) {
-        c.add(at + ".tangentScale", "must be at most " + fmt(limits.max_tangent_scale) + " m, got " + fmt(*f.tangent_scale));
-      }
+  const auto check_scale = [&](const std::optional<double>& scale, const std::string& field) {
+    if (!scale || !c.finite(field, *scale)) return;
+    if (!(*scale > 0.0)) {
+      c.add(field, "must be > 0 (it is |dp/du| at the frame), got " + fmt(*scale));
+    } else if (*scale < limits.min_tangent_scale) {
+      c.add(field, "must be at least " + fmt(limits.min_tangent_scale) +
+                       " m (smaller ones lose the tangent in rounding), got " + fmt(*scale));
+    } else if (*scale > limits.max_tangent_scale) {
+      c.add(field, "must be at most " + fmt(limits.max_tangent_scale) + " m, got " + fmt(*scale));
     }
+  };
+  check_scale(f.tangent_scale, at + ".tangentScale");
+  check_scale(f.leave_tangent_scale, at + ".leaveTangentScale");
+  if (f.leave_tangent_scale && !f.cusp) {
+    c.add(at + ".leaveTangentScale", "is only for a cusp (the leaving side's own scale); this frame is not a cusp: "
+                                     "use tangentScale");
   }
 
   const bool has_both_sides = closed || (index > 0 && index + 1 < count);

@@ -119,6 +119,7 @@ core::KeyFrame to_core(const v1::KeyFrame& f) {
   if (f.has_torsion()) k.tau = f.torsion();
   if (f.has_torsion_derivative()) k.tau_d = f.torsion_derivative();
   if (f.has_tangent_scale()) k.tangent_scale = f.tangent_scale();
+  if (f.has_leave_tangent_scale()) k.leave_tangent_scale = f.leave_tangent_scale();
   k.cusp = f.cusp();
   k.inflection = f.inflection();
   k.stop = f.stop();
@@ -282,7 +283,14 @@ core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& requ
   // A joint move's minimum time comes from the joint limits: core::plan_joint_move checks
   // the spec without asking for the Cartesian ones.
   if (request.has_joint_move()) return spec;
-  auto violations = core::validate_motion(spec);
+  // With a robot, or when asked, a minimum time is the time-optimal timing: the joint limits
+  // (and whichever Cartesian limits are given) set it, so the Cartesian ones are optional.
+  core::MotionSpec checked = spec;
+  if (spec.duration_s == 0.0 && (request.has_robot() || request.optimize().timing().time_optimal())) {
+    checked.duration_s = 1.0;
+    checked.profile = core::ProfileShape::kTrapezoidal;
+  }
+  auto violations = core::validate_motion(checked);
   if (!violations.empty()) return tl::unexpected(std::move(violations));
   return spec;
 }
@@ -607,6 +615,19 @@ void to_proto(const std::string& robot_name, const core::JointMotionReport& repo
   out.set_min_manipulability_t(report.min_manipulability_t);
   out.set_feasible(report.feasible());
   for (const auto& v : report.violations) to_proto(v, *out.add_violations());
+  for (const auto& b : report.binding) {
+    auto* stretch = out.add_binding();
+    stretch->set_kind(b.kind == core::LimitKind::kAcceleration ? v1::BINDING_KIND_JOINT_ACCELERATION
+                                                               : v1::BINDING_KIND_JOINT_VELOCITY);
+    stretch->set_joint(static_cast<std::uint32_t>(b.joint));
+    stretch->set_t_start(b.t_start);
+    stretch->set_t_end(b.t_end);
+    stretch->set_s_start(b.s_start);
+    stretch->set_s_end(b.s_end);
+    stretch->set_usage(b.peak_usage);
+    stretch->set_value(b.value);
+    stretch->set_limit(b.limit);
+  }
 }
 
 core::Expected<core::JointMoveSpec> joint_move_from_request(const v1::PlanRequest& request,
@@ -686,6 +707,120 @@ void to_proto(const core::TrajectorySample& sample, v1::Sample& out) {
     qs->Add(joints.q(i));
     qd->Add(joints.q_dot(i));
     qdd->Add(joints.q_ddot(i));
+  }
+}
+
+// --- optimisation --------------------------------------------------------------------------
+
+namespace {
+
+v1::OptimizerStatus to_proto(optim::OptimizerStatus status) {
+  switch (status) {
+    case optim::OptimizerStatus::kConverged: return v1::OPTIMIZER_STATUS_CONVERGED;
+    case optim::OptimizerStatus::kIterationLimit: return v1::OPTIMIZER_STATUS_ITERATION_LIMIT;
+    case optim::OptimizerStatus::kTimeLimit: return v1::OPTIMIZER_STATUS_TIME_LIMIT;
+    case optim::OptimizerStatus::kNoImprovement: return v1::OPTIMIZER_STATUS_NO_IMPROVEMENT;
+    case optim::OptimizerStatus::kFailed: return v1::OPTIMIZER_STATUS_FAILED;
+  }
+  return v1::OPTIMIZER_STATUS_UNSPECIFIED;
+}
+
+// The fields every optimiser report has.
+template <class Report>
+void set_report(const optim::OptimizerReport& r, Report& out) {
+  out.set_objective_before(r.objective_before);
+  out.set_objective_after(r.objective_after);
+  out.set_iterations(static_cast<std::uint32_t>(std::max(r.iterations, 0)));
+  out.set_status(to_proto(r.status));
+  out.set_seconds(r.seconds);
+  out.set_message(r.message);
+}
+
+}  // namespace
+
+core::Expected<double> optimize_budget(const v1::PlanRequest& request) {
+  const auto& o = request.optimize();
+  if (!o.has_time_budget_s()) return kDefaultOptimizeBudgetS;
+  if (!(std::isfinite(o.time_budget_s()) && o.time_budget_s() > 0.0)) {
+    return tl::unexpected(
+        core::Violations{{"optimize.timeBudgetS", "must be a finite time > 0 s when given, got " + fmt(o.time_budget_s())}});
+  }
+  return o.time_budget_s();
+}
+
+core::Expected<optim::TangentScaleOptions> tangent_scale_options(const v1::PlanRequest& request) {
+  const auto& t = request.optimize().tangent_scales();
+  WireCheck check;
+  check_enum(check, "optimize.tangentScales.objective", t.objective(), v1::TangentScaleObjective_descriptor());
+  if (!check.violations.empty()) return tl::unexpected(std::move(check.violations));
+  optim::TangentScaleOptions options;
+  switch (t.objective()) {
+    case v1::TANGENT_SCALE_OBJECTIVE_PEAK_CURVATURE: options.objective = optim::TangentScaleObjective::kPeakCurvature; break;
+    case v1::TANGENT_SCALE_OBJECTIVE_PEAK_TORSION: options.objective = optim::TangentScaleObjective::kPeakTorsion; break;
+    case v1::TANGENT_SCALE_OBJECTIVE_ARC_LENGTH: options.objective = optim::TangentScaleObjective::kArcLength; break;
+    default: options.objective = optim::TangentScaleObjective::kBendingEnergy; break;  // BENDING_ENERGY, UNSPECIFIED
+  }
+  if (t.has_min_scale()) options.min_scale = t.min_scale();
+  if (t.has_max_scale()) options.max_scale = t.max_scale();
+  if (t.has_length_weight()) options.length_weight = t.length_weight();
+  return options;  // ranges: optim::optimize_tangent_scales names them
+}
+
+core::Expected<optim::BreakpointOptions> breakpoint_options(const v1::PlanRequest& request) {
+  const auto& b = request.optimize().breakpoints();
+  WireCheck check;
+  check_enum(check, "optimize.breakpoints.objective", b.objective(), v1::BreakpointObjective_descriptor());
+  if (!check.violations.empty()) return tl::unexpected(std::move(check.violations));
+  optim::BreakpointOptions options;
+  switch (b.objective()) {
+    case v1::BREAKPOINT_OBJECTIVE_PEAK_CURVATURE: options.objective = optim::BreakpointObjective::kPeakCurvature; break;
+    case v1::BREAKPOINT_OBJECTIVE_PEAK_DERIVATIVES: options.objective = optim::BreakpointObjective::kPeakDerivatives; break;
+    default: options.objective = optim::BreakpointObjective::kPeakTorsion; break;  // PEAK_TORSION, UNSPECIFIED
+  }
+  return options;
+}
+
+void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out) {
+  set_report(result.report, out);
+  for (double scale : result.scales) out.add_tangent_scales(scale);
+}
+
+void to_proto(const optim::OptimizerReport& report, const std::vector<core::BindingStretch>& binding,
+              v1::TimingReport& out) {
+  set_report(report, out);
+  for (const auto& b : binding) {
+    auto* stretch = out.add_binding();
+    switch (b.kind) {
+      case core::BindingKind::kJointVelocity: stretch->set_kind(v1::BINDING_KIND_JOINT_VELOCITY); break;
+      case core::BindingKind::kJointAcceleration: stretch->set_kind(v1::BINDING_KIND_JOINT_ACCELERATION); break;
+      case core::BindingKind::kCartesianSpeed: stretch->set_kind(v1::BINDING_KIND_CARTESIAN_SPEED); break;
+      case core::BindingKind::kTangentialAcceleration:
+        stretch->set_kind(v1::BINDING_KIND_CARTESIAN_TANGENTIAL_ACCELERATION);
+        break;
+      case core::BindingKind::kCentripetalAcceleration:
+        stretch->set_kind(v1::BINDING_KIND_CARTESIAN_CENTRIPETAL_ACCELERATION);
+        break;
+    }
+    stretch->set_joint(static_cast<std::uint32_t>(b.joint));
+    stretch->set_t_start(b.t_begin);
+    stretch->set_t_end(b.t_end);
+    stretch->set_s_start(b.s_begin);
+    stretch->set_s_end(b.s_end);
+    stretch->set_usage(b.usage);
+    stretch->set_value(b.value);
+    stretch->set_limit(b.limit);
+  }
+}
+
+void to_proto(const optim::BreakpointResult& result, v1::BreakpointReport& out) {
+  set_report(result.report, out);
+  for (const auto& b : result.breakpoints) {
+    auto* seg = out.add_breakpoints();
+    seg->set_segment(b.segment);
+    for (double x : b.all) seg->add_all(x);
+    for (double x : b.x) seg->add_x(x);
+    for (double x : b.y) seg->add_y(x);
+    for (double x : b.z) seg->add_z(x);
   }
 }
 

@@ -20,6 +20,9 @@
 #include "geotraj/core/joint_motion.hpp"
 #include "geotraj/core/robot.hpp"
 #include "geotraj/core/trajectory.hpp"
+#include "geotraj/optim/breakpoints.hpp"
+#include "geotraj/optim/tangent_scales.hpp"
+#include "geotraj/core/time_optimal.hpp"
 #include "geotraj/v1/geotraj.pb.h"
 
 namespace geotraj::server {
@@ -126,5 +129,30 @@ core::Expected<core::JointMoveSpec> joint_move_from_request(const v1::PlanReques
 /// seed configuration (with a robot); poses are checked (`linearMove.goal.orientation`).
 core::Expected<core::LinearMoveSpec> linear_move_from_request(const v1::PlanRequest& request,
                                                                const RobotRequest* robot);
+
+// --- optimisation --------------------------------------------------------------------------
+
+/// Wall-clock budget of all optimisers of one request when OptimizeSpec.timeBudgetS is
+/// absent [s] (the RPC's deadline applies as well).
+inline constexpr double kDefaultOptimizeBudgetS = 10.0;
+
+/// OptimizeSpec.timeBudgetS or its default, or the violation (`optimize.timeBudgetS`).
+core::Expected<double> optimize_budget(const v1::PlanRequest& request);
+
+/// The tangent-scale optimiser's options (without deadline), or the violations of
+/// `optimize.tangentScales.*` (objective out of range, bounds). Precondition: the request
+/// has optimize.tangentScales.
+core::Expected<optim::TangentScaleOptions> tangent_scale_options(const v1::PlanRequest& request);
+
+/// The breakpoint optimiser's options (without deadline), or the violations of
+/// `optimize.breakpoints.*`. Precondition: the request has optimize.breakpoints.
+core::Expected<optim::BreakpointOptions> breakpoint_options(const v1::PlanRequest& request);
+
+/// The optimisers' reports.
+void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out);
+void to_proto(const optim::BreakpointResult& result, v1::BreakpointReport& out);
+/// The timing optimiser's report with which limit binds where.
+void to_proto(const optim::OptimizerReport& report, const std::vector<core::BindingStretch>& binding,
+              v1::TimingReport& out);
 
 }  // namespace geotraj::server

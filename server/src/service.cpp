@@ -18,6 +18,10 @@
 #include "geotraj/core/orientation.hpp"
 #include "geotraj/core/path.hpp"
 #include "geotraj/core/trajectory.hpp"
+#include "geotraj/optim/breakpoints.hpp"
+#include "geotraj/optim/tangent_scales.hpp"
+#include "geotraj/optim/time_optimal_jerk.hpp"
+#include "geotraj/core/time_optimal.hpp"
 #include "status.hpp"
 
 namespace geotraj::server {
@@ -37,17 +41,71 @@ class Abandon {
     return std::nullopt;
   }
 
+  /// When the caller stops waiting, on the steady clock (the RPC's deadline).
+  std::chrono::steady_clock::time_point deadline() const {
+    const auto left = context_.deadline() - std::chrono::system_clock::now();
+    if (left > std::chrono::hours(24 * 365)) return std::chrono::steady_clock::time_point::max();  // no deadline
+    return std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(left);
+  }
+
  private:
   grpc::CallbackServerContext& context_;
 };
 
-// Features of the contract that later work adds; until then they get UNIMPLEMENTED naming
-// the request field.
-grpc::Status unsupported_parts(const v1::PlanRequest& request) {
-  if (request.has_optimize()) {
-    return unimplemented("optimization is not available yet: send the PlanRequest without `optimize`");
+// The request's path spec after the optimisers it asks for (tangent scales, then
+// breakpoints; both within the RPC's deadline and optimize.timeBudgetS), their reports in
+// `report`; or the status to finish with (every violation of the request together).
+tl::expected<core::PathSpec, grpc::Status> optimized_path(const Abandon& abandon, const v1::PlanRequest& request,
+                                                          v1::OptimizationReport* report) {
+  auto spec = path_from_request(request);
+  if (!request.has_optimize()) {
+    if (!spec) return tl::unexpected(invalid_argument(spec.error()));
+    return std::move(*spec);
   }
-  return grpc::Status::OK;
+  core::Violations violations = spec ? core::Violations{} : spec.error();
+  const auto budget = optimize_budget(request);
+  if (!budget) violations.insert(violations.end(), budget.error().begin(), budget.error().end());
+  const auto& optimize = request.optimize();
+  std::optional<optim::TangentScaleOptions> scales;
+  std::optional<optim::BreakpointOptions> breakpoints;
+  if (optimize.has_tangent_scales()) {
+    auto options = tangent_scale_options(request);
+    if (options) {
+      scales = std::move(*options);
+    } else {
+      violations.insert(violations.end(), options.error().begin(), options.error().end());
+    }
+  }
+  if (optimize.has_breakpoints()) {
+    auto options = breakpoint_options(request);
+    if (options) {
+      breakpoints = std::move(*options);
+    } else {
+      violations.insert(violations.end(), options.error().begin(), options.error().end());
+    }
+  }
+  if (!violations.empty()) return tl::unexpected(invalid_argument(violations));
+  // One deadline for all the optimisers: the earlier of the RPC's and the budget's.
+  const auto deadline = std::min(abandon.deadline(), std::chrono::steady_clock::now() +
+                                                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                             std::chrono::duration<double>(*budget)));
+  core::PathSpec path = std::move(*spec);
+  if (scales) {
+    scales->deadline = deadline;
+    auto result = optim::optimize_tangent_scales(path, *scales);
+    if (!result) return tl::unexpected(invalid_argument(result.error()));
+    path = result->spec;
+    if (report != nullptr) to_proto(*result, *report->mutable_tangent_scales());
+  }
+  if (breakpoints) {
+    breakpoints->deadline = deadline;
+    auto result = optim::optimize_breakpoints(path, *breakpoints);
+    if (!result) return tl::unexpected(invalid_argument(core::prefixed(result.error(), "path.")));
+    path = result->spec;
+    if (report != nullptr) to_proto(*result, *report->mutable_breakpoints());
+  }
+  if (auto stop = abandon.check()) return tl::unexpected(*stop);
+  return path;
 }
 
 grpc::Status convert_constraints(const Abandon& abandon, const v1::ConvertRequest& request,
@@ -81,9 +139,81 @@ core::Violations joined(core::Violations a, const core::Violations& b) {
   return a;
 }
 
+// A time-optimal planner's error: FAILED_PRECONDITION when the path cannot be followed at
+// any speed (the field is `motion`: where, and which limit), INVALID_ARGUMENT for bad fields.
+grpc::Status failed_precondition_or_invalid(const core::Violations& violations) {
+  // `motion` names where the path cannot be followed; `motion.durationS` that the motion
+  // the limits allow is too long to sample (the request's own durationS is 0 here).
+  const bool precondition = std::all_of(violations.begin(), violations.end(), [](const core::FieldViolation& v) {
+    return v.field == "motion" || v.field == "motion.durationS";
+  });
+  if (!precondition) return invalid_argument(violations);
+  std::vector<PreconditionViolation> details;
+  std::string message = "the path cannot be followed: ";
+  for (std::size_t i = 0; i < violations.size(); ++i) {
+    details.push_back({"TIME_OPTIMAL", "motion", violations[i].description});
+    message += (i ? "; " : "") + violations[i].description;
+  }
+  return failed_precondition(message, details);
+}
+
+// The fastest timing along the path within the joint limits (with a robot) and the
+// Cartesian ones given (thesis 6.4, TOPP in b = s_dot^2: core/time_optimal.hpp), with jerk
+// limits by the NLP warm-started from it (optim/time_optimal_jerk.hpp). Its report, with
+// which limit binds where, goes to `report` (PlanTrajectory). A path that no positive speed
+// can follow is FAILED_PRECONDITION naming where.
+tl::expected<core::MotionPlan, grpc::Status> time_optimal_timing(const Abandon& abandon, const core::Path& path,
+                                                                  const core::OrientationPlan& orientation,
+                                                                  const core::MotionSpec& motion,
+                                                                  const RobotRequest* robot, bool jerk_limited,
+                                                                  v1::OptimizationReport* report) {
+  if (robot == nullptr && !motion.max_acceleration) {
+    return tl::unexpected(invalid_argument(core::Violations{
+        {"motion.maxAcceleration", "is needed for a time-optimal motion without a robot (and maxSpeed, optional)"}}));
+  }
+  const auto started = std::chrono::steady_clock::now();
+  const core::RobotModel* model = robot ? &robot->model : nullptr;
+  const core::JointVector seed = robot ? robot->seed : core::JointVector();
+  core::MotionPlan plan;
+  std::vector<core::BindingStretch> binding;
+  optim::OptimizerReport solver;
+  if (jerk_limited) {
+    optim::JerkTimingOptions options;
+    const auto left = std::chrono::duration<double>(abandon.deadline() - started).count();
+    options.time_budget_s = std::clamp(left, 0.0, kDefaultOptimizeBudgetS);
+    auto result = optim::plan_time_optimal_jerk(path, orientation, motion, model, seed, {}, options);
+    if (!result) return tl::unexpected(failed_precondition_or_invalid(result.error()));
+    plan = std::move(result->motion);
+    binding = result->exact.binding;
+    solver = result->report;
+  } else {
+    auto result = core::plan_time_optimal(path, orientation, motion, model, seed);
+    if (!result) return tl::unexpected(failed_precondition_or_invalid(result.error()));
+    plan = std::move(result->motion);
+    binding = std::move(result->binding);
+    solver.status = optim::OptimizerStatus::kConverged;
+    solver.iterations = result->refinements + 1;
+    solver.objective_after = plan.duration_s;
+  }
+  if (auto stop = abandon.check()) return tl::unexpected(*stop);
+  if (report != nullptr) {
+    solver.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    // Before: the move time the request would have had without the optimiser.
+    double before = motion.duration_s;
+    if (before == 0.0) {
+      if (auto conservative = core::plan_motion(path, motion)) before = conservative->duration_s;
+    }
+    solver.objective_before = before;
+    solver.objective_after = plan.duration_s;
+    to_proto(solver, binding, *report->mutable_timing());
+  }
+  return plan;
+}
+
 // Plans the trajectory of a request with `motion`, or the status to finish with (every
 // violation of the request's parts together).
-tl::expected<Planned, grpc::Status> plan_request(const v1::PlanRequest& request, const RobotCatalog& catalog) {
+tl::expected<Planned, grpc::Status> plan_request(const Abandon& abandon, const v1::PlanRequest& request,
+                                                 const RobotCatalog& catalog, v1::OptimizationReport* optimization) {
   const int kinds = int(request.has_path()) + int(request.has_joint_move()) + int(request.has_linear_move());
   if (kinds != 1) {
     return tl::unexpected(invalid_argument(core::Violations{
@@ -91,6 +221,9 @@ tl::expected<Planned, grpc::Status> plan_request(const v1::PlanRequest& request,
                             : "give exactly one of `path`, `jointMove` and `linearMove`"}}));
   }
   core::Violations violations;
+  if (request.has_optimize() && !request.has_path()) {
+    violations.push_back({"optimize", "applies to a `path`: a jointMove or linearMove has nothing to optimise"});
+  }
   auto motion = motion_from_request(request);
   if (!motion) violations = joined(std::move(violations), motion.error());
   std::shared_ptr<const RobotRequest> robot;
@@ -127,18 +260,33 @@ tl::expected<Planned, grpc::Status> plan_request(const v1::PlanRequest& request,
     if (!plan) return tl::unexpected(invalid_argument(plan.error()));
     return Planned{core::Trajectory(std::in_place_type<core::LinearMovePlan>, std::move(*plan)), std::move(robot)};
   }
-  const auto spec = path_from_request(request);
-  if (!spec) violations = joined(spec.error(), violations);
-  if (!violations.empty()) return tl::unexpected(invalid_argument(violations));
+  if (!violations.empty()) {  // with the path's own violations, so that one answer lists all
+    const auto spec = path_from_request(request);
+    return tl::unexpected(invalid_argument(spec ? violations : joined(spec.error(), violations)));
+  }
+  auto spec = optimized_path(abandon, request, optimization);
+  if (!spec) return tl::unexpected(spec.error());
   auto path = core::build_path(*spec);
   if (!path) return tl::unexpected(invalid_argument(core::prefixed(path.error(), "path.")));
-  auto timing = core::plan_motion(*path, *motion);
   auto orientation = core::plan_orientation(*path);
-  if (!timing || !orientation) {
-    core::Violations all = timing ? core::Violations{} : timing.error();
-    if (!orientation) all = joined(std::move(all), core::prefixed(orientation.error(), "path."));
-    return tl::unexpected(invalid_argument(all));
+  if (!orientation) return tl::unexpected(invalid_argument(core::prefixed(orientation.error(), "path.")));
+  const auto& timing_request = request.optimize().timing();
+  // As fast as the limits allow: the time-optimal timing, with a robot (joint limits) or
+  // without (Cartesian limits; the S-curve keeps its minimum-time double S, whose jerk bound
+  // the sweep does not model, unless jerkLimited asks for the NLP).
+  const bool minimum_time = motion->duration_s == 0.0 &&
+                            (robot || motion->profile == core::ProfileShape::kTrapezoidal);
+  const bool time_optimal = timing_request.time_optimal() || timing_request.jerk_limited() || minimum_time;
+  if (time_optimal) {
+    auto timing = time_optimal_timing(abandon, *path, *orientation, *motion, robot.get(), timing_request.jerk_limited(),
+                                      optimization);
+    if (!timing) return tl::unexpected(timing.error());
+    return Planned{core::Trajectory(std::in_place_type<core::PathMotion>,
+                                    core::PathMotion{std::move(*path), std::move(*timing), std::move(*orientation)}),
+                   std::move(robot)};
   }
+  auto timing = core::plan_motion(*path, *motion);
+  if (!timing) return tl::unexpected(invalid_argument(timing.error()));
   return Planned{core::Trajectory(std::in_place_type<core::PathMotion>,
                                   core::PathMotion{std::move(*path), std::move(*timing), std::move(*orientation)}),
                  std::move(robot)};
@@ -164,7 +312,7 @@ tl::expected<RobotPass, grpc::Status> robot_pass(const Abandon& abandon, const P
   RobotPass pass;
   while (sampler.next(sample)) {
     const std::size_t k = sampler.index() - 1;
-    builder.add(k, sample.t, sample.joints);
+    builder.add(k, sample.t, sample.s, sample.joints);
     pass.peak_speed = std::max(pass.peak_speed, sample.speed);
     pass.peak_acceleration = std::max(pass.peak_acceleration, sample.tool.a_WT.norm());
     if (k % kSamplesPerCheck == 0) {
@@ -216,14 +364,14 @@ void summarize(const core::Trajectory& trajectory, const RobotPass* pass, v1::Mo
 grpc::Status plan_trajectory(const Abandon& abandon, const RobotCatalog& catalog, const v1::PlanRequest& request,
                              v1::PlanResponse& response) {
   if (auto stop = abandon.check()) return *stop;
-  if (auto status = unsupported_parts(request); !status.ok()) return status;
   const bool motion_needed = request.has_robot() || request.has_joint_move() || request.has_linear_move();
   if (request.has_motion() || motion_needed) {
     if (!request.has_motion()) {
       return invalid_argument(core::Violations{
           {"motion", "is required with a robot or a move: give durationS (s), or the limits for a minimum-time move"}});
     }
-    auto planned = plan_request(request, catalog);
+    auto planned = plan_request(abandon, request, catalog,
+                                request.has_optimize() ? response.mutable_optimization() : nullptr);
     if (!planned) return planned.error();
     if (auto stop = abandon.check()) return *stop;
     if (const auto* path = std::get_if<core::PathMotion>(&planned->trajectory)) {
@@ -243,8 +391,8 @@ grpc::Status plan_trajectory(const Abandon& abandon, const RobotCatalog& catalog
     summarize(planned->trajectory, pass ? &*pass : nullptr, *response.mutable_motion());
     return grpc::Status::OK;
   }
-  const auto spec = path_from_request(request);
-  if (!spec) return invalid_argument(spec.error());
+  const auto spec = optimized_path(abandon, request, request.has_optimize() ? response.mutable_optimization() : nullptr);
+  if (!spec) return spec.error();
   const auto path = core::build_path(*spec);
   if (!path) return invalid_argument(core::prefixed(path.error(), "path."));
   if (auto stop = abandon.check()) return *stop;
@@ -342,7 +490,6 @@ grpc::ServerWriteReactor<v1::SampleBatch>* stream_samples(grpc::CallbackServerCo
                                                           const v1::PlanRequest& request) {
   const Abandon abandon(context);
   if (auto stop = abandon.check()) return new FinishedWriter(*stop);
-  if (auto status = unsupported_parts(request); !status.ok()) return new FinishedWriter(status);
   if (!request.has_motion()) {
     return new FinishedWriter(invalid_argument(core::Violations{
         {"motion", "is required to stream samples: give durationS (s), or maxSpeed and maxAcceleration"}}));
@@ -352,7 +499,7 @@ grpc::ServerWriteReactor<v1::SampleBatch>* stream_samples(grpc::CallbackServerCo
         core::Violations{{"pacing", "unknown value " + std::to_string(request.pacing()) +
                                         "; use STREAM_PACING_AS_FAST_AS_POSSIBLE or STREAM_PACING_REAL_TIME"}}));
   }
-  auto planned = plan_request(request, catalog);
+  auto planned = plan_request(abandon, request, catalog, nullptr);
   if (!planned) return new FinishedWriter(planned.error());
   if (planned->robot) {
     auto pass = robot_pass(abandon, *planned);
@@ -374,9 +521,8 @@ grpc::ServerWriteReactor<v1::SampleBatch>* stream_samples(grpc::CallbackServerCo
 // The analysis is the path's geometry: a robot, when given, does not change it.
 grpc::Status analyze_path(const Abandon& abandon, const v1::PlanRequest& request, v1::PathProfile& profile) {
   if (auto stop = abandon.check()) return *stop;
-  if (auto status = unsupported_parts(request); !status.ok()) return status;
-  const auto spec = path_from_request(request);
-  if (!spec) return invalid_argument(spec.error());
+  const auto spec = optimized_path(abandon, request, nullptr);
+  if (!spec) return spec.error();
   const auto path = core::build_path(*spec);
   if (!path) return invalid_argument(core::prefixed(path.error(), "path."));
   if (auto stop = abandon.check()) return *stop;

@@ -56,8 +56,5 @@ grpc::Status failed_precondition(const std::string& message, const std::vector<P
   return {grpc::StatusCode::FAILED_PRECONDITION, message, status.SerializeAsString()};
 }
 
-grpc::Status unimplemented(const std::string& what) {
-  return {grpc::StatusCode::UNIMPLEMENTED, what};
-}
 
 }  // namespace geotraj::server

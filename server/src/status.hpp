@@ -29,7 +29,5 @@ struct PreconditionViolation {
 /// google.rpc.PreconditionFailure with `violations`.
 grpc::Status failed_precondition(const std::string& message, const std::vector<PreconditionViolation>& violations);
 
-/// UNIMPLEMENTED for a feature that this server does not provide yet, named in `what`.
-grpc::Status unimplemented(const std::string& what);
 
 }  // namespace geotraj::server

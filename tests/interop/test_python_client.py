@@ -339,6 +339,38 @@ class PythonClient(unittest.TestCase):
         for v, e in zip(violations, report.violations):
             self.assertIn(f"sample {e.sample}", v.description)
 
+    def test_optimized_path_and_time_optimal_timing(self):
+        # Tangent scales for the shortest path A: the report's objective is the plan's length.
+        req = pb.PlanRequest(path=self.demo_path("A"))
+        plain = self.stub.PlanTrajectory(req)
+        req.optimize.tangent_scales.objective = pb.TANGENT_SCALE_OBJECTIVE_ARC_LENGTH
+        resp = self.stub.PlanTrajectory(req)
+        report = resp.optimization.tangent_scales
+        self.assertIn(report.status, (pb.OPTIMIZER_STATUS_CONVERGED, pb.OPTIMIZER_STATUS_ITERATION_LIMIT))
+        self.assertEqual(len(report.tangent_scales), 5)  # 4 frames, the cusp's leaving side apart
+        self.assertLess(abs(resp.arc_length - report.objective_after), 1e-6 * resp.arc_length)
+        self.assertLess(resp.arc_length, plain.arc_length)
+        self.assertLess(resp.closed_loop.max_error, 1e-9)
+        # The PA-10 on path C as fast as its joints allow: every streamed joint velocity and
+        # acceleration within the ListRobots limits, one of them reached.
+        req = self.motion_request("C", 0.0)
+        req.robot.name = "pa10"
+        req.optimize.timing.time_optimal = True
+        resp = self.stub.PlanTrajectory(req)
+        self.assertTrue(resp.robot.feasible)
+        self.assertEqual(resp.optimization.timing.objective_after, resp.motion.duration_s)
+        self.assertLess(resp.motion.duration_s, 10.0)
+        limits = self.robot_models()["pa10"].limits
+        samples = [s for batch in self.stub.StreamSamples(req) for s in batch.samples]
+        self.assertEqual(len(samples), resp.motion.sample_count)
+        top = 0.0
+        for s in samples:
+            for v, a, lim in zip(s.joint_velocities, s.joint_accelerations, limits):
+                self.assertLessEqual(abs(v), lim.max_velocity * (1 + 1e-9))
+                self.assertLessEqual(abs(a), lim.max_acceleration * (1 + 1e-9))
+                top = max(top, abs(v) / lim.max_velocity, abs(a) / lim.max_acceleration)
+        self.assertGreater(top, 0.98)
+
 
 # Forward kinematics of a geotraj.v1.RobotModel, from the conventions the proto states, with
 # 4x4 homogeneous matrices as lists (no numpy): X_WT = base A_1(q_1) ... A_n(q_n) tool,

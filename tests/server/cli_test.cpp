@@ -174,6 +174,30 @@ TEST(Cli, RobotExamplesPlan) {
   }
 }
 
+// The --optimize-* flags fill the request's `optimize` block: the time-optimal PA-10 plan
+// prints which limit binds where and is within every limit; a tangent-scale objective by
+// name; an unknown objective name is a usage error (exit 2) that names it.
+TEST(Cli, OptimizeFlagsFillTheRequest) {
+  std::string request = example_text("plan_pa10_path_c.json");
+  const std::string duration = "\"durationS\": 10";
+  const auto at = request.find(duration);
+  ASSERT_NE(at, std::string::npos) << request;
+  request.replace(at, duration.size(), "\"durationS\": 0");
+  CliRun run = run_cli("plan --time-optimal -", /*merge_stderr=*/true, request);
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_THAT(run.out, HasSubstr("timing          CONVERGED"));
+  EXPECT_THAT(run.out, HasSubstr("which limit binds where:"));
+  EXPECT_THAT(run.out, HasSubstr("robot pa10: 581 samples, within every limit"));
+
+  run = run_cli("plan --optimize-tangent-scales arc-length " + example_path("plan_demo_path_a.json"));
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_THAT(run.out, HasSubstr("tangent scales  CONVERGED"));
+
+  run = run_cli("plan --optimize-breakpoints flattest " + example_path("appendix_b_uniform.json"), true);
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.out, HasSubstr("unknown objective 'flattest'"));
+}
+
 // The same CLI against a server on a loopback port.
 class CliRemote : public ServerTest {};
 

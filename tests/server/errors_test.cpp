@@ -135,18 +135,29 @@ TEST_F(ErrorTest, AllViolationsAreCollected) {
   }
 }
 
-TEST_F(ErrorTest, OptimizeIsNotAvailableYet) {
+// Bad optimisation requests name their fields: a budget that is no time, breakpoints on a
+// polynomial blend, an objective out of range, and optimize on a move.
+TEST_F(ErrorTest, BadOptimizationRequestsNameTheirFields) {
   auto request = demo_request('a');
-  v1::PlanResponse response;
-  request.mutable_optimize()->mutable_tangent_scales();
-  auto status = plan(request, response);
-  EXPECT_EQ(status.error_code(), grpc::StatusCode::UNIMPLEMENTED);
-  EXPECT_THAT(status.error_message(), HasSubstr("optimize"));
+  request.mutable_optimize()->set_time_budget_s(-1.0);
+  request.mutable_optimize()->mutable_tangent_scales()->set_objective(static_cast<v1::TangentScaleObjective>(42));
+  auto violations = plan_violations(request);
+  EXPECT_NE(violation_of(violations, "optimize.timeBudgetS"), "") << describe(violations);
+  EXPECT_NE(violation_of(violations, "optimize.tangentScales.objective"), "") << describe(violations);
 
-  v1::PathProfile profile;
-  status = analyze(request, profile);
-  EXPECT_EQ(status.error_code(), grpc::StatusCode::UNIMPLEMENTED);
-  EXPECT_THAT(status.error_message(), HasSubstr("optimize"));
+  request = demo_request('a');
+  request.mutable_optimize()->mutable_breakpoints();
+  violations = plan_violations(request);
+  ASSERT_EQ(violations.size(), 1u) << describe(violations);
+  EXPECT_EQ(violations[0].field, "path.blend");
+
+  v1::PlanRequest move;
+  move.mutable_robot()->set_name("pa10");
+  move.mutable_motion()->set_duration_s(2.0);
+  for (double q : {0.1, 0.2, 0.3, 1.0, 0.0, 0.5, 0.0}) move.mutable_joint_move()->add_goal(q);
+  move.mutable_optimize()->mutable_timing()->set_time_optimal(true);
+  violations = plan_violations(move);
+  EXPECT_NE(violation_of(violations, "optimize"), "") << describe(violations);
 }
 
 // A stream refused before any sample: its final status.

@@ -223,6 +223,22 @@ TEST_F(RobotTest, ReportOnlyGivesTheJointReport) {
     EXPECT_NEAR(v.t(), 0.01 * static_cast<double>(v.sample()), 1e-9);
   }
   EXPECT_LT(r.tightest_acceleration().margin(), 0.0);
+  // Which limit sets the pace: stretches in time order up to the end, one of them at the
+  // most used limit of the whole motion.
+  ASSERT_GT(r.binding_size(), 0);
+  EXPECT_NEAR(r.binding(r.binding_size() - 1).t_end(), response.motion().duration_s(), 1e-12);
+  double top = 0.0, top_stretch = 0.0;
+  for (const auto& u : r.joints()) top = std::max({top, u.velocity_usage(), u.acceleration_usage()});
+  for (int i = 0; i < r.binding_size(); ++i) {
+    const auto& b = r.binding(i);
+    EXPECT_TRUE(b.kind() == v1::BINDING_KIND_JOINT_VELOCITY || b.kind() == v1::BINDING_KIND_JOINT_ACCELERATION);
+    EXPECT_LT(b.joint(), 7u);
+    if (i > 0) {
+      EXPECT_EQ(b.t_start(), r.binding(i - 1).t_end());
+    }
+    top_stretch = std::max(top_stretch, b.usage());
+  }
+  EXPECT_NEAR(top_stretch, top, 1e-12 * top);
 }
 
 TEST_F(RobotTest, WithoutReportOnlyTheBrokenLimitsAreAFailedPrecondition) {

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <optional>
 #include <vector>
 
@@ -56,8 +57,97 @@ Eigen::Vector3d third_derivative(const Eigen::Vector3d& p_u, const Eigen::Vector
 Eigen::Vector3d fourth_derivative(const Eigen::Vector3d& p_u, const Eigen::Vector3d& p_uu,
                                   const Eigen::Vector3d& p_uuu, double tau, double tau_du);
 
+/// The tangent scale |dp/du| [m] of one side of a validated frame: `tangent_scale` (default
+/// 1), except on the leaving side of a cusp, which takes `leave_tangent_scale` when given.
+inline double side_scale(const KeyFrame& frame, bool leaving) {
+  const double scale = frame.tangent_scale.value_or(1.0);
+  return (leaving && frame.cusp) ? frame.leave_tangent_scale.value_or(scale) : scale;
+}
+
+/// The Chapter 5 conversion of one side, generic in the scalar type `S` of the tangent
+/// scale, so that an optimiser can differentiate the end derivatives with respect to the
+/// scale (automatic differentiation, S = a dual number); core itself uses S = double.
+/// Given the side's unit tangent T and normal N (after the cusp and inflection flips) and
+/// its scale [m], fills d[k] = d^(k+1) p/du^(k+1) [m] for k < the returned order (1 to 4),
+/// by (5.3), (5.10), (5.20) and (5.22) as documented on the functions above. The frame's
+/// data are doubles; only the scale varies. d[k] for k >= order is left untouched.
+/// Precondition: the frame passed validate_path (kappa > 0 wherever tau or a derivative is given).
+namespace detail {
+
+// The formulas of (5.10), (5.20) and (5.22), generic in the scalar type S; the public
+// functions above and side_derivatives below are their only callers.
+template <class S>
+using Vec3 = Eigen::Matrix<S, 3, 1>;
+
+template <class S>
+Vec3<S> second_derivative(const Vec3<S>& p_u, double kappa, const Eigen::Vector3d& N) {
+  return N.cast<S>() * (p_u.squaredNorm() * kappa);  // (5.10)
+}
+
+// tau [1/m] and kappa_du [1/m per u] may be null (not given).
+template <class S>
+Vec3<S> third_derivative(const Vec3<S>& p_u, const Vec3<S>& p_uu, const double* tau, const S* kappa_du) {
+  using std::pow;
+  using std::sqrt;
+  const Vec3<S> C = p_u.cross(p_uu);  // (5.17)
+  const S C2 = C.squaredNorm();
+  Vec3<S> p_uuu = Vec3<S>::Zero();
+  if (tau) {
+    // Row (5.14): tau = a0 . p_uuu with a0 = C / |C|^2. Its minimum-norm solution is
+    // tau a0 / |a0|^2 = tau C.
+    p_uuu += C * *tau;
+  }
+  if (kappa_du) {
+    // Row (5.19): kappa_du kappa |p_u|^6 = a1 . p_uuu with a1 = C x p_u. Since p_u is
+    // perpendicular to p_uu (5.10), kappa |p_u|^3 = |C|, so the left side is
+    // kappa_du |C| |p_u|^3. a1 is orthogonal to a0, so the pseudo-inverse of the
+    // two-row system (5.20) is the sum of each row's minimum-norm solution.
+    const Vec3<S> a1 = C.cross(p_u);
+    const S kappa = sqrt(C2) / pow(p_u.norm(), 3);                // (5.4)
+    const S rhs = *kappa_du * kappa * pow(p_u.squaredNorm(), 3);  // (5.19)
+    p_uuu += a1 * (rhs / a1.squaredNorm());
+  }
+  return p_uuu;
+}
+
+template <class S>
+Vec3<S> fourth_derivative(const Vec3<S>& p_u, const Vec3<S>& p_uu, const Vec3<S>& p_uuu, double tau, const S& tau_du) {
+  const Vec3<S> C = p_u.cross(p_uu);
+  const S C2 = C.squaredNorm();
+  const S rhs = tau_du * C2 + 2.0 * tau * C.dot(p_u.cross(p_uuu));  // (5.22)
+  return C * (rhs / C2);  // minimum-norm solution of C . p_uuuu = rhs
+}
+
+}  // namespace detail
+
+/// The Chapter 5 conversion of one side, generic in the scalar type `S` of the tangent
+/// scale, so that an optimiser can differentiate the end derivatives with respect to the
+/// scale (automatic differentiation, S = a dual number); core itself uses S = double.
+/// Given the side's unit tangent T and normal N (after the cusp and inflection flips) and
+/// its scale [m], fills d[k] = d^(k+1) p/du^(k+1) [m] for k < the returned order (1 to 4),
+/// by (5.3), (5.10), (5.20) and (5.22) as documented on the functions above. The frame's
+/// data are doubles; only the scale varies. d[k] for k >= order is left untouched.
+/// Precondition: the frame passed validate_path (kappa > 0 wherever tau or a derivative is given).
+template <class S>
+int side_derivatives(const KeyFrame& f, DerivativeConvention convention, const Eigen::Vector3d& T,
+                     const Eigen::Vector3d& N, const S& scale, std::array<detail::Vec3<S>, 4>& d) {
+  d[0] = T.cast<S>() * scale;  // (5.3)
+  if (!f.kappa) return 1;
+  d[1] = detail::second_derivative<S>(d[0], *f.kappa, N);  // (5.10)
+  if (!f.tau && !f.kappa_d) return 2;
+  // d/du = |dp/du| d/ds at the frame (chain rule), |dp/du| = scale.
+  const S per_u = convention == DerivativeConvention::kPerArcLength ? scale : S(1.0);
+  const double* tau = f.tau ? &*f.tau : nullptr;
+  const S kappa_du = f.kappa_d ? S(*f.kappa_d * per_u) : S(0.0);
+  d[2] = detail::third_derivative<S>(d[0], d[1], tau, f.kappa_d ? &kappa_du : nullptr);  // (5.20)
+  if (!f.tau_d) return 3;
+  d[3] = detail::fourth_derivative<S>(d[0], d[1], d[2], *f.tau, S(*f.tau_d * per_u));  // (5.22)
+  return 4;
+}
+
 /// Converts one validated key frame (see validate_path) into its two sides.
-/// Cusp: the leaving side uses -T (and so B inverts). Inflection: the leaving side uses -N.
+/// Cusp: the leaving side uses -T (and so B inverts) and its own scale (side_scale).
+/// Inflection: the leaving side uses -N.
 /// Each side meets the frame's kappa, kappa', tau, tau' as measured along increasing u on
 /// that side. Under kPerArcLength, kappa' and tau' are per metre and become per u by the
 /// factor |dp/du| (d/du = |dp/du| d/ds).

@@ -156,6 +156,30 @@ struct JointUsage {
   double position_margin = std::numeric_limits<double>::infinity();  ///< smallest distance to a position limit
 };
 
+/// A stretch of the motion over which one joint limit is the most used: which limit sets
+/// the pace there. Usage = |q_dot| / maxVelocity or |q_ddot| / maxAcceleration.
+struct UsageStretch {
+  LimitKind kind = LimitKind::kVelocity;  ///< kVelocity or kAcceleration
+  std::size_t joint = 0;
+  std::size_t sample_start = 0, sample_end = 0;  ///< first and last sample of the stretch
+  double t_start = 0.0, t_end = 0.0;             ///< [s]
+  double s_start = 0.0, s_end = 0.0;             ///< arc length along the path [m] (0 without one)
+  double peak_usage = 0.0;  ///< largest usage of that limit on the stretch (1: at the limit)
+  double value = 0.0;       ///< |q_dot| or |q_ddot| at the peak
+  double limit = 0.0;       ///< maxVelocity or maxAcceleration
+};
+
+/// At most this many binding stretches are kept (the last one absorbs the rest).
+inline constexpr std::size_t kMaxUsageStretches = 64;
+/// A new limit takes over the stretch only when its usage exceeds the current one's by this
+/// factor (hysteresis: near-equal usages do not split the motion into slivers).
+inline constexpr double kUsageHysteresis = 1.05;
+
+/// A limit counts as broken when the value passes it by more than this fraction of the
+/// limit (1 for positions below 1 rad or m): rounding, not motion. A time-optimal motion runs
+/// exactly at its limits.
+inline constexpr double kLimitTolerance = 1e-9;
+
 /// The joint-space report of a whole motion (what PlanTrajectory returns with a robot).
 struct JointMotionReport {
   std::size_t samples = 0;
@@ -172,6 +196,10 @@ struct JointMotionReport {
   /// Every broken limit, the first sample of each (joint, kind) run only, in time order
   /// (bounded: at most one event per joint and kind).
   std::vector<LimitEvent> violations;
+  /// Which joint limit is the most used, stretch by stretch, in time order (samples at rest,
+  /// where every usage is 0, join the stretch around them; consecutive stretches share their
+  /// boundary sample).
+  std::vector<UsageStretch> binding;
   bool feasible() const { return violations.empty(); }
 };
 
@@ -190,13 +218,16 @@ class JointReportBuilder {
   explicit JointReportBuilder(const RobotModel& model, double branch_tolerance = 1e-3,
                               double ik_position_tolerance = IkOptions{}.position_tolerance);
   /// Adds sample number `sample` (zero-based, increasing) at time t [s].
-  void add(std::size_t sample, double t, const JointSample& s);
+  void add(std::size_t sample, double t, const JointSample& s) { add(sample, t, 0.0, s); }
+  /// The same, with the sample's arc length along the path s_path [m] (for the stretches).
+  void add(std::size_t sample, double t, double s_path, const JointSample& s);
   const JointMotionReport& report() const { return report_; }
 
  private:
   static constexpr std::size_t kKinds = 5;  ///< LimitKind values
   void record(LimitKind kind, std::size_t joint, std::size_t sample, double t, double value, double limit,
               double margin);
+  void update_binding(std::size_t sample, double t, double s_path, const JointSample& s);
 
   const RobotModel* model_;
   double branch_tolerance_;

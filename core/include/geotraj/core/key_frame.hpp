@@ -47,6 +47,12 @@ struct KeyFrame {
   std::optional<double> tau;                       ///< torsion [1/m], signed
   std::optional<double> tau_d;                     ///< torsion derivative [1/m^2] or [1/m per u]
   std::optional<double> tangent_scale;             ///< |dp/du| at the frame [m], > 0; default 1
+  /// |dp/du| on the leaving side of a cusp [m], > 0; default `tangent_scale`. A cusp is the
+  /// only place where the two sides of a frame may have different tangent scales (the
+  /// tangent inverts there, the curve is not C1 anyway): `tangent_scale` then holds on the
+  /// approach side and this one on the leaving side. Given at a frame that is not a cusp,
+  /// it is an error (`frames[i].leaveTangentScale`).
+  std::optional<double> leave_tangent_scale;
   bool cusp = false;        ///< the tangent inverts on the leaving side (thesis 5.6.2)
   bool inflection = false;  ///< the normal inverts on the leaving side (thesis 5.6.1)
   bool stop = false;        ///< the motion rests here (used by motion planning)

@@ -1,0 +1,81 @@
+// Time-optimal timing of the PA-10 along the thesis's demo path C: the exact sweep given the
+// grid data (100 and 1,000 grid intervals per portion), the grid construction (IK at every
+// grid point), and the jerk-limited Ipopt solve (100 and 1,000 intervals; joint jerk limits
+// of 4 a_max; counters: iterations, its duration and the exact one [s]). Per-portion figures;
+// demo path C has two portions (a cusp at frame 2).
+#include <benchmark/benchmark.h>
+
+#include "geotraj/core/orientation.hpp"
+#include "geotraj/core/path.hpp"
+#include "geotraj/core/time_optimal.hpp"
+#include "geotraj/optim/time_optimal_jerk.hpp"
+#include "thesis_paths.hpp"
+
+namespace {
+
+using namespace geotraj;
+
+struct Setup {
+  core::Path path;
+  core::OrientationPlan orientation;
+  core::RobotModel robot = *core::find_builtin_robot("pa10");
+  core::MotionPlan portions;
+  Setup() {
+    path = *core::build_path(testing::thesis_demo_path('C'));
+    orientation = *core::plan_orientation(path);
+    core::MotionSpec m;
+    m.duration_s = 1.0;
+    portions = *core::plan_motion(path, m);
+  }
+  std::vector<std::vector<core::GridPoint>> grids(std::size_t n) const {
+    return *core::time_optimal_grids(path, orientation, portions.portions, &robot, core::home_configuration(robot), n);
+  }
+};
+
+const Setup& setup() {
+  static const Setup s;
+  return s;
+}
+
+void BM_Sweep(benchmark::State& state) {
+  const auto grids = setup().grids(static_cast<std::size_t>(state.range(0)));
+  const auto lim = core::time_optimal_limits(core::MotionSpec{}, &setup().robot);
+  for (auto _ : state) {
+    auto sol = core::solve_time_optimal(grids[0], lim);
+    benchmark::DoNotOptimize(sol);
+  }
+}
+BENCHMARK(BM_Sweep)->Arg(100)->Arg(1000)->Unit(benchmark::kMicrosecond);
+
+void BM_Grid(benchmark::State& state) {
+  for (auto _ : state) {
+    auto g = setup().grids(static_cast<std::size_t>(state.range(0)));
+    benchmark::DoNotOptimize(g);
+  }
+}
+BENCHMARK(BM_Grid)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond);
+
+void BM_JerkNlp(benchmark::State& state) {
+  const auto grids = setup().grids(static_cast<std::size_t>(state.range(0)));
+  core::RobotModel robot = setup().robot;
+  const auto lim = core::time_optimal_limits(core::MotionSpec{}, &robot);
+  const auto exact = *core::solve_time_optimal(grids[0], lim);
+  optim::JerkTimingOptions opt;
+  opt.joint_jerk.resize(7);
+  for (int j = 0; j < 7; ++j) opt.joint_jerk(j) = 4.0 * lim.joint_acceleration(j);
+  opt.time_budget_s = 60.0;
+  optim::JerkTiming r;
+  for (auto _ : state) {
+    r = optim::optimise_jerk_timing(grids[0], lim, exact, opt);
+    benchmark::DoNotOptimize(r);
+  }
+  if (r.report.status != optim::OptimizerStatus::kConverged) state.SkipWithError(r.report.message.c_str());
+  state.counters["iterations"] = r.report.iterations;
+  state.counters["duration_s"] = r.duration;
+  state.counters["exact_s"] = exact.duration;
+}
+BENCHMARK(BM_JerkNlp)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(5);
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,546 @@
+#include "geotraj/optim/time_optimal_jerk.hpp"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <IpIpoptApplication.hpp>
+#include <IpSolveStatistics.hpp>
+#include <IpTNLP.hpp>
+
+namespace geotraj::optim {
+
+namespace {
+
+using Ipopt::Index;
+using Ipopt::Number;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kIpoptInf = 1e19;
+
+double finite_or(double x) { return std::isfinite(x) ? x : kIpoptInf; }
+
+/// A value with its gradient and Hessian in the three local variables (b_{i-1}, b_i,
+/// b_{i+1}) of grid point i: forward-mode second derivatives of the per-point terms.
+struct D3 {
+  double f = 0.0;
+  std::array<double, 3> g{};
+  std::array<double, 6> h{};  ///< lower triangle, (r, c) at r (r + 1) / 2 + c
+};
+
+constexpr int tri(int r, int c) { return r * (r + 1) / 2 + c; }
+
+D3 constant(double c) { return D3{c, {}, {}}; }
+D3 variable(double x, int l) {
+  D3 d{x, {}, {}};
+  d.g[static_cast<std::size_t>(l)] = 1.0;
+  return d;
+}
+D3 operator+(D3 a, const D3& b) {
+  a.f += b.f;
+  for (int k = 0; k < 3; ++k) a.g[k] += b.g[k];
+  for (int k = 0; k < 6; ++k) a.h[k] += b.h[k];
+  return a;
+}
+D3 operator*(double c, D3 a) {
+  a.f *= c;
+  for (double& x : a.g) x *= c;
+  for (double& x : a.h) x *= c;
+  return a;
+}
+D3 operator-(const D3& a, const D3& b) { return a + (-1.0) * b; }
+D3 operator*(const D3& a, const D3& b) {
+  D3 r{a.f * b.f, {}, {}};
+  for (int k = 0; k < 3; ++k) r.g[k] = a.f * b.g[k] + b.f * a.g[k];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j <= i; ++j)
+      r.h[tri(i, j)] = a.f * b.h[tri(i, j)] + b.f * a.h[tri(i, j)] + a.g[i] * b.g[j] + b.g[i] * a.g[j];
+  return r;
+}
+/// phi(a) from phi, phi', phi'' at a.f (chain rule to second order).
+D3 chain(const D3& a, double f0, double f1, double f2) {
+  D3 r{f0, {}, {}};
+  for (int k = 0; k < 3; ++k) r.g[k] = f1 * a.g[k];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j <= i; ++j) r.h[tri(i, j)] = f1 * a.h[tri(i, j)] + f2 * a.g[i] * a.g[j];
+  return r;
+}
+D3 reciprocal(const D3& a) { return chain(a, 1.0 / a.f, -1.0 / (a.f * a.f), 2.0 / (a.f * a.f * a.f)); }
+D3 operator/(const D3& a, const D3& b) { return a * reciprocal(b); }
+D3 sqrt(const D3& a) {
+  const double r = std::sqrt(a.f);
+  return chain(a, r, 0.5 / r, -0.25 / (r * a.f));
+}
+
+/// The NLP of time_optimal_jerk.hpp. Variables x_k = b_{k+1}, k = 0 .. N - 2.
+class JerkTimingNlp : public Ipopt::TNLP {
+ public:
+  JerkTimingNlp(const std::vector<core::GridPoint>& grid, const core::TimeOptimalLimits& lim,
+                const JerkTimingOptions& opt)
+      : g_(grid), lim_(lim), opt_(opt) {
+    N_ = static_cast<Index>(grid.size()) - 1;
+    const Index nj = static_cast<Index>(lim.joint_velocity.size());
+    q_sss_.resize(grid.size());
+    for (std::size_t i = 0; i < grid.size(); ++i) {
+      const std::size_t a = i == 0 ? 0 : i - 1, b = std::min(grid.size() - 1, i + 1);
+      q_sss_[i] = (grid[b].q_ss - grid[a].q_ss) / (grid[b].s - grid[a].s);
+    }
+    for (Index j = 0; j < nj; ++j)
+      if (opt.joint_jerk.size() == nj && std::isfinite(opt.joint_jerk(j))) jerk_joints_.push_back(j);
+    cart_jerk_ = opt.max_jerk.has_value() && std::isfinite(*opt.max_jerk);
+    build_linear_rows();
+    jerk_rows_per_point_ = static_cast<Index>(jerk_joints_.size()) + (cart_jerk_ ? 1 : 0);
+    hess_offset_.resize(static_cast<std::size_t>(n_var()) + 1, 0);
+    for (Index k = 0; k < n_var(); ++k) hess_offset_[k + 1] = hess_offset_[k] + std::min<Index>(k, 2) + 1;
+    terms_.resize(grid.size());
+    jerk_rows_.resize(grid.size() * static_cast<std::size_t>(jerk_rows_per_point_));
+  }
+
+  Index n_var() const { return N_ - 1; }
+  double ds(Index i) const { return g_[static_cast<std::size_t>(i + 1)].s - g_[static_cast<std::size_t>(i)].s; }
+  /// The variable of grid point p, or -1 for the rests.
+  Index var(Index p) const { return p >= 1 && p <= N_ - 1 ? p - 1 : -1; }
+
+  /// The objective T + w sum j^2 tau at x [s]; +infinity where some b <= 0.
+  double objective(const Number* x) {
+    if (!update(x)) return kInf;
+    double f = 0.0;
+    for (const Terms& t : terms_) f += t.obj.f;
+    return f;
+  }
+
+  bool get_nlp_info(Index& n, Index& m, Index& nnz_jac, Index& nnz_h, IndexStyleEnum& style) override {
+    n = n_var();
+    m = n_lin() + (N_ + 1) * jerk_rows_per_point_;
+    nnz_jac = static_cast<Index>(lin_col_.size());
+    for (Index p = 0; p <= N_; ++p) nnz_jac += jerk_rows_per_point_ * point_vars(p);
+    nnz_h = hess_offset_.back();
+    style = C_STYLE;
+    return true;
+  }
+
+  bool get_bounds_info(Index n, Number* xl, Number* xu, Index m, Number* gl, Number* gu) override {
+    for (Index p = 1; p <= N_ - 1; ++p) {
+      xl[var(p)] = 0.0;
+      xu[var(p)] = finite_or(point_cap(p));
+    }
+    for (Index r = 0; r < n_lin(); ++r) gl[r] = lin_lo_[r], gu[r] = lin_hi_[r];
+    for (Index p = 0; p <= N_; ++p) {
+      Index r = n_lin() + p * jerk_rows_per_point_;
+      if (cart_jerk_) gl[r] = -*opt_.max_jerk, gu[r] = *opt_.max_jerk, ++r;
+      for (const Index j : jerk_joints_) gl[r] = -opt_.joint_jerk(j), gu[r] = opt_.joint_jerk(j), ++r;
+    }
+    (void)n, (void)m;
+    return true;
+  }
+
+  bool get_starting_point(Index n, bool init_x, Number* x, bool, Number*, Number*, Index, bool, Number*) override {
+    if (init_x) std::copy(x0_.begin(), x0_.begin() + n, x);
+    return true;
+  }
+
+  bool eval_f(Index, const Number* x, bool, Number& f) override {
+    f = objective(x);
+    return std::isfinite(f);
+  }
+
+  bool eval_grad_f(Index n, const Number* x, bool, Number* gf) override {
+    if (!update(x)) return false;
+    std::fill(gf, gf + n, 0.0);
+    for (Index p = 0; p <= N_; ++p)
+      for (int l = 0; l < 3; ++l)
+        if (const Index k = var(p - 1 + l); k >= 0) gf[k] += terms_[static_cast<std::size_t>(p)].obj.g[l];
+    return true;
+  }
+
+  bool eval_g(Index, const Number* x, bool, Index, Number* g) override {
+    if (!update(x)) return false;
+    for (Index r = 0; r < n_lin(); ++r) {
+      double v = 0.0;
+      for (Index e = lin_begin_[r]; e < lin_begin_[r + 1]; ++e) v += lin_coef_[e] * x[lin_col_[e]];
+      g[r] = v;
+    }
+    for (std::size_t r = 0; r < jerk_rows_.size(); ++r) g[n_lin() + static_cast<Index>(r)] = jerk_rows_[r].f;
+    return true;
+  }
+
+  bool eval_jac_g(Index, const Number* x, bool, Index, Index, Index* row, Index* col, Number* val) override {
+    if (val == nullptr) {
+      Index k = 0;
+      for (Index r = 0; r < n_lin(); ++r)
+        for (Index e = lin_begin_[r]; e < lin_begin_[r + 1]; ++e) row[k] = r, col[k] = lin_col_[e], ++k;
+      for (Index p = 0; p <= N_; ++p)
+        for (Index c = 0; c < jerk_rows_per_point_; ++c)
+          for (int l = 0; l < 3; ++l)
+            if (const Index v = var(p - 1 + l); v >= 0) row[k] = n_lin() + p * jerk_rows_per_point_ + c, col[k] = v, ++k;
+      return true;
+    }
+    if (!update(x)) return false;
+    Index k = 0;
+    for (const double c : lin_coef_) val[k++] = c;
+    for (Index p = 0; p <= N_; ++p)
+      for (Index c = 0; c < jerk_rows_per_point_; ++c) {
+        const D3& d = jerk_rows_[static_cast<std::size_t>(p * jerk_rows_per_point_ + c)];
+        for (int l = 0; l < 3; ++l)
+          if (var(p - 1 + l) >= 0) val[k++] = d.g[l];
+      }
+    return true;
+  }
+
+  bool eval_h(Index, const Number* x, bool, Number sigma, Index, const Number* lambda, bool, Index, Index* row,
+              Index* col, Number* val) override {
+    if (val == nullptr) {
+      for (Index k = 0; k < n_var(); ++k)
+        for (Index d = 0; d <= std::min<Index>(k, 2); ++d) row[hess_offset_[k] + d] = k, col[hess_offset_[k] + d] = k - d;
+      return true;
+    }
+    if (!update(x)) return false;
+    std::fill(val, val + hess_offset_.back(), 0.0);
+    for (Index p = 0; p <= N_; ++p) {
+      std::array<double, 6> h = (sigma * terms_[static_cast<std::size_t>(p)].obj).h;
+      for (Index c = 0; c < jerk_rows_per_point_; ++c) {
+        const Index r = p * jerk_rows_per_point_ + c;
+        const D3& d = jerk_rows_[static_cast<std::size_t>(r)];
+        for (int e = 0; e < 6; ++e) h[e] += lambda[n_lin() + r] * d.h[e];
+      }
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j <= i; ++j) {
+          const Index ki = var(p - 1 + i), kj = var(p - 1 + j);
+          if (ki >= 0 && kj >= 0) val[hess_offset_[ki] + (ki - kj)] += h[tri(i, j)];
+        }
+    }
+    return true;
+  }
+
+  void finalize_solution(Ipopt::SolverReturn, Index n, const Number* x, const Number*, const Number*, Index m,
+                         const Number* g, const Number*, Number, const Ipopt::IpoptData*,
+                         Ipopt::IpoptCalculatedQuantities*) override {
+    x_.assign(x, x + n);
+    std::vector<double> xl(static_cast<std::size_t>(n)), xu(static_cast<std::size_t>(n)),
+        gl(static_cast<std::size_t>(m)), gu(static_cast<std::size_t>(m));
+    get_bounds_info(n, xl.data(), xu.data(), m, gl.data(), gu.data());
+    violation_ = 0.0;
+    for (Index k = 0; k < n; ++k) violation_ = std::max({violation_, x[k] - xu[k], xl[k] - x[k]});
+    for (Index k = 0; k < m; ++k) violation_ = std::max({violation_, g[k] - gu[k], gl[k] - g[k]});
+  }
+
+  /// The jerk j_i at every grid point [m/s^3] of x (update(x) true).
+  std::vector<double> jerk(const Number* x) {
+    std::vector<double> j;
+    if (update(x))
+      for (const Terms& t : terms_) j.push_back(t.j);
+    return j;
+  }
+
+  std::vector<double> x0_, x_;
+  double violation_ = 0.0;
+
+ private:
+  /// Per grid point: the objective's share tau + w j^2 tau [s] with derivatives, and j.
+  struct Terms {
+    D3 obj;
+    double j = 0.0;
+  };
+
+  Index n_lin() const { return static_cast<Index>(lin_lo_.size()); }
+  Index point_vars(Index p) const {
+    Index c = 0;
+    for (int l = 0; l < 3; ++l) c += var(p - 1 + l) >= 0 ? 1 : 0;
+    return c;
+  }
+
+  /// The largest b the point's own limits allow (the sweep's point cap) [m^2/s^2].
+  double point_cap(Index p) const {
+    const core::GridPoint& gp = g_[static_cast<std::size_t>(p)];
+    double cap = kInf;
+    for (Eigen::Index j = 0; j < gp.q_s.size(); ++j) {
+      const double qs = std::abs(gp.q_s(j)), v = lim_.joint_velocity(j);
+      if (qs > 0.0 && v < kInf) cap = std::min(cap, (v / qs) * (v / qs));
+    }
+    if (lim_.speed < kInf) cap = std::min(cap, lim_.speed * lim_.speed);
+    if (gp.kappa > 0.0 && lim_.centripetal < kInf) cap = std::min(cap, lim_.centripetal / gp.kappa);
+    return cap;
+  }
+
+  /// The limits linear in b: the joint accelerations at both ends of every interval and the
+  /// tangential acceleration of every interval (the sweep's interval polygon). Rows that
+  /// cannot bind are left out: per interval, the feasible polygon in (b_i, b_{i+1}) of all
+  /// its rows and the point caps is built by clipping, and a row is kept only where one of
+  /// its two sides touches that polygon (to 1e-9 relative), so the feasible set is unchanged.
+  void build_linear_rows() {
+    struct Row {
+      double c0, c1, lo, hi;  // lo <= c0 b_i + c1 b_{i+1} <= hi
+    };
+    std::vector<Row> rows;
+    std::vector<std::array<double, 2>> poly, next;
+    double big = 1.0;  // a cap for b where none is given [m^2/s^2]
+    for (Index p = 0; p <= N_; ++p)
+      if (std::isfinite(point_cap(p))) big = std::max(big, point_cap(p));
+    big *= 1e3;
+    lin_begin_.push_back(0);
+    for (Index i = 0; i < N_; ++i) {
+      rows.clear();
+      const double h = 1.0 / (2.0 * ds(i));  // u_i = h (b_{i+1} - b_i)
+      for (int end = 0; end < 2; ++end) {
+        const core::GridPoint& gp = g_[static_cast<std::size_t>(i + end)];
+        for (Eigen::Index j = 0; j < gp.q_s.size(); ++j) {
+          const double a = lim_.joint_acceleration(j);
+          if (!(a < kInf)) continue;
+          // q_s u_i + q_ss b_k, k = i + end.
+          rows.push_back({-gp.q_s(j) * h + (end == 0 ? gp.q_ss(j) : 0.0),
+                          gp.q_s(j) * h + (end == 1 ? gp.q_ss(j) : 0.0), -a, a});
+        }
+      }
+      if (lim_.tangential < kInf) rows.push_back({-h, h, -lim_.tangential, lim_.tangential});
+      // The polygon: the box of the point caps (the rests: 0), clipped by every side of every row.
+      const double x_hi = var(i) >= 0 ? std::min(big, point_cap(i)) : 0.0;
+      const double y_hi = var(i + 1) >= 0 ? std::min(big, point_cap(i + 1)) : 0.0;
+      poly = {{0.0, 0.0}, {x_hi, 0.0}, {x_hi, y_hi}, {0.0, y_hi}};
+      auto clip = [&](double a0, double a1, double c) {  // keep a0 x + a1 y <= c
+        next.clear();
+        for (std::size_t k = 0; k < poly.size(); ++k) {
+          const auto& P = poly[k];
+          const auto& Q = poly[(k + 1) % poly.size()];
+          const double fp = a0 * P[0] + a1 * P[1] - c, fq = a0 * Q[0] + a1 * Q[1] - c;
+          if (fp <= 0.0) next.push_back(P);
+          if ((fp < 0.0 && fq > 0.0) || (fp > 0.0 && fq < 0.0)) {
+            const double t = fp / (fp - fq);
+            next.push_back({P[0] + t * (Q[0] - P[0]), P[1] + t * (Q[1] - P[1])});
+          }
+        }
+        poly.swap(next);
+      };
+      for (const Row& r : rows) {
+        clip(r.c0, r.c1, r.hi);
+        clip(-r.c0, -r.c1, -r.lo);
+      }
+      for (const Row& r : rows) {
+        bool keep = poly.empty();  // numerically empty: keep every row
+        for (const auto& P : poly) {
+          const double v = r.c0 * P[0] + r.c1 * P[1];
+          const double tol = 1e-9 * (std::abs(r.c0 * P[0]) + std::abs(r.c1 * P[1]) + std::abs(r.hi));
+          keep = keep || v >= r.hi - tol || v <= r.lo + tol;
+        }
+        if (!keep) continue;
+        const std::size_t before = lin_col_.size();
+        if (const Index k = var(i); k >= 0 && r.c0 != 0.0) lin_col_.push_back(k), lin_coef_.push_back(r.c0);
+        if (const Index k = var(i + 1); k >= 0 && r.c1 != 0.0) lin_col_.push_back(k), lin_coef_.push_back(r.c1);
+        if (lin_col_.size() == before) continue;  // no variable: 0 in [lo, hi]
+        lin_begin_.push_back(static_cast<Index>(lin_col_.size()));
+        lin_lo_.push_back(r.lo);
+        lin_hi_.push_back(r.hi);
+      }
+    }
+  }
+
+  /// The per-point terms and jerk rows at x (cached on x); false where some b <= 0.
+  bool update(const Number* x) {
+    const Index n = n_var();
+    if (have_ && std::equal(x, x + n, cached_x_.begin())) return ok_;
+    cached_x_.assign(x, x + n);
+    have_ = true;
+    ok_ = false;
+    for (Index k = 0; k < n; ++k)
+      if (!(x[k] > 0.0)) return false;
+    const double w = opt_.smoothness_weight;
+    for (Index p = 0; p <= N_; ++p) {
+      std::array<D3, 3> b, r;
+      for (int l = 0; l < 3; ++l) {
+        const Index k = var(p - 1 + l);
+        b[l] = k >= 0 ? variable(x[k], l) : constant(0.0);
+        r[l] = k >= 0 ? sqrt(b[l]) : constant(0.0);
+      }
+      D3 tau, u_prev, u_next;
+      if (p >= 1) {
+        tau = tau + (ds(p - 1) * reciprocal(r[0] + r[1]));  // t_{p-1} / 2
+        u_prev = (0.5 / ds(p - 1)) * (b[1] - b[0]);
+      }
+      if (p <= N_ - 1) {
+        tau = tau + (ds(p) * reciprocal(r[1] + r[2]));  // t_p / 2
+        u_next = (0.5 / ds(p)) * (b[2] - b[1]);
+      }
+      const D3 j = (u_next - u_prev) / tau;
+      Terms& t = terms_[static_cast<std::size_t>(p)];
+      t.j = j.f;
+      t.obj = w > 0.0 ? tau + w * (j * j * tau) : tau;
+      D3* rows = jerk_rows_.data() + p * jerk_rows_per_point_;
+      if (cart_jerk_) *rows++ = j;
+      if (!jerk_joints_.empty()) {
+        const core::GridPoint& gp = g_[static_cast<std::size_t>(p)];
+        const D3 v_a = 0.5 * (r[1] * (u_prev + u_next)), v3 = r[1] * b[1];  // s_dot s_ddot, s_dot^3
+        for (const Index jj : jerk_joints_)
+          *rows++ = gp.q_s(jj) * j + (3.0 * gp.q_ss(jj)) * v_a + q_sss_[static_cast<std::size_t>(p)](jj) * v3;
+      }
+    }
+    ok_ = true;
+    return true;
+  }
+
+  const std::vector<core::GridPoint>& g_;
+  const core::TimeOptimalLimits& lim_;
+  const JerkTimingOptions& opt_;
+  Index N_ = 0;
+  std::vector<core::JointVector> q_sss_;
+  std::vector<Index> jerk_joints_;
+  bool cart_jerk_ = false;
+  Index jerk_rows_per_point_ = 0;
+  // Linear rows (compressed by row): columns, coefficients, bounds.
+  std::vector<Index> lin_begin_, lin_col_;
+  std::vector<double> lin_coef_, lin_lo_, lin_hi_;
+  std::vector<Index> hess_offset_;  ///< row k of the banded lower triangle starts here
+  // Cache of update().
+  std::vector<double> cached_x_;
+  bool have_ = false, ok_ = false;
+  std::vector<Terms> terms_;
+  std::vector<D3> jerk_rows_;
+};
+
+/// The profile of b: one constant-acceleration piece per interval with its exact time.
+core::SpeedProfile profile_of(const std::vector<core::GridPoint>& grid, const std::vector<double>& b,
+                              std::vector<double>& u, std::vector<double>& dt) {
+  core::SpeedProfile p;
+  const std::size_t N = grid.size() - 1;
+  u.assign(N, 0.0);
+  dt.assign(N, 0.0);
+  double t = 0.0;
+  for (std::size_t i = 0; i < N; ++i) {
+    const double ds = grid[i + 1].s - grid[i].s, v0 = std::sqrt(b[i]), v1 = std::sqrt(b[i + 1]);
+    u[i] = (b[i + 1] - b[i]) / (2.0 * ds);
+    dt[i] = 2.0 * ds / (v0 + v1);
+    p.pieces.push_back({t, grid[i].s, v0, u[i], 0.0});
+    t += dt[i];
+  }
+  p.duration = t;
+  p.length = grid.back().s;
+  return p;
+}
+
+}  // namespace
+
+JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const core::TimeOptimalLimits& limits,
+                                const core::TimeOptimalSolution& start, const JerkTimingOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::size_t n_pts = grid.size(), N = n_pts - 1;
+  GEOTRAJ_CHECK(n_pts >= 3 && start.b.size() == n_pts && start.u.size() == N);
+
+  Ipopt::SmartPtr<JerkTimingNlp> nlp = new JerkTimingNlp(grid, limits, options);
+  // The exact sweep's b, off zero: the sweep may stop at an interior point (b_i = 0, where
+  // the limits leave only zero speed), where sqrt(b) has no derivative.
+  nlp->x0_.assign(start.b.begin() + 1, start.b.end() - 1);
+  const double b_floor = 1e-8 * std::max(1e-300, *std::max_element(nlp->x0_.begin(), nlp->x0_.end()));
+  for (double& b : nlp->x0_) b = std::max(b, b_floor);
+  JerkTiming out;
+  out.report.objective_before = nlp->objective(nlp->x0_.data());
+
+  Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
+  Ipopt::OptionsList& o = *app->Options();
+  o.SetIntegerValue("print_level", options.derivative_test ? 5 : 0);
+  if (!options.derivative_test) o.SetStringValue("sb", "yes");
+  o.SetNumericValue("tol", options.tolerance);
+  o.SetNumericValue("acceptable_tol", 1e3 * options.tolerance);
+  o.SetIntegerValue("max_iter", options.max_iterations);
+  o.SetNumericValue("max_cpu_time", options.time_budget_s);
+  o.SetStringValue("mu_strategy", "adaptive");
+  // MUMPS (Debian's only solver) with AMD ordering: the KKT matrix is banded, and AMD's
+  // ordering factors it fastest here (against METIS, PORD and MUMPS's automatic choice).
+  o.SetIntegerValue("mumps_pivot_order", 0);
+  // The warm start sits on its active bounds: push it in only a little.
+  o.SetNumericValue("bound_push", 1e-8);
+  o.SetNumericValue("bound_frac", 1e-8);
+  o.SetNumericValue("constr_viol_tol", 1e-9);
+  if (options.derivative_test) {
+    o.SetStringValue("derivative_test", "second-order");
+    o.SetNumericValue("derivative_test_perturbation", 1e-8);
+    o.SetNumericValue("derivative_test_tol", 1e-4);
+  }
+
+  // No options file: a stray ipopt.opt in the working directory must not change the result.
+  Ipopt::ApplicationReturnStatus status = app->Initialize("");
+  if (status == Ipopt::Solve_Succeeded) status = app->OptimizeTNLP(nlp);
+  out.report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (Ipopt::SmartPtr<Ipopt::SolveStatistics> stats = app->Statistics(); Ipopt::IsValid(stats))
+    out.report.iterations = stats->IterationCount();
+
+  switch (status) {
+    case Ipopt::Solve_Succeeded:
+    case Ipopt::Solved_To_Acceptable_Level: out.report.status = OptimizerStatus::kConverged; break;
+    case Ipopt::Maximum_Iterations_Exceeded: out.report.status = OptimizerStatus::kIterationLimit; break;
+    case Ipopt::Maximum_CpuTime_Exceeded: out.report.status = OptimizerStatus::kTimeLimit; break;
+    default: out.report.status = OptimizerStatus::kFailed; break;
+  }
+  out.report.message = "Ipopt return status " + std::to_string(static_cast<int>(status));
+  const bool have_point = nlp->x_.size() == nlp->x0_.size() && out.report.status != OptimizerStatus::kFailed &&
+                          std::all_of(nlp->x_.begin(), nlp->x_.end(), [](double b) { return b > 0.0; });
+  if (!have_point) out.report.status = OptimizerStatus::kFailed;
+  const std::vector<double>& xs = have_point ? nlp->x_ : nlp->x0_;
+  out.b.assign(n_pts, 0.0);
+  std::copy(xs.begin(), xs.end(), out.b.begin() + 1);
+  out.profile = profile_of(grid, out.b, out.u, out.dt);
+  out.jerk = nlp->jerk(xs.data());
+  out.duration = out.profile.duration;
+  out.max_constraint_violation = have_point ? nlp->violation_ : 0.0;
+  out.report.objective_after = have_point ? nlp->objective(xs.data()) : out.report.objective_before;
+  if (have_point && out.report.status != OptimizerStatus::kConverged)
+    out.report.message += ", largest constraint violation " + std::to_string(out.max_constraint_violation);
+  return out;
+}
+
+core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
+                                                       const core::OrientationPlan& orientation,
+                                                       const core::MotionSpec& spec, const core::RobotModel* robot,
+                                                       const core::JointVector& seed,
+                                                       const core::TimeOptimalOptions& exact_options,
+                                                       JerkTimingOptions options) {
+  auto exact = core::plan_time_optimal(path, orientation, spec, robot, seed, exact_options);
+  if (!exact) return tl::make_unexpected(exact.error());
+  const double sc = spec.speed_scale, sc3 = sc * sc * sc;
+  if (robot && options.joint_jerk.size() == 0) {
+    const auto n = static_cast<Eigen::Index>(robot->dof());
+    options.joint_jerk = core::JointVector::Constant(n, kInf);
+    for (Eigen::Index j = 0; j < n; ++j)
+      if (const auto& mj = robot->limits[static_cast<std::size_t>(j)].max_jerk) options.joint_jerk(j) = *mj * sc3;
+  }
+  if (!options.max_jerk && spec.max_jerk) options.max_jerk = *spec.max_jerk * sc3;
+
+  JerkLimitedPlan out;
+  std::vector<core::SpeedProfile> profiles;
+  out.report.status = OptimizerStatus::kConverged;
+  const double budget = options.time_budget_s;
+  const auto t0 = std::chrono::steady_clock::now();
+  // The NLP meets its limits to Ipopt's tolerance, not exactly: it works within limits
+  // shrunk by kJerkLimitMargin, so that the samples stay within the real ones.
+  core::TimeOptimalLimits limits = exact->limits;
+  limits.joint_velocity *= 1.0 - kJerkLimitMargin;
+  limits.joint_acceleration *= 1.0 - kJerkLimitMargin;
+  limits.speed *= 1.0 - kJerkLimitMargin;
+  limits.tangential *= 1.0 - kJerkLimitMargin;
+  limits.centripetal *= 1.0 - kJerkLimitMargin;
+  for (std::size_t p = 0; p < exact->grids.size(); ++p) {
+    options.time_budget_s =
+        std::max(1e-3, budget - std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    core::TimeOptimalSolution start = exact->solutions[p];
+    for (double& b : start.b) b *= (1.0 - kJerkLimitMargin) * (1.0 - kJerkLimitMargin);  // feasible within the margin
+    JerkTiming jt = optimise_jerk_timing(exact->grids[p], limits, start, options);
+    out.report.objective_before += jt.report.objective_before;
+    out.report.objective_after += jt.report.objective_after;
+    out.report.iterations += jt.report.iterations;
+    out.report.seconds += jt.report.seconds;
+    if (static_cast<int>(jt.report.status) > static_cast<int>(out.report.status)) {
+      out.report.status = jt.report.status;
+      out.report.message = "portion " + std::to_string(p) + ": " + jt.report.message;
+    }
+    profiles.push_back(jt.profile);
+    out.portions.push_back(std::move(jt));
+  }
+  auto motion = core::assemble_motion(spec, exact->motion.portions, profiles);
+  if (!motion) return tl::make_unexpected(motion.error());
+  out.motion = std::move(*motion);
+  out.motion.spec.duration_s = 0.0;
+  out.exact = std::move(*exact);
+  return out;
+}
+
+}  // namespace geotraj::optim

@@ -2,7 +2,9 @@
 // grid data (100 and 1,000 grid intervals per portion), the grid construction (IK at every
 // grid point), and the jerk-limited Ipopt solve (100 and 1,000 intervals; joint jerk limits
 // of 4 a_max; counters: iterations, its duration and the exact one [s]). Per-portion figures;
-// demo path C has two portions (a cusp at frame 2).
+// demo path C has two portions (a cusp at frame 2). BM_JerkPlan: the whole jerk-limited plan
+// end to end (grids, exact sweep with its sample check, the NLP on both portions, the sample
+// check of the result and its re-solves; 200 intervals per portion, 100 Hz).
 #include <benchmark/benchmark.h>
 
 #include "geotraj/core/orientation.hpp"
@@ -75,6 +77,29 @@ void BM_JerkNlp(benchmark::State& state) {
   state.counters["exact_s"] = exact.duration;
 }
 BENCHMARK(BM_JerkNlp)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(5);
+
+void BM_JerkPlan(benchmark::State& state) {
+  core::RobotModel robot = setup().robot;
+  for (auto& l : robot.limits) l.max_jerk = 4.0 * l.max_acceleration;
+  core::MotionSpec spec;
+  spec.cycle_rate_hz = 100.0;
+  optim::JerkTimingOptions opt;
+  opt.time_budget_s = 60.0;
+  core::Expected<optim::JerkLimitedPlan> r;
+  for (auto _ : state) {
+    r = optim::plan_time_optimal_jerk(setup().path, setup().orientation, spec, &robot,
+                                      core::home_configuration(robot), {}, opt);
+    benchmark::DoNotOptimize(r);
+  }
+  if (!r) {
+    state.SkipWithError(r.error()[0].description.c_str());
+    return;
+  }
+  state.counters["iterations"] = r->report.iterations;
+  state.counters["refinements"] = r->refinements;
+  state.counters["duration_s"] = r->motion.duration_s;
+}
+BENCHMARK(BM_JerkPlan)->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(5);
 
 }  // namespace
 

@@ -383,6 +383,56 @@ Expected<MotionPlan> assemble_motion(const MotionSpec& spec, std::vector<MotionP
   return plan;
 }
 
+Expected<SampleCheck> check_time_optimal_samples(const Path& path, const OrientationPlan& orientation,
+                                                 const MotionPlan& motion,
+                                                 const std::vector<std::vector<GridPoint>>& grids,
+                                                 const TimeOptimalLimits& limits, const RobotModel* robot,
+                                                 const JointVector& seed, const TimeOptimalOptions& options) {
+  GEOTRAJ_CHECK(grids.size() == motion.portions.size());
+  SampleCheck out;
+  out.shrink.resize(grids.size());
+  for (std::size_t p = 0; p < grids.size(); ++p) out.shrink[p].assign(grids[p].size(), 1.0);
+  MotionSampler sampler(path, motion);
+  std::optional<JointTracker> tracker;
+  if (robot) tracker.emplace(*robot, seed, options.ik);
+  MotionSample ms;
+  JointSample js;
+  while (sampler.next(ms)) {
+    const MotionPortion& por = motion.portions[ms.portion];
+    const std::size_t N = grids[ms.portion].size() - 1;
+    const double h = por.length / static_cast<double>(N);
+    const std::size_t k =
+        h > 0.0 ? std::min(N - 1, static_cast<std::size_t>(std::max(0.0, (ms.s - por.s_start) / h))) : 0;
+    // ratio r of a velocity-like limit shrinks sigma by 1 / r; of an acceleration by 1 / sqrt(r).
+    auto note = [&](double value, double limit, bool accel) {
+      if (!(limit < kInf)) return;
+      const double r = value / limit;
+      out.worst_usage = std::max(out.worst_usage, r);
+      if (r > 1.0 + options.sample_tolerance) {
+        out.broken = true;
+        const double f = (accel ? 1.0 / std::sqrt(r) : 1.0 / r) * (1.0 - 1e-6);
+        out.shrink[ms.portion][k] = std::min(out.shrink[ms.portion][k], f);
+        out.shrink[ms.portion][k + 1] = std::min(out.shrink[ms.portion][k + 1], f);
+      }
+    };
+    if (ms.speed > 0.0) {
+      const Eigen::Vector3d T = ms.v_W / ms.speed;
+      note((ms.a_W - ms.a_W.dot(T) * T).norm(), limits.centripetal, true);
+    }
+    if (tracker) {
+      const CartesianState x = cartesian_state(path, orientation, ms);
+      if (!tracker->track(x, js))
+        return tl::make_unexpected(Violations{{"motion", "the IK fails at t = " + num(ms.t) + " s (s = " +
+                                                             num(ms.s) + " m, u = " + num(ms.u) + ")"}});
+      for (Eigen::Index j = 0; j < js.q_dot.size(); ++j) {
+        note(std::abs(js.q_dot(j)), limits.joint_velocity(j), false);
+        note(std::abs(js.q_ddot(j)), limits.joint_acceleration(j), true);
+      }
+    }
+  }
+  return out;
+}
+
 Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationPlan& orientation,
                                             const MotionSpec& spec, const RobotModel* robot,
                                             const JointVector& seed, const TimeOptimalOptions& options) {
@@ -433,56 +483,17 @@ Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationP
     out.refinements = round;
     if (!options.verify_samples) break;
 
-    // Stream every sample and check it.
-    out.worst_sample_usage = 0.0;
-    std::vector<std::vector<double>> shrink(P);
-    for (std::size_t p = 0; p < P; ++p) shrink[p].assign(out.grids[p].size(), 1.0);
-    bool broken = false;
-    MotionSampler sampler(path, out.motion);
-    std::optional<JointTracker> tracker;
-    if (robot) tracker.emplace(*robot, seed, options.ik);
-    MotionSample ms;
-    JointSample js;
-    while (sampler.next(ms)) {
-      const MotionPortion& por = out.motion.portions[ms.portion];
-      const std::size_t N = out.grids[ms.portion].size() - 1;
-      const double h = por.length / static_cast<double>(N);
-      const std::size_t k =
-          h > 0.0 ? std::min(N - 1, static_cast<std::size_t>(std::max(0.0, (ms.s - por.s_start) / h))) : 0;
-      // ratio r of a velocity-like limit shrinks sigma by 1 / r; of an acceleration by 1 / sqrt(r).
-      auto note = [&](double value, double limit, bool accel) {
-        if (!(limit < kInf)) return;
-        const double r = value / limit;
-        out.worst_sample_usage = std::max(out.worst_sample_usage, r);
-        if (r > 1.0 + options.sample_tolerance) {
-          broken = true;
-          const double f = (accel ? 1.0 / std::sqrt(r) : 1.0 / r) * (1.0 - 1e-6);
-          shrink[ms.portion][k] = std::min(shrink[ms.portion][k], f);
-          shrink[ms.portion][k + 1] = std::min(shrink[ms.portion][k + 1], f);
-        }
-      };
-      if (ms.speed > 0.0) {
-        const Eigen::Vector3d T = ms.v_W / ms.speed;
-        note((ms.a_W - ms.a_W.dot(T) * T).norm(), out.limits.centripetal, true);
-      }
-      if (tracker) {
-        const CartesianState x = cartesian_state(path, orientation, ms);
-        if (!tracker->track(x, js))
-          return tl::make_unexpected(Violations{{"motion", "the IK fails at t = " + num(ms.t) + " s (s = " +
-                                                               num(ms.s) + " m, u = " + num(ms.u) + ")"}});
-        for (Eigen::Index j = 0; j < js.q_dot.size(); ++j) {
-          note(std::abs(js.q_dot(j)), out.limits.joint_velocity(j), false);
-          note(std::abs(js.q_ddot(j)), out.limits.joint_acceleration(j), true);
-        }
-      }
-    }
-    if (!broken) break;
+    auto check =
+        check_time_optimal_samples(path, orientation, out.motion, out.grids, out.limits, robot, seed, options);
+    if (!check) return tl::make_unexpected(check.error());
+    out.worst_sample_usage = check->worst_usage;
+    if (!check->broken) break;
     if (round >= options.max_refinements)
       return tl::make_unexpected(Violations{
           {"motion", "the sampled motion still exceeds a limit by " + num(100.0 * (out.worst_sample_usage - 1.0)) +
                          " % after " + std::to_string(round) + " refinements: use a finer grid"}});
     for (std::size_t p = 0; p < P; ++p)
-      for (std::size_t i = 0; i < sigma[p].size(); ++i) sigma[p][i] *= shrink[p][i];
+      for (std::size_t i = 0; i < sigma[p].size(); ++i) sigma[p][i] *= check->shrink[p][i];
   }
 
   for (std::size_t p = 0; p < P; ++p) {

@@ -558,7 +558,8 @@ TEST_F(OptimizeTest, TimeOptimalWithoutARobotNeedsMaxAcceleration) {
   EXPECT_NE(violation_of(bad_request_violations(status), "motion.maxAcceleration"), "");
 }
 
-// jerkLimited: answered (OK, or a clean error) within the deadline; nothing more is claimed.
+// jerkLimited on the PA-10 (joint jerk unlimited in the model: the Cartesian ones absent too,
+// so the NLP's jerk rows are loose) answers within the deadline with a feasible plan.
 TEST_F(OptimizeTest, JerkLimitedAnswersWithinTheDeadline) {
   auto request = pa10_path_c_fastest();
   request.mutable_optimize()->mutable_timing()->set_time_optimal(true);
@@ -571,14 +572,16 @@ TEST_F(OptimizeTest, JerkLimitedAnswersWithinTheDeadline) {
   const double plan_s = seconds_since(t0);
   std::printf("[ measured ] jerkLimited: %s (%s) in %.3f s\n", status.ok() ? "OK" : "error",
               status.error_message().c_str(), plan_s);
-  EXPECT_THAT(status.error_code(), AnyOf(Eq(grpc::StatusCode::OK), Eq(grpc::StatusCode::FAILED_PRECONDITION),
-                                         Eq(grpc::StatusCode::INVALID_ARGUMENT),
-                                         Eq(grpc::StatusCode::DEADLINE_EXCEEDED)))
-      << status.error_message();
-  if (status.ok()) {
-    ASSERT_TRUE(response.optimization().has_timing());
-    EXPECT_GT(response.motion().duration_s(), 0.0);
-  }
+  // The jerk-limited plan is checked sample by sample like the exact one, so the service
+  // accepts it. With no jerk limit given it is the time-optimal motion again, to within the
+  // two planners' different tightening of their grid limits where a sample broke one (1 %).
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_TRUE(response.optimization().has_timing());
+  const double exact = plan_ok(pa10_path_c_fastest()).motion().duration_s();
+  EXPECT_NEAR(response.motion().duration_s(), exact, 0.01 * exact);
+  EXPECT_TRUE(response.robot().feasible());
+  std::printf("[ measured ] jerk-limited %.4f s against %.4f s without jerk limits\n",
+              response.motion().duration_s(), exact);
 }
 
 // A PA-10 copied from ListRobots whose base joint may turn at 1e-9 rad/s: the time-optimal

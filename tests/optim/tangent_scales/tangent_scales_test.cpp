@@ -118,7 +118,7 @@ std::pair<double, double> check_optimisation(const PathSpec& spec, const Tangent
   EXPECT_TRUE(result.has_value());
   if (!result) return {NAN, NAN};
   const auto& r = *result;
-  EXPECT_NE(r.report.status, OptimizerStatus::kFailed) << r.report.message;
+  EXPECT_NE(r.report.status, OptimizerStatus::kFailed) << r.report.message << "\n" << describe(spec);
   EXPECT_LE(r.report.objective_after, r.report.objective_before);
   // The frames' constraints are met exactly (the conversion meets them for any scale).
   EXPECT_LT(closed_loop(r.spec), 1e-9);
@@ -140,7 +140,7 @@ std::pair<double, double> check_optimisation(const PathSpec& spec, const Tangent
     // Torsion can spike between samples where the curve is nearly straight (a known
     // limitation of the sampled peak, see the header): only curvature is held to the dense measure.
     if (options.objective == Objective::kPeakCurvature) {
-      EXPECT_GE(r.report.objective_after, after * 0.9);
+      EXPECT_GE(r.report.objective_after, after * 0.9) << describe(spec);
     }
   } else {
     EXPECT_NEAR(r.report.objective_after, after, 2e-3 * after);

@@ -171,6 +171,32 @@ Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationP
                                             const MotionSpec& spec, const RobotModel* robot,
                                             const JointVector& seed, const TimeOptimalOptions& options = {});
 
+/// The outcome of check_time_optimal_samples.
+struct SampleCheck {
+  bool broken = false;        ///< some sample exceeds a limit by more than sample_tolerance
+  double worst_usage = 0.0;   ///< largest value / limit over every sample checked
+  /// Per portion and grid point, the factor (in (0, 1]) by which to scale that point's
+  /// limits (velocities by it, accelerations by its square) before solving again: for each
+  /// sample with value / limit r > 1 + sample_tolerance on grid interval k, both ends k and
+  /// k + 1 get at most (1 / r of a velocity, 1 / sqrt(r) of an acceleration) (1 - 1e-6).
+  std::vector<std::vector<double>> shrink;
+};
+
+/// Streams `motion` through MotionSampler at its cycle rate (and, with a robot, through a
+/// JointTracker seeded with `seed` and options.ik) and compares every sample with `limits`:
+/// joint velocity |q_dot,j| [rad/s or m/s], joint acceleration |q_ddot,j| [rad/s^2 or m/s^2]
+/// and the centripetal acceleration |a_W - (a_W . T) T| [m/s^2] (maxSpeed and the tangential
+/// limit hold exactly between grid points and are not sampled). `grids` are the portions'
+/// grids (uniform in s, as time_optimal_grids makes them); a sample belongs to the grid
+/// interval of its arc length. Used by plan_time_optimal after each sweep; any timing on
+/// the same grids may use it the same way.
+/// Errors (field `motion`): the IK fails at a sample (t, s and u named).
+Expected<SampleCheck> check_time_optimal_samples(const Path& path, const OrientationPlan& orientation,
+                                                 const MotionPlan& motion,
+                                                 const std::vector<std::vector<GridPoint>>& grids,
+                                                 const TimeOptimalLimits& limits, const RobotModel* robot,
+                                                 const JointVector& seed, const TimeOptimalOptions& options);
+
 /// A one-line description of a stretch ("joint 3 velocity 1.99 of 1.99 rad/s on s 0.1-0.4 m").
 std::string describe(const BindingStretch& stretch);
 

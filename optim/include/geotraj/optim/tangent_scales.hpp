@@ -8,10 +8,11 @@
 // Method. The variables are y = ln(scale) (layout below). Each segment depends on two scales
 // (its start frame's leaving side, its end frame's approach side); its control points follow
 // from the end derivatives (core::side_derivatives, core::hermite_control_points), evaluated
-// with a forward-mode dual number (ceres::Jet<double, 2>) so that the gradient and the
-// constraint Jacobians are exact (automatic differentiation, no finite differences; control
-// points once per segment and evaluation, Bernstein weights precomputed per degree).
-// Ipopt 3.11 (interior point, limited-memory quasi-Newton Hessian, no exact Hessian) solves:
+// with a second-order forward-mode number in the segment's two log-scales, so that the
+// gradient, the constraint Jacobians and the Hessian of the Lagrangian are exact (automatic
+// differentiation, no finite differences; control points once per segment and evaluation,
+// Bernstein weights precomputed once per degree and process).
+// Ipopt 3.11 (interior point, exact Hessian) solves:
 //  - kBendingEnergy:  min  E + length_weight L,  E = int kappa^2 ds = sum over segments of
 //                     int_0^1 |p' x p''|^2 / |p'|^5 du,  L = int |p'| du.
 //                     Units: E [1/m], length_weight [1/m^2], so the objective is in [1/m].
@@ -24,8 +25,11 @@
 //                     straight points are left out: there tau is ill-conditioned and spikes;
 //                     in the solver a C1 weight fades them out between half the floor and it).
 // Well posed: subject to  |p'(u_j)| >= kMinSpeedFraction x chord  at kRegularitySamples
-// points per segment (NLP constraints, AD Jacobians), the curve cannot nearly stop inside a
-// segment, so kappa stays bounded and smooth there and the fixed rules resolve it.
+// points per segment, the curve cannot nearly stop inside a segment, so kappa stays bounded
+// and smooth there and the fixed rules resolve it. The NLP imposes them as 8 rows per segment,
+// each a conservative soft minimum of 4 consecutive samples (every sample still meets the
+// floor; the floor rises by at most 1.1 %), or as one row per sample if Ipopt reports the
+// grouped rows infeasible.
 // The integrals use a fixed composite Gauss-Legendre rule (kQuadratureIntervals x 8 nodes
 // per segment), not core's adaptive Gauss-Kronrod: a fixed rule keeps the objective a smooth
 // function of the scales (adaptive subdivision switches with the scales, which a
@@ -81,7 +85,7 @@ inline constexpr int kQuadratureIntervals = 8;
 /// Sample points per segment of the peak objectives, uniform in u, both ends included.
 inline constexpr int kPeakSamples = 33;
 /// Regularity: |dp/du| >= kMinSpeedFraction x the segment's chord [m] at kRegularitySamples
-/// midpoints (j + 1/2) / kRegularitySamples of every segment (NLP constraints).
+/// midpoints (j + 1/2) / kRegularitySamples of every segment (NLP constraints, grouped).
 inline constexpr int kRegularitySamples = 32;
 inline constexpr double kMinSpeedFraction = 0.1;
 /// kPeakTorsion leaves out the points of a segment where kappa < kTorsionCurvatureFraction /

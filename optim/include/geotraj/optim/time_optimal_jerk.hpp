@@ -47,6 +47,15 @@ struct JerkTimingOptions {
   double smoothness_weight = 0.0;   ///< w [s^5/m^2] of the objective above, >= 0
   double time_budget_s = 1.0;       ///< Ipopt's max_cpu_time [s]
   int max_iterations = 500;
+  /// Per grid point, sigma in (0, 1]: that point's joint velocity limits are multiplied by
+  /// sigma, its joint and centripetal acceleration limits by sigma^2 (the sample check's
+  /// tightening, as in plan_time_optimal); empty: 1 everywhere, else one per grid point.
+  std::vector<double> limit_scale;
+  /// Ipopt starts from the start's b times this, in (0, 1]: the same motion slower
+  /// (velocities x sqrt, accelerations x, jerks x ^(3/2)), strictly inside the limits the
+  /// start meets. An interior point method started on the sweep's many active limits takes
+  /// several times the iterations.
+  double start_scale = 0.5;
   double tolerance = 1e-8;          ///< Ipopt's tol (scaled KKT error; the objective is in [s])
   /// Run Ipopt's second-order derivative checker at the start point and print its report
   /// (and Ipopt's iteration log) on stdout: a debug aid, slow.
@@ -78,22 +87,29 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
 /// A whole plan: the exact plan (core::plan_time_optimal) re-timed portion by portion.
 /// Relative margin inside every velocity and acceleration limit that plan_time_optimal_jerk
 /// keeps at its grid points (Ipopt meets its constraints to its tolerance only).
-/// Limitation: the limits hold at the grid points, not between them; the exact sweep tightens
-/// its grid limits where a sample breaks one, this NLP does not yet. Between grid points the
-/// joint accelerations of the PA-10 demo paths exceed their limits by up to about 2 %, and
-/// the service, which checks every sample, refuses such a plan (FAILED_PRECONDITION).
 inline constexpr double kJerkLimitMargin = 1e-6;
 
 struct JerkLimitedPlan {
   core::MotionPlan motion;
   core::TimeOptimalPlan exact;           ///< the warm start and its binding report
   std::vector<JerkTiming> portions;
-  OptimizerReport report;                ///< summed iterations and seconds, the worst status
+  OptimizerReport report;                ///< summed iterations, the worst status, wall time [s]
+  int refinements = 0;                   ///< re-solves after the sample check
+  double worst_sample_usage = 0.0;       ///< largest value / limit over every sample checked
 };
 
 /// plan_time_optimal, then optimise_jerk_timing on every portion with the robot's
-/// JointLimits::max_jerk (where given) and spec.max_jerk, scaled by speedScale^3.
-/// Errors: plan_time_optimal's.
+/// JointLimits::max_jerk (where given) and spec.max_jerk, scaled by speedScale^3; then, as
+/// plan_time_optimal does for the sweep, every sample at the cycle rate is checked against
+/// the joint velocity, joint acceleration and centripetal limits
+/// (core::check_time_optimal_samples) and, where one breaks a limit, the limits at that
+/// interval's grid points are tightened (JerkTimingOptions::limit_scale) and the NLP runs
+/// again from its last result, at most exact_options.max_refinements times.
+/// Guarantee: every streamed sample within those limits to exact_options.sample_tolerance;
+/// maxSpeed and the tangential limit everywhere; the jerk limits at the grid points (the
+/// grid's time resolution, above).
+/// Errors: plan_time_optimal's; `motion` when the samples still break a limit after the
+/// last refinement, or the IK fails at a sample.
 core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
                                                        const core::OrientationPlan& orientation,
                                                        const core::MotionSpec& spec, const core::RobotModel* robot,

@@ -271,10 +271,15 @@ TEST_F(OptimizeTest, BreakpointsLowerThePeakTorsionOfAppendixB) {
   const double peak_uniform = peak_torsion(profile_uniform);
   std::printf("[ measured ] peak |torsion| of AnalyzePath (%d points): uniform %.6g, optimised %.6g 1/m\n",
               profile.points_size(), peak_uniform, peak);
-  EXPECT_NEAR(peak, r.objective_after(), 0.01 * r.objective_after());
   EXPECT_NEAR(peak_uniform, r.objective_before(), 0.01 * r.objective_before());
   EXPECT_LT(peak, peak_uniform);
-  EXPECT_NEAR(profile.arc_length(), response.arc_length(), 1e-9 * response.arc_length());
+  // The analysis used the same optimised path: the optimiser is deterministic unless a time
+  // limit stopped it (under the sanitizers the default 10 s budget can be reached, and then
+  // the two calls' results legitimately differ).
+  if (r.status() != v1::OPTIMIZER_STATUS_TIME_LIMIT) {
+    EXPECT_NEAR(peak, r.objective_after(), 0.01 * r.objective_after());
+    EXPECT_NEAR(profile.arc_length(), response.arc_length(), 1e-9 * response.arc_length());
+  }
 }
 
 TEST_F(OptimizeTest, BreakpointsOfAPolynomialBlendNameTheBlend) {

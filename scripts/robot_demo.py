@@ -123,7 +123,7 @@ def time_optimal(cli, tmp, model, out):
               f"{margins}")
         if path == "C":
             print("\nPath C, which limit binds where (PlanResponse.optimization.timing.binding):")
-            print(run(cli, "plan", name).split("which limit binds where:\n", 1)[1].split("\n\n", 1)[0])
+            print(run(cli, "plan", "--time-optimal", name).split("which limit binds where:\n", 1)[1].split("\n\n", 1)[0])
             rows = list(csv.DictReader(io.StringIO(run(cli, "stream", name))))
             n = len(model["links"])
             t = [float(r["t"]) for r in rows]

@@ -48,27 +48,6 @@ std::vector<google::rpc::PreconditionFailure::Violation> precondition_violations
 
 class OptimizeTest : public ServerTest {
  protected:
-  v1::RobotModel robot_model(const std::string& name) {
-    v1::ListRobotsResponse response;
-    const auto status = stub_->ListRobots(context().get(), v1::ListRobotsRequest{}, &response);
-    EXPECT_TRUE(status.ok()) << status.error_message();
-    for (const auto& m : response.robots()) {
-      if (m.name() == name) return m;
-    }
-    ADD_FAILURE() << "ListRobots has no model " << name;
-    return {};
-  }
-
-  std::vector<v1::Sample> stream_all(const v1::PlanRequest& request, grpc::Status& status) {
-    auto ctx = context();
-    auto reader = stub_->StreamSamples(ctx.get(), request);
-    std::vector<v1::Sample> samples;
-    v1::SampleBatch batch;
-    while (reader->Read(&batch)) samples.insert(samples.end(), batch.samples().begin(), batch.samples().end());
-    status = reader->Finish();
-    return samples;
-  }
-
   // PlanTrajectory that must succeed.
   v1::PlanResponse plan_ok(const v1::PlanRequest& request) {
     v1::PlanResponse response;

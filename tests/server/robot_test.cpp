@@ -96,24 +96,6 @@ class RobotTest : public ServerTest {
     return response;
   }
 
-  v1::RobotModel model(const std::string& name) {
-    const auto robots = list_robots();
-    for (const auto& m : robots.robots()) {
-      if (m.name() == name) return m;
-    }
-    ADD_FAILURE() << "ListRobots has no model " << name;
-    return {};
-  }
-
-  std::vector<v1::Sample> stream_all(const v1::PlanRequest& request, grpc::Status& status) {
-    auto ctx = context();
-    auto reader = stub_->StreamSamples(ctx.get(), request);
-    std::vector<v1::Sample> samples;
-    v1::SampleBatch batch;
-    while (reader->Read(&batch)) samples.insert(samples.end(), batch.samples().begin(), batch.samples().end());
-    status = reader->Finish();
-    return samples;
-  }
 
   // PlanTrajectory's and StreamSamples' field violations for a request both must refuse.
   std::vector<Violation> refused(const v1::PlanRequest& request) {
@@ -154,7 +136,7 @@ TEST_F(RobotTest, ListRobotsReturnsTheBuiltInModelsInFull) {
   };
   for (const Expected& e : {Expected{"pa10", 7, v1::DH_CONVENTION_MODIFIED}, Expected{"ur5", 6, v1::DH_CONVENTION_STANDARD}}) {
     SCOPED_TRACE(e.name);
-    const auto m = model(e.name);
+    const auto m = robot_model(e.name);
     EXPECT_EQ(m.dh_convention(), e.convention);
     ASSERT_EQ(m.links_size(), e.dof);
     ASSERT_EQ(m.limits_size(), e.dof);
@@ -176,7 +158,7 @@ TEST_F(RobotTest, ListRobotsReturnsTheBuiltInModelsInFull) {
   }
   // The PA-10's home puts the tool on the first key frame of the thesis's demonstration
   // paths (Table 7.8: (0.106, 0, 0.975) m), so a demo plan starts where the arm rests.
-  const auto pa10 = model("pa10");
+  const auto pa10 = robot_model("pa10");
   const Eigen::Vector3d p_home = forward_kinematics(pa10, pa10.home()).translation();
   EXPECT_LT((p_home - Eigen::Vector3d(0.106, 0.0, 0.975)).norm(), 1e-6) << p_home.transpose();
 }
@@ -203,7 +185,7 @@ TEST_F(RobotTest, ReportOnlyGivesTheJointReport) {
   // kappa ds^2 / 8 <= 1e-4 m of the demo paths at 100 Hz, far below the 1 mm tolerance.
   EXPECT_LT(r.max_midpoint_deviation(), 1e-4);
   EXPECT_GT(r.min_manipulability(), 0.0);
-  const auto pa10 = model("pa10");
+  const auto pa10 = robot_model("pa10");
   ASSERT_EQ(r.joints_size(), 7);
   bool over = false;
   for (int j = 0; j < 7; ++j) {
@@ -298,7 +280,7 @@ TEST_F(RobotTest, SlowDemoStreamsJointsThatReproduceTheTool) {
   ASSERT_EQ(samples.size(), response.motion().sample_count());
   ASSERT_EQ(samples.size(), 6001u);
 
-  const auto pa10 = model("pa10");
+  const auto pa10 = robot_model("pa10");
   const double dt = 0.01;  // 100 Hz
   double worst_position = 0.0, worst_angle = 0.0, worst_fd = 0.0, peak_qd = 0.0;
   for (std::size_t k = 0; k < samples.size(); ++k) {
@@ -345,7 +327,7 @@ TEST_F(RobotTest, SlowDemoStreamsJointsThatReproduceTheTool) {
 
 // A limit broken on purpose: an inline copy of the PA-10 whose joint 2 may barely move.
 TEST_F(RobotTest, ABrokenLimitNamesItsJoint) {
-  auto slow = model("pa10");
+  auto slow = robot_model("pa10");
   slow.set_name("pa10-slow-joint-2");
   slow.mutable_limits(2)->set_max_velocity(1e-3);  // [rad/s]; path A over 60 s needs 0.10
   auto request = pa10_path_a(60.0, /*report_only=*/false);
@@ -405,7 +387,7 @@ TEST_F(RobotTest, InitialJointsOfTheWrongSize) {
 
 TEST_F(RobotTest, InlineModelWithANaNLink) {
   auto request = pa10_path_a(60.0, false);
-  auto m = model("pa10");
+  auto m = robot_model("pa10");
   m.mutable_links(1)->set_a(std::numeric_limits<double>::quiet_NaN());
   *request.mutable_robot()->mutable_model() = m;
   const auto violations = refused(request);
@@ -414,7 +396,7 @@ TEST_F(RobotTest, InlineModelWithANaNLink) {
 
 TEST_F(RobotTest, InlineModelWithMinPositionAboveMaxPosition) {
   auto request = pa10_path_a(60.0, false);
-  auto m = model("pa10");
+  auto m = robot_model("pa10");
   m.mutable_limits(3)->set_min_position(1.0);
   m.mutable_limits(3)->set_max_position(-1.0);
   *request.mutable_robot()->mutable_model() = m;
@@ -488,7 +470,7 @@ TEST_F(RobotTest, MinimumTimeJointMoveOnThePa10) {
   ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
   ASSERT_EQ(samples.size(), response.motion().sample_count());
   EXPECT_DOUBLE_EQ(samples.back().t(), response.motion().duration_s());
-  const auto pa10 = model("pa10");
+  const auto pa10 = robot_model("pa10");
   for (int j = 0; j < 7; ++j) {
     EXPECT_EQ(samples.front().joints(j), pa10.home(j)) << "joint " << j;  // start absent: the home
     EXPECT_EQ(samples.back().joints(j), request.joint_move().goal(j)) << "joint " << j;
@@ -516,7 +498,7 @@ TEST_F(RobotTest, MinimumTimeJointMoveNeedsNoCartesianLimits) {
 // A straight line from the UR5's home pose (start absent), 10 cm along x, the orientation
 // kept: the tool stays on the segment and the joints reproduce it.
 TEST_F(RobotTest, LinearMoveOnTheUr5) {
-  const auto ur5 = model("ur5");
+  const auto ur5 = robot_model("ur5");
   const Eigen::Isometry3d X_home = forward_kinematics(ur5, ur5.home());
   const Eigen::Vector3d p0 = X_home.translation();
   const Eigen::Vector3d p1 = p0 + Eigen::Vector3d(0.1, 0.0, 0.0);
@@ -678,7 +660,7 @@ std::string refused_start(const std::vector<std::string>& args) {
 }
 
 TEST_F(RobotTest, GeotrajdServesARobotModelFile) {
-  auto arm = model("pa10");
+  auto arm = robot_model("pa10");
   arm.set_name("my-arm");
   arm.set_description("the PA-10 under another name");
   const TempFile file("my_arm.json", to_json(arm));
@@ -722,11 +704,11 @@ TEST_F(RobotTest, GeotrajdServesARobotModelFile) {
 }
 
 TEST_F(RobotTest, GeotrajdRefusesABadRobotModelFile) {
-  auto inverted = model("ur5");
+  auto inverted = robot_model("ur5");
   inverted.set_name("inverted");
   inverted.mutable_limits(3)->set_min_position(1.0);
   inverted.mutable_limits(3)->set_max_position(-1.0);
-  auto duplicate = model("ur5");  // a second "ur5"
+  auto duplicate = robot_model("ur5");  // a second "ur5"
   struct Case {
     std::string file;
     std::string text;

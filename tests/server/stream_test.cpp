@@ -14,18 +14,7 @@
 namespace geotraj::testing {
 namespace {
 
-class StreamTest : public ServerTest {
- protected:
-  std::vector<v1::Sample> stream_all(const v1::PlanRequest& request, grpc::Status& status) {
-    auto context = ServerTest::context();
-    auto reader = stub_->StreamSamples(context.get(), request);
-    std::vector<v1::Sample> samples;
-    v1::SampleBatch batch;
-    while (reader->Read(&batch)) samples.insert(samples.end(), batch.samples().begin(), batch.samples().end());
-    status = reader->Finish();
-    return samples;
-  }
-};
+class StreamTest : public ServerTest {};
 
 Eigen::Vector3d vec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
 

@@ -46,6 +46,29 @@ class ServerTest : public ::testing::Test {
     return c;
   }
 
+  /// Every sample of a stream, in order, and its final status in `status`.
+  std::vector<v1::Sample> stream_all(const v1::PlanRequest& request, grpc::Status& status) {
+    auto ctx = context();
+    auto reader = stub_->StreamSamples(ctx.get(), request);
+    std::vector<v1::Sample> samples;
+    v1::SampleBatch batch;
+    while (reader->Read(&batch)) samples.insert(samples.end(), batch.samples().begin(), batch.samples().end());
+    status = reader->Finish();
+    return samples;
+  }
+
+  /// The built-in robot model `name`, as ListRobots returns it (a test failure when absent).
+  v1::RobotModel robot_model(const std::string& name) {
+    v1::ListRobotsResponse response;
+    const auto status = stub_->ListRobots(context().get(), v1::ListRobotsRequest{}, &response);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    for (const auto& m : response.robots()) {
+      if (m.name() == name) return m;
+    }
+    ADD_FAILURE() << "ListRobots has no model " << name;
+    return {};
+  }
+
   grpc::Status convert(const v1::ConvertRequest& request, v1::ConvertResponse& response) {
     return stub_->ConvertConstraints(context().get(), request, &response);
   }

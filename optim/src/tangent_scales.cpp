@@ -74,11 +74,11 @@ struct Taylor2 {
   Taylor2& operator*=(const Taylor2& y) { return *this = *this * y; }
   Taylor2& operator/=(const Taylor2& y) { return *this = *this / y; }
   friend bool operator<(const Taylor2& x, const Taylor2& y) { return x.a < y.a; }
-  friend bool operator>(const Taylor2& x, const Taylor2& y) { return x.a > y.a; }
-  friend bool operator<=(const Taylor2& x, const Taylor2& y) { return x.a <= y.a; }
-  friend bool operator>=(const Taylor2& x, const Taylor2& y) { return x.a >= y.a; }
-  friend bool operator==(const Taylor2& x, const Taylor2& y) { return x.a == y.a; }
-  friend bool operator!=(const Taylor2& x, const Taylor2& y) { return x.a != y.a; }
+  [[maybe_unused]] friend bool operator>(const Taylor2& x, const Taylor2& y) { return x.a > y.a; }
+  [[maybe_unused]] friend bool operator<=(const Taylor2& x, const Taylor2& y) { return x.a <= y.a; }
+  [[maybe_unused]] friend bool operator>=(const Taylor2& x, const Taylor2& y) { return x.a >= y.a; }
+  [[maybe_unused]] friend bool operator==(const Taylor2& x, const Taylor2& y) { return x.a == y.a; }
+  [[maybe_unused]] friend bool operator!=(const Taylor2& x, const Taylor2& y) { return x.a != y.a; }
 
   friend Taylor2 sqrt(const Taylor2& x) {
     const double r = std::sqrt(x.a);
@@ -93,7 +93,7 @@ struct Taylor2 {
     return x.chain(e, e, e);
   }
   friend Taylor2 log(const Taylor2& x) { return x.chain(std::log(x.a), 1.0 / x.a, -1.0 / (x.a * x.a)); }
-  friend Taylor2 abs(const Taylor2& x) { return x.a < 0.0 ? -x : x; }
+  [[maybe_unused]] friend Taylor2 abs(const Taylor2& x) { return x.a < 0.0 ? -x : x; }
 };
 
 }  // namespace

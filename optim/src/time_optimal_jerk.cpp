@@ -20,6 +20,9 @@ using Ipopt::Index;
 using Ipopt::Number;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kIpoptInf = 1e19;
+/// Relative room an implied jerk row keeps below its limit (JerkTimingNlp::select_jerk_rows):
+/// the rows that imply it hold to Ipopt's tolerance only.
+constexpr double kImpliedMargin = 1e-6;
 
 double finite_or(double x) { return std::isfinite(x) ? x : kIpoptInf; }
 
@@ -93,6 +96,7 @@ class JerkTimingNlp : public Ipopt::TNLP {
     cart_jerk_ = opt.max_jerk.has_value() && std::isfinite(*opt.max_jerk);
     build_linear_rows();
     jerk_rows_per_point_ = static_cast<Index>(jerk_joints_.size()) + (cart_jerk_ ? 1 : 0);
+    select_jerk_rows();
     hess_offset_.resize(static_cast<std::size_t>(n_var()) + 1, 0);
     for (Index k = 0; k < n_var(); ++k) hess_offset_[k + 1] = hess_offset_[k] + std::min<Index>(k, 2) + 1;
     terms_.resize(grid.size());
@@ -112,11 +116,55 @@ class JerkTimingNlp : public Ipopt::TNLP {
     return f;
   }
 
+  // The rows handed to Ipopt (select_jerk_rows): Ipopt's row k is full row active_[k], full
+  // rows numbered linear rows first, then (N + 1) x jerk_rows_per_point_ jerk rows by point.
+  Index n_rows() const { return n_lin() + (N_ + 1) * jerk_rows_per_point_; }
+  std::size_t n_active() const { return active_.size(); }
+  std::size_t n_jerk_rows() const { return static_cast<std::size_t>((N_ + 1) * jerk_rows_per_point_); }
+  std::size_t n_implied() const { return static_cast<std::size_t>(n_rows()) - active_.size(); }
+
+  /// The value and bounds of full row r at x (update(x) true).
+  double row_value(Index r, const Number* x) const {
+    if (r < n_lin()) {
+      double v = 0.0;
+      for (Index e = lin_begin_[r]; e < lin_begin_[r + 1]; ++e) v += lin_coef_[e] * x[lin_col_[e]];
+      return v;
+    }
+    return jerk_rows_[static_cast<std::size_t>(r - n_lin())].f;
+  }
+  void row_bounds(Index r, double& lo, double& hi) const {
+    if (r < n_lin()) {
+      lo = lin_lo_[r], hi = lin_hi_[r];
+      return;
+    }
+    Index c = (r - n_lin()) % jerk_rows_per_point_;
+    if (cart_jerk_ && c-- == 0) {
+      lo = -*opt_.max_jerk, hi = *opt_.max_jerk;
+      return;
+    }
+    const Index j = jerk_joints_[static_cast<std::size_t>(c)];
+    lo = -opt_.joint_jerk(j), hi = opt_.joint_jerk(j);
+  }
+  /// Largest excess of x over any bound or row, the left-out jerk rows included, in the
+  /// limit's unit (0: feasible).
+  double full_violation(const Number* x) {
+    if (!update(x)) return kInf;
+    double v = 0.0;
+    for (Index p = 1; p <= N_ - 1; ++p) v = std::max({v, x[var(p)] - point_cap(p), -x[var(p)]});
+    for (Index r = 0; r < n_rows(); ++r) {
+      double lo, hi;
+      row_bounds(r, lo, hi);
+      const double g = row_value(r, x);
+      v = std::max({v, g - hi, lo - g});
+    }
+    return v;
+  }
+
   bool get_nlp_info(Index& n, Index& m, Index& nnz_jac, Index& nnz_h, IndexStyleEnum& style) override {
     n = n_var();
-    m = n_lin() + (N_ + 1) * jerk_rows_per_point_;
-    nnz_jac = static_cast<Index>(lin_col_.size());
-    for (Index p = 0; p <= N_; ++p) nnz_jac += jerk_rows_per_point_ * point_vars(p);
+    m = static_cast<Index>(active_.size());
+    nnz_jac = 0;
+    for (const Index r : active_) nnz_jac += row_nnz(r);
     nnz_h = hess_offset_.back();
     style = C_STYLE;
     return true;
@@ -127,13 +175,8 @@ class JerkTimingNlp : public Ipopt::TNLP {
       xl[var(p)] = 0.0;
       xu[var(p)] = finite_or(point_cap(p));
     }
-    for (Index r = 0; r < n_lin(); ++r) gl[r] = lin_lo_[r], gu[r] = lin_hi_[r];
-    for (Index p = 0; p <= N_; ++p) {
-      Index r = n_lin() + p * jerk_rows_per_point_;
-      if (cart_jerk_) gl[r] = -*opt_.max_jerk, gu[r] = *opt_.max_jerk, ++r;
-      for (const Index j : jerk_joints_) gl[r] = -opt_.joint_jerk(j), gu[r] = opt_.joint_jerk(j), ++r;
-    }
-    (void)n, (void)m;
+    for (Index k = 0; k < m; ++k) row_bounds(active_[static_cast<std::size_t>(k)], gl[k], gu[k]);
+    (void)n;
     return true;
   }
 
@@ -156,55 +199,64 @@ class JerkTimingNlp : public Ipopt::TNLP {
     return true;
   }
 
-  bool eval_g(Index, const Number* x, bool, Index, Number* g) override {
+  bool eval_g(Index, const Number* x, bool, Index m, Number* g) override {
     if (!update(x)) return false;
-    for (Index r = 0; r < n_lin(); ++r) {
-      double v = 0.0;
-      for (Index e = lin_begin_[r]; e < lin_begin_[r + 1]; ++e) v += lin_coef_[e] * x[lin_col_[e]];
-      g[r] = v;
-    }
-    for (std::size_t r = 0; r < jerk_rows_.size(); ++r) g[n_lin() + static_cast<Index>(r)] = jerk_rows_[r].f;
+    for (Index k = 0; k < m; ++k) g[k] = row_value(active_[static_cast<std::size_t>(k)], x);
     return true;
   }
 
-  bool eval_jac_g(Index, const Number* x, bool, Index, Index, Index* row, Index* col, Number* val) override {
+  bool eval_jac_g(Index, const Number* x, bool, Index m, Index, Index* row, Index* col, Number* val) override {
     if (val == nullptr) {
-      Index k = 0;
-      for (Index r = 0; r < n_lin(); ++r)
-        for (Index e = lin_begin_[r]; e < lin_begin_[r + 1]; ++e) row[k] = r, col[k] = lin_col_[e], ++k;
-      for (Index p = 0; p <= N_; ++p)
-        for (Index c = 0; c < jerk_rows_per_point_; ++c)
-          for (int l = 0; l < 3; ++l)
-            if (const Index v = var(p - 1 + l); v >= 0) row[k] = n_lin() + p * jerk_rows_per_point_ + c, col[k] = v, ++k;
+      Index e = 0;
+      for (Index k = 0; k < m; ++k) {
+        const Index r = active_[static_cast<std::size_t>(k)];
+        if (r < n_lin()) {
+          for (Index c = lin_begin_[r]; c < lin_begin_[r + 1]; ++c) row[e] = k, col[e] = lin_col_[c], ++e;
+          continue;
+        }
+        const Index p = (r - n_lin()) / jerk_rows_per_point_;
+        for (int l = 0; l < 3; ++l)
+          if (const Index v = var(p - 1 + l); v >= 0) row[e] = k, col[e] = v, ++e;
+      }
       return true;
     }
     if (!update(x)) return false;
-    Index k = 0;
-    for (const double c : lin_coef_) val[k++] = c;
-    for (Index p = 0; p <= N_; ++p)
-      for (Index c = 0; c < jerk_rows_per_point_; ++c) {
-        const D3& d = jerk_rows_[static_cast<std::size_t>(p * jerk_rows_per_point_ + c)];
-        for (int l = 0; l < 3; ++l)
-          if (var(p - 1 + l) >= 0) val[k++] = d.g[l];
+    Index e = 0;
+    for (Index k = 0; k < m; ++k) {
+      const Index r = active_[static_cast<std::size_t>(k)];
+      if (r < n_lin()) {
+        for (Index c = lin_begin_[r]; c < lin_begin_[r + 1]; ++c) val[e++] = lin_coef_[c];
+        continue;
       }
+      const Index p = (r - n_lin()) / jerk_rows_per_point_;
+      const D3& d = jerk_rows_[static_cast<std::size_t>(r - n_lin())];
+      for (int l = 0; l < 3; ++l)
+        if (var(p - 1 + l) >= 0) val[e++] = d.g[l];
+    }
     return true;
   }
 
-  bool eval_h(Index, const Number* x, bool, Number sigma, Index, const Number* lambda, bool, Index, Index* row,
+  bool eval_h(Index, const Number* x, bool, Number sigma, Index m, const Number* lambda, bool, Index, Index* row,
               Index* col, Number* val) override {
     if (val == nullptr) {
       for (Index k = 0; k < n_var(); ++k)
-        for (Index d = 0; d <= std::min<Index>(k, 2); ++d) row[hess_offset_[k] + d] = k, col[hess_offset_[k] + d] = k - d;
+        for (Index c = std::max<Index>(0, k - 2); c <= k; ++c) {
+          row[hess_offset_[k] + (k - c)] = k;
+          col[hess_offset_[k] + (k - c)] = c;
+        }
       return true;
     }
     if (!update(x)) return false;
     std::fill(val, val + hess_offset_.back(), 0.0);
+    // Per grid point: sigma times the objective's term plus the active jerk rows' lambda times theirs.
+    std::size_t k = 0;
+    while (k < active_.size() && active_[k] < n_lin()) ++k;
     for (Index p = 0; p <= N_; ++p) {
       std::array<double, 6> h = (sigma * terms_[static_cast<std::size_t>(p)].obj).h;
-      for (Index c = 0; c < jerk_rows_per_point_; ++c) {
-        const Index r = p * jerk_rows_per_point_ + c;
-        const D3& d = jerk_rows_[static_cast<std::size_t>(r)];
-        for (int e = 0; e < 6; ++e) h[e] += lambda[n_lin() + r] * d.h[e];
+      const Index end = n_lin() + (p + 1) * jerk_rows_per_point_;
+      for (; k < active_.size() && active_[k] < end; ++k) {
+        const D3& d = jerk_rows_[static_cast<std::size_t>(active_[k] - n_lin())];
+        for (int e = 0; e < 6; ++e) h[e] += lambda[k] * d.h[e];
       }
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j <= i; ++j) {
@@ -212,19 +264,14 @@ class JerkTimingNlp : public Ipopt::TNLP {
           if (ki >= 0 && kj >= 0) val[hess_offset_[ki] + (ki - kj)] += h[tri(i, j)];
         }
     }
+    (void)m;
     return true;
   }
 
-  void finalize_solution(Ipopt::SolverReturn, Index n, const Number* x, const Number*, const Number*, Index m,
-                         const Number* g, const Number*, Number, const Ipopt::IpoptData*,
+  void finalize_solution(Ipopt::SolverReturn, Index n, const Number* x, const Number*, const Number*, Index,
+                         const Number*, const Number*, Number, const Ipopt::IpoptData*,
                          Ipopt::IpoptCalculatedQuantities*) override {
     x_.assign(x, x + n);
-    std::vector<double> xl(static_cast<std::size_t>(n)), xu(static_cast<std::size_t>(n)),
-        gl(static_cast<std::size_t>(m)), gu(static_cast<std::size_t>(m));
-    get_bounds_info(n, xl.data(), xu.data(), m, gl.data(), gu.data());
-    violation_ = 0.0;
-    for (Index k = 0; k < n; ++k) violation_ = std::max({violation_, x[k] - xu[k], xl[k] - x[k]});
-    for (Index k = 0; k < m; ++k) violation_ = std::max({violation_, g[k] - gu[k], gl[k] - g[k]});
   }
 
   /// The jerk j_i at every grid point [m/s^3] of x (update(x) true).
@@ -235,8 +282,7 @@ class JerkTimingNlp : public Ipopt::TNLP {
     return j;
   }
 
-  std::vector<double> x0_, x_;
-  double violation_ = 0.0;
+  std::vector<double> x0_, x_;  ///< Ipopt's start and its result
 
  private:
   /// Per grid point: the objective's share tau + w j^2 tau [s] with derivatives, and j.
@@ -250,6 +296,9 @@ class JerkTimingNlp : public Ipopt::TNLP {
     Index c = 0;
     for (int l = 0; l < 3; ++l) c += var(p - 1 + l) >= 0 ? 1 : 0;
     return c;
+  }
+  Index row_nnz(Index r) const {
+    return r < n_lin() ? lin_begin_[r + 1] - lin_begin_[r] : point_vars((r - n_lin()) / jerk_rows_per_point_);
   }
 
   /// sigma of grid point p (JerkTimingOptions::limit_scale; 1 without).
@@ -269,6 +318,69 @@ class JerkTimingNlp : public Ipopt::TNLP {
     if (lim_.speed < kInf) cap = std::min(cap, lim_.speed * lim_.speed);
     if (gp.kappa > 0.0 && lim_.centripetal < kInf) cap = std::min(cap, lim_.centripetal * sig * sig / gp.kappa);
     return cap;
+  }
+
+  /// The jerk rows that can bind (active_: every linear row and these). At grid point p the
+  /// rows are linear in (j, A, C) = (j_p, s_dot s_ddot, s_dot^3):
+  ///   row_k = q_s,k j + 3 q_ss,k A + q_sss,k C  in [-J_k, J_k]   (Cartesian: j in [-J, J])
+  /// and every feasible point has 0 <= b_p <= cap_p (the point cap), |u| <= U_p on both
+  /// sides of p (the tangential limit and each joint acceleration row at p:
+  /// |u| <= (a_k + |q_ss,k| cap_p) / |q_s,k|), so |A| <= sqrt(cap_p) U_p = A_max and
+  /// 0 <= C <= cap_p^(3/2) = C_max. A row r is implied by a kept row k: with rho = q_s,r / q_s,k,
+  /// row_r = rho row_k + (3 q_ss,r - rho 3 q_ss,k) A + (q_sss,r - rho q_sss,k) C, so
+  ///   |row_r| <= |rho| J_k + |3 q_ss,r - 3 rho q_ss,k| A_max + |q_sss,r - rho q_sss,k| C_max
+  /// and where that is within J_r (1 - kImpliedMargin) row r cannot bind and is left out: the
+  /// feasible set is unchanged. Greedy, the tightest rows on j first (the Cartesian row, then
+  /// by (J_k + R_k) / |q_s,k|, R_k the bound of the A and C terms), a row only ever implied
+  /// by rows kept before it.
+  void select_jerk_rows() {
+    active_.clear();
+    for (Index r = 0; r < n_lin(); ++r) active_.push_back(r);
+    std::vector<std::pair<double, Index>> order;  // (bound on |j|, c) per row c of the point
+    std::vector<Index> kept;
+    for (Index p = 0; p <= N_; ++p) {
+      const Index base = n_lin() + p * jerk_rows_per_point_;
+      const core::GridPoint& gp = g_[static_cast<std::size_t>(p)];
+      const double cap = p == 0 || p == N_ ? 0.0 : point_cap(p), sig2 = sigma(p) * sigma(p);
+      double U = lim_.tangential;
+      for (Eigen::Index k = 0; k < gp.q_s.size(); ++k)
+        if (gp.q_s(k) != 0.0 && lim_.joint_acceleration(k) < kInf)
+          U = std::min(U, (lim_.joint_acceleration(k) * sig2 + std::abs(gp.q_ss(k)) * cap) / std::abs(gp.q_s(k)));
+      const double a_max = std::sqrt(cap) * U, c_max = cap * std::sqrt(cap);
+      if (!opt_.drop_implied_jerk_rows || !std::isfinite(a_max) || !std::isfinite(c_max)) {  // keep every row
+        for (Index c = 0; c < jerk_rows_per_point_; ++c) active_.push_back(base + c);
+        continue;
+      }
+      // Row c as (q_s, 3 q_ss, q_sss, J).
+      auto coef = [&](Index c, int w) {
+        if (cart_jerk_ && c == 0) return w == 0 ? 1.0 : w == 3 ? *opt_.max_jerk : 0.0;
+        const Index k = jerk_joints_[static_cast<std::size_t>(c - (cart_jerk_ ? 1 : 0))];
+        return w == 0 ? gp.q_s(k) : w == 1 ? 3.0 * gp.q_ss(k) : w == 2 ? q_sss_[static_cast<std::size_t>(p)](k)
+                                                                        : opt_.joint_jerk(k);
+      };
+      order.clear();
+      for (Index c = 0; c < jerk_rows_per_point_; ++c) {
+        const double qs = std::abs(coef(c, 0));
+        const double rest = std::abs(coef(c, 1)) * a_max + std::abs(coef(c, 2)) * c_max;
+        order.push_back({qs > 0.0 ? (coef(c, 3) + rest) / qs : kInf, c});
+      }
+      std::sort(order.begin(), order.end());
+      kept.clear();
+      for (const auto& [bound, r] : order) {
+        bool implied = false;
+        for (const Index k : kept) {
+          const double rho = coef(r, 0) / coef(k, 0);
+          const double worst = std::abs(rho) * coef(k, 3) + std::abs(coef(r, 1) - rho * coef(k, 1)) * a_max +
+                               std::abs(coef(r, 2) - rho * coef(k, 2)) * c_max;
+          if (worst <= coef(r, 3) * (1.0 - kImpliedMargin)) implied = true;
+        }
+        if (!implied && coef(r, 0) == 0.0)  // no j term: implied by the box alone
+          implied = std::abs(coef(r, 1)) * a_max + std::abs(coef(r, 2)) * c_max <= coef(r, 3) * (1.0 - kImpliedMargin);
+        if (!implied && coef(r, 0) != 0.0) kept.push_back(r);
+        if (!implied) active_.push_back(base + r);
+      }
+    }
+    std::sort(active_.begin(), active_.end());
   }
 
   /// The limits linear in b: the joint accelerations at both ends of every interval and the
@@ -397,6 +509,7 @@ class JerkTimingNlp : public Ipopt::TNLP {
   std::vector<Index> lin_begin_, lin_col_;
   std::vector<double> lin_coef_, lin_lo_, lin_hi_;
   std::vector<Index> hess_offset_;  ///< row k of the banded lower triangle starts here
+  std::vector<Index> active_;       ///< the rows handed to Ipopt (full row ids, ascending)
   // Cache of update().
   std::vector<double> cached_x_;
   bool have_ = false, ok_ = false;
@@ -448,8 +561,9 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
   JerkTiming out;
 
   Ipopt::SmartPtr<JerkTimingNlp> nlp = new JerkTimingNlp(grid, limits, options);
-  nlp->x0_ = x0;
   out.report.objective_before = nlp->objective(x_start.data());
+
+  nlp->x0_ = x0;
 
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
   Ipopt::OptionsList& o = *app->Options();
@@ -457,8 +571,6 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
   if (!options.derivative_test) o.SetStringValue("sb", "yes");
   o.SetNumericValue("tol", options.tolerance);
   o.SetNumericValue("acceptable_tol", 1e3 * options.tolerance);
-  o.SetIntegerValue("max_iter", options.max_iterations);
-  o.SetNumericValue("max_cpu_time", options.time_budget_s);
   // Adaptive barrier. Mehrotra's predictor-corrector was measured and not taken: half the
   // iterations on a synthetic grid, ten times as many on the PA-10 (the jerk rows are not
   // convex).
@@ -476,6 +588,9 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
     o.SetNumericValue("derivative_test_tol", 1e-4);
   }
 
+  o.SetIntegerValue("max_iter", options.max_iterations);
+  o.SetNumericValue("max_cpu_time", options.time_budget_s);
+
   // No options file: a stray ipopt.opt in the working directory must not change the result.
   Ipopt::ApplicationReturnStatus status = app->Initialize("");
   if (status == Ipopt::Solve_Succeeded) status = app->OptimizeTNLP(nlp);
@@ -491,7 +606,7 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
     default: out.report.status = OptimizerStatus::kFailed; break;
   }
   out.report.message = "Ipopt return status " + std::to_string(static_cast<int>(status));
-  const bool have_point = nlp->x_.size() == nlp->x0_.size() && out.report.status != OptimizerStatus::kFailed &&
+  const bool have_point = nlp->x_.size() == x0.size() && out.report.status != OptimizerStatus::kFailed &&
                           std::all_of(nlp->x_.begin(), nlp->x_.end(), [](double b) { return b > 0.0; });
   if (!have_point) out.report.status = OptimizerStatus::kFailed;
   const std::vector<double>& xs = have_point ? nlp->x_ : x_start;
@@ -500,7 +615,9 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
   out.profile = profile_of(grid, out.b, out.u, out.dt);
   out.jerk = nlp->jerk(xs.data());
   out.duration = out.profile.duration;
-  out.max_constraint_violation = have_point ? nlp->violation_ : 0.0;
+  out.jerk_rows = nlp->n_jerk_rows();
+  out.implied_jerk_rows = nlp->n_implied();
+  out.max_constraint_violation = have_point ? nlp->full_violation(xs.data()) : 0.0;
   out.report.objective_after = have_point ? nlp->objective(xs.data()) : out.report.objective_before;
   if (have_point && out.report.status != OptimizerStatus::kConverged)
     out.report.message += ", largest constraint violation " + std::to_string(out.max_constraint_violation);

@@ -74,6 +74,27 @@ double tau(const JerkTiming& r, std::size_t i) {
   return 0.5 * ((i > 0 ? r.dt[i - 1] : 0.0) + (i < r.dt.size() ? r.dt[i] : 0.0));
 }
 
+// Every joint's jerk at every grid point of `g` under the timing `r` within `limit(j)`
+// [rad/s^3]: the NLP's joint jerk rows recomputed here, q_sss = q_s s_sss + 3 q_ss s_s s_ss +
+// q_sss(s) s_s^3 with s_s = sqrt(b), s_ss = u and s_sss = du/dt by the NLP's differences.
+template <typename Limit>
+void expect_joint_jerk_within(const std::vector<GridPoint>& g, const JerkTiming& r, Limit limit, std::size_t n) {
+  const std::size_t N = g.size() - 1;
+  for (std::size_t i = 0; i <= N; ++i) {
+    const double v = std::sqrt(r.b[i]);
+    const double u_prev = i > 0 ? r.u[i - 1] : 0.0, u_next = i < N ? r.u[i] : 0.0;
+    const double jerk = (u_next - u_prev) / tau(r, i);
+    const std::size_t a = i == 0 ? 0 : i - 1, b = std::min(i + 1, N);
+    const JointVector q_sss = (g[b].q_ss - g[a].q_ss) / (g[b].s - g[a].s);
+    for (std::size_t j = 0; j < n; ++j) {
+      const auto jj = static_cast<Eigen::Index>(j);
+      const double q_ddd =
+          g[i].q_s(jj) * jerk + 3 * g[i].q_ss(jj) * v * 0.5 * (u_prev + u_next) + q_sss(jj) * v * v * v;
+      EXPECT_LE(std::abs(q_ddd), limit(j) * (1 + 1e-6)) << "grid point " << i << " joint " << j;
+    }
+  }
+}
+
 // Regression (the NLP used to end 7 % above the exact time here): with jerk limits that never
 // bind, the sweep's b is feasible for the NLP (same limits in the same places) and the NLP is
 // convex with that b as its minimum, so the two times agree to the solver's accuracy. Ipopt
@@ -304,20 +325,7 @@ TEST(JerkTiming, Pa10DemoPathCEverySampleWithinTheLimits) {
   for (std::size_t p = 0; p < plan->portions.size(); ++p) {
     const auto& g = plan->exact.grids[p];
     const JerkTiming& r = plan->portions[p];
-    const std::size_t N = g.size() - 1;
-    for (std::size_t i = 0; i <= N; ++i) {
-      const double v = std::sqrt(r.b[i]);
-      const double u_prev = i > 0 ? r.u[i - 1] : 0.0, u_next = i < N ? r.u[i] : 0.0;
-      const double jerk = (u_next - u_prev) / tau(r, i);
-      const std::size_t a = i == 0 ? 0 : i - 1, b = std::min(i + 1, N);
-      const JointVector q_sss = (g[b].q_ss - g[a].q_ss) / (g[b].s - g[a].s);
-      for (std::size_t j = 0; j < n; ++j) {
-        const auto jj = static_cast<Eigen::Index>(j);
-        const double q_ddd =
-            g[i].q_s(jj) * jerk + 3 * g[i].q_ss(jj) * v * 0.5 * (u_prev + u_next) + q_sss(jj) * v * v * v;
-        EXPECT_LE(std::abs(q_ddd), *robot.limits[j].max_jerk * (1 + 1e-6)) << "portion " << p << " i " << i;
-      }
-    }
+    expect_joint_jerk_within(g, r, [&](std::size_t j) { return *robot.limits[j].max_jerk; }, n);
   }
 }
 
@@ -352,4 +360,86 @@ TEST(JerkTiming, LimitScaleTightensOnePoint) {
 }
 
 }  // namespace
+// Implied jerk rows (JerkTimingOptions::drop_implied_jerk_rows): on the PA-10 along demo path
+// C (200 intervals, joint jerk limits of 4 a_max) the rows that the kept ones and the
+// velocity and acceleration limits imply are left out of Ipopt's problem. The feasible set
+// is the same, so the optimum is the same as with every row to Ipopt's accuracy, and every
+// left-out row holds at the result (max_constraint_violation covers every row, and the
+// joint jerks are recomputed here from the returned profile).
+TEST(JerkTiming, ImpliedJerkRowsLeaveTheOptimumUnchanged) {
+  auto path = core::build_path(testing::thesis_demo_path('C'));
+  ASSERT_TRUE(path);
+  auto orientation = core::plan_orientation(*path);
+  ASSERT_TRUE(orientation);
+  const core::RobotModel robot = *core::find_builtin_robot("pa10");
+  core::MotionSpec m;
+  m.duration_s = 1.0;
+  const auto portions = core::plan_motion(*path, m);
+  ASSERT_TRUE(portions);
+  const auto grids = core::time_optimal_grids(*path, *orientation, portions->portions, &robot,
+                                              core::home_configuration(robot), 200);
+  ASSERT_TRUE(grids);
+  const auto lim = core::time_optimal_limits(core::MotionSpec{}, &robot);
+  const std::size_t n = robot.dof();
+  JerkTimingOptions opt;
+  opt.joint_jerk.resize(static_cast<Eigen::Index>(n));
+  for (Eigen::Index j = 0; j < opt.joint_jerk.size(); ++j) opt.joint_jerk(j) = 4.0 * lim.joint_acceleration(j);
+  opt.time_budget_s = 30.0;
+  for (const auto& g : *grids) {
+    const auto exact = core::solve_time_optimal(g, lim);
+    ASSERT_TRUE(exact);
+    const JerkTiming dropped = optimise_jerk_timing(g, lim, *exact, opt);
+    JerkTimingOptions all = opt;
+    all.drop_implied_jerk_rows = false;
+    const JerkTiming full = optimise_jerk_timing(g, lim, *exact, all);
+    std::printf("%zu of %zu jerk rows implied; %.9f s (%d iterations) against %.9f s (%d) with every row\n",
+                dropped.implied_jerk_rows, dropped.jerk_rows, dropped.duration, dropped.report.iterations,
+                full.duration, full.report.iterations);
+    ASSERT_EQ(dropped.report.status, OptimizerStatus::kConverged) << dropped.report.message;
+    ASSERT_EQ(full.report.status, OptimizerStatus::kConverged) << full.report.message;
+    EXPECT_EQ(full.implied_jerk_rows, 0u);
+    EXPECT_EQ(dropped.jerk_rows, g.size() * n);
+    EXPECT_GT(dropped.implied_jerk_rows, dropped.jerk_rows / 10);  // the test is not vacuous
+    EXPECT_NEAR(dropped.duration, full.duration, 1e-6 * full.duration);
+    EXPECT_NEAR(dropped.report.objective_after, full.report.objective_after, 1e-6 * full.report.objective_after);
+    EXPECT_LE(dropped.max_constraint_violation, 1e-6 * opt.joint_jerk.minCoeff());
+    // Every joint jerk row, the left-out ones included, at every grid point.
+    expect_joint_jerk_within(
+        g, dropped, [&](std::size_t j) { return opt.joint_jerk(static_cast<Eigen::Index>(j)); }, n);
+  }
+}
+
+// A row implied by another at every grid point is left out, the one that binds is kept: two
+// joints along a line, joint 1 moving half as fast as joint 0 (q_s = 1 and 0.5 [rad/m], no
+// curvature terms), so |q_ddd_1| = |q_ddd_0| / 2 everywhere. With the same jerk limit joint
+// 1's rows are implied by joint 0's; with joint 1's limit below half of joint 0's, joint 0's
+// are implied by joint 1's, and joint 1's limit binds.
+TEST(JerkTiming, ImpliedRowIsTheDominatedJoint) {
+  auto g = line_grid(51, 1.0);
+  for (auto& p : g) {
+    p.q_s = JointVector(2);
+    p.q_s << 1.0, 0.5;
+    p.q_ss = JointVector::Zero(2);
+  }
+  core::TimeOptimalLimits lim;
+  lim.joint_velocity = JointVector::Constant(2, 1.0);
+  lim.joint_acceleration = JointVector::Constant(2, 2.0);
+  const auto exact = core::solve_time_optimal(g, lim);
+  ASSERT_TRUE(exact);
+  JerkTimingOptions opt;
+  opt.joint_jerk = JointVector::Constant(2, 10.0);
+  const JerkTiming r = optimise_jerk_timing(g, lim, *exact, opt);
+  ASSERT_EQ(r.report.status, OptimizerStatus::kConverged) << r.report.message;
+  EXPECT_EQ(r.jerk_rows, 2 * g.size());
+  EXPECT_EQ(r.implied_jerk_rows, g.size());  // joint 1 (half of joint 0's jerk) everywhere
+  opt.joint_jerk(1) = 4.0;                   // joint 1 now binds first: joint 0 is implied
+  const JerkTiming r1 = optimise_jerk_timing(g, lim, *exact, opt);
+  ASSERT_EQ(r1.report.status, OptimizerStatus::kConverged) << r1.report.message;
+  EXPECT_EQ(r1.implied_jerk_rows, g.size());
+  double worst = 0.0;
+  for (const double j : r1.jerk) worst = std::max(worst, std::abs(0.5 * j) / 4.0);
+  EXPECT_LE(worst, 1.0 + 1e-6);
+  EXPECT_GT(worst, 0.99);  // joint 1's limit binds
+}
+
 }  // namespace geotraj::optim

@@ -30,6 +30,7 @@
 // derivatives; Jacobian and Hessian are banded (each jerk couples b_{i-1}, b_i, b_{i+1}).
 #pragma once
 
+#include <cstddef>
 #include <optional>
 #include <vector>
 
@@ -57,6 +58,10 @@ struct JerkTimingOptions {
   /// several times the iterations.
   double start_scale = 0.5;
   double tolerance = 1e-8;          ///< Ipopt's tol (scaled KKT error; the objective is in [s])
+  /// Leave out the jerk rows that the kept ones and the velocity and acceleration limits
+  /// imply (they cannot bind, so the feasible set and the optimum are unchanged; Ipopt's
+  /// KKT system shrinks by two rows each). Off: every row, for comparison.
+  bool drop_implied_jerk_rows = true;
   /// Run Ipopt's second-order derivative checker at the start point and print its report
   /// (and Ipopt's iteration log) on stdout: a debug aid, slow.
   bool derivative_test = false;
@@ -70,8 +75,11 @@ struct JerkTiming {
   std::vector<double> dt;      ///< time of each interval [s]
   std::vector<double> jerk;    ///< j_i at each grid point [m/s^3] (above)
   double duration = 0.0;       ///< [s]
-  /// Largest excess over a limit at the returned point, in the limit's unit (0: feasible).
+  /// Largest excess over a limit at the returned point, in the limit's unit (0: feasible);
+  /// every row, the left-out implied jerk rows included.
   double max_constraint_violation = 0.0;
+  std::size_t jerk_rows = 0;          ///< jerk rows of the programme ((N + 1) x limited quantities)
+  std::size_t implied_jerk_rows = 0;  ///< of them left out as implied (drop_implied_jerk_rows)
   /// Objective T + w sum j^2 tau [s] before (the exact sweep's b) and after.
   OptimizerReport report;
 };

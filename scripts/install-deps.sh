@@ -14,7 +14,13 @@ packages=(
   liborocos-kdl-dev                   # Orocos KDL: the kinematics cross-check (tests only)
   coinor-libipopt-dev libceres-dev libnlopt-cxx-dev   # the optimisers (optim/)
   python3 python3-grpcio python3-protobuf   # the cross-language client test
+  openssl                             # test certificates for TLS and mutual TLS
+  prometheus                          # promtool checks the metrics exposition
 )
+
+# Node.js and npm run the Node interop test and buf (from the npm registry); a machine that
+# has them already (from any source) keeps its own.
+if ! command -v npm >/dev/null 2>&1; then packages+=(nodejs npm); fi
 
 missing=()
 for p in "${packages[@]}"; do

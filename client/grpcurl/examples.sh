@@ -4,7 +4,9 @@
 #   geotrajd --address 127.0.0.1:50051 &
 #   client/grpcurl/examples.sh [HOST:PORT]        (default: $GEOTRAJ_ADDRESS or 127.0.0.1:50051)
 #
-# grpcurl is not a Debian package: put it on PATH yourself. The request files beside this
+# grpcurl is not a Debian package: put it on PATH yourself, or run buf_curl_examples.sh
+# beside this script, which makes the same calls with `buf curl` (the npm package
+# @bufbuild/buf, which `npm ci` in tests/interop/node installs). The request files beside this
 # script are in the proto JSON mapping and work with the `geotraj` CLI as well:
 #   convert_table_5_10.json   ConvertRequest: thesis Table 5.10 (with its erratum), per parameter
 #   plan_demo_path_{a,b,c}.json  PlanRequest: the thesis demonstration (Tables 7.8, 7.18), paths A, B, C

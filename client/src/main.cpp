@@ -1,4 +1,7 @@
 // geotraj: the command-line client of the geotraj gRPC API.
+#include <cctype>
+#include <cstdlib>
+#include <fstream>
 #include <iostream>
 #include <string>
 
@@ -9,13 +12,28 @@
 
 int main(int argc, char** argv) {
   geotraj::cli::CallOptions options;
-  std::string server;
+  geotraj::cli::ServerAddress server;
   std::string health_service;
   CLI::App app{"geotraj: plan spatial paths through key frames (a gRPC client; without --server it "
                "runs the service in process)."};
   app.require_subcommand(1);
   app.fallthrough();
-  app.add_option("--server", server, "HOST:PORT of a running geotrajd (plaintext)")->envname("GEOTRAJ_SERVER");
+  app.add_option("--server", server.address, "HOST:PORT of a running geotrajd (plaintext unless --tls)")
+      ->envname("GEOTRAJ_SERVER");
+  app.add_flag("--tls", server.tls, "connect with TLS, trusting the system's CAs (or --tls-ca)")->envname("GEOTRAJ_TLS");
+  app.add_option("--tls-ca", server.ca_file, "CA certificates (PEM) that sign the server's certificate; implies --tls")
+      ->envname("GEOTRAJ_TLS_CA");
+  app.add_option("--tls-cert", server.cert_file, "client certificate (PEM) for mutual TLS; implies --tls")
+      ->envname("GEOTRAJ_TLS_CLIENT_CERT");
+  app.add_option("--tls-key", server.key_file, "client private key (PEM) for mutual TLS")->envname("GEOTRAJ_TLS_CLIENT_KEY");
+  app.add_option("--token-file", server.token, "file holding a bearer token, sent on every call")
+      ->envname("GEOTRAJ_TOKEN_FILE")
+      ->each([&server](const std::string& path) {
+        std::ifstream in(path);
+        if (!in) throw CLI::ValidationError("--token-file", "cannot read \"" + path + "\"");
+        std::getline(in, server.token);
+        while (!server.token.empty() && std::isspace(static_cast<unsigned char>(server.token.back()))) server.token.pop_back();
+      });
   app.add_option("--timeout", options.timeout_s, "deadline of the call [s]")
       ->envname("GEOTRAJ_TIMEOUT")
       ->check(CLI::PositiveNumber)
@@ -50,7 +68,12 @@ int main(int argc, char** argv) {
   auto* robots = app.add_subcommand("robots", "ListRobots: the robot models the server knows, with DH tables and limits");
   auto* health = app.add_subcommand("health", "grpc.health.v1 Check: prints the serving status, exit 0 if SERVING");
   health->add_option("--service", health_service, "service name; empty: the whole server");
+  app.footer("Environment only: GEOTRAJ_TOKEN, a bearer token sent on every call (secrets do not belong on a "
+             "command line).");
   CLI11_PARSE(app, argc, argv);
+  if (server.token.empty()) {
+    if (const char* token = std::getenv("GEOTRAJ_TOKEN")) server.token = token;
+  }
 
   auto connection = geotraj::cli::connect(server);
   if (!connection) {

@@ -738,12 +738,18 @@ void set_report(const optim::OptimizerReport& r, Report& out) {
 
 }  // namespace
 
-core::Expected<double> optimize_budget(const v1::PlanRequest& request) {
+core::Expected<double> optimize_budget(const v1::PlanRequest& request, double max_seconds) {
   const auto& o = request.optimize();
-  if (!o.has_time_budget_s()) return kDefaultOptimizeBudgetS;
+  if (!o.has_time_budget_s()) return std::min(kDefaultOptimizeBudgetS, max_seconds);
   if (!(std::isfinite(o.time_budget_s()) && o.time_budget_s() > 0.0)) {
     return tl::unexpected(
         core::Violations{{"optimize.timeBudgetS", "must be a finite time > 0 s when given, got " + fmt(o.time_budget_s())}});
+  }
+  if (o.time_budget_s() > max_seconds) {
+    return tl::unexpected(core::Violations{{"optimize.timeBudgetS", "asks for " + fmt(o.time_budget_s()) +
+                                                                        " s; this server allows at most " +
+                                                                        fmt(max_seconds) +
+                                                                        " s per call (geotrajd --max-optimize-seconds)"}});
   }
   return o.time_budget_s();
 }

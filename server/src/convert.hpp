@@ -136,8 +136,9 @@ core::Expected<core::LinearMoveSpec> linear_move_from_request(const v1::PlanRequ
 /// absent [s] (the RPC's deadline applies as well).
 inline constexpr double kDefaultOptimizeBudgetS = 10.0;
 
-/// OptimizeSpec.timeBudgetS or its default, or the violation (`optimize.timeBudgetS`).
-core::Expected<double> optimize_budget(const v1::PlanRequest& request);
+/// OptimizeSpec.timeBudgetS or its default (at most `max_seconds`, the server's limit), or
+/// the violation (`optimize.timeBudgetS`, also when it asks for more than the limit).
+core::Expected<double> optimize_budget(const v1::PlanRequest& request, double max_seconds);
 
 /// The tangent-scale optimiser's options (without deadline), or the violations of
 /// `optimize.tangentScales.*` (objective out of range, bounds). Precondition: the request

@@ -1,39 +1,166 @@
-// geotrajd: serves the geotraj gRPC API (plaintext) until SIGINT or SIGTERM.
+// geotrajd: serves the geotraj gRPC API until SIGINT or SIGTERM, then drains.
 #include <pthread.h>
 #include <signal.h>
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
 #include <CLI/CLI.hpp>
 
 #include "geotraj/server/server.hpp"
 
+namespace {
+
+constexpr const char* kFooter = R"(Environment only (secrets do not belong on a command line, where ps shows them):
+  GEOTRAJ_AUTH_TOKEN    one bearer token with every scope (added to --auth-tokens-file's)
+
+Health (grpc.health.v1.Health): "" and "geotraj.v1.TrajectoryService" are SERVING while
+the process serves (liveness); "geotraj.readiness" once the warm-up plan has run, and
+NOT_SERVING from the first moment of a shutdown. On SIGTERM or SIGINT: health turns
+NOT_SERVING, new calls get UNAVAILABLE, calls in flight may finish for --drain-seconds,
+then the rest are cancelled and the process exits 0.
+
+Refusals name their limit: RESOURCE_EXHAUSTED beyond --max-streams / --max-unary-calls,
+INVALID_ARGUMENT beyond --max-frames, --max-stream-samples, --max-optimize-seconds,
+RESOURCE_EXHAUSTED beyond --max-request-bytes (from gRPC itself).
+Documentation: docs/deploy.md, docs/reliability.md.)";
+
+}  // namespace
+
 int main(int argc, char** argv) {
   geotraj::server::ServerOptions options;
-  double grace_s = 5.0;
-  CLI::App app{"geotrajd: the geotraj trajectory service (gRPC, plaintext). Every flag also reads "
-               "the environment variable named beside it."};
-  app.add_option("--address", options.address, "listening address HOST:PORT (port 0: any free port)")
+  double drain_s = 30.0;
+  CLI::App app{"geotrajd: the geotraj trajectory service (gRPC). Every flag also reads the environment "
+               "variable named beside it; a flag on the command line wins."};
+  app.footer(kFooter);
+  app.get_formatter()->column_width(44);
+
+  // Listening.
+  app.add_option("--address", options.address,
+                 "listening address HOST:PORT (port 0: any free port; 0.0.0.0:50051 in containers)")
       ->envname("GEOTRAJ_ADDRESS")
-      ->capture_default_str();
-  app.add_option("--shutdown-grace", grace_s,
-                 "seconds that calls in flight may finish after SIGINT/SIGTERM; then they are cancelled "
-                 "and idle client connections closed")
-      ->envname("GEOTRAJ_SHUTDOWN_GRACE")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
+      ->capture_default_str()
+      ->group("Listening");
+  app.add_flag("--plaintext", options.plaintext,
+               "serve without TLS on a non-loopback address (loopback and unix sockets need no flag)")
+      ->envname("GEOTRAJ_PLAINTEXT")
+      ->group("Listening");
+  app.add_option("--tls-cert", options.tls.cert_file, "server certificate chain, PEM file: serve TLS")
+      ->envname("GEOTRAJ_TLS_CERT")
+      ->group("Listening");
+  app.add_option("--tls-key", options.tls.key_file, "server private key, PEM file")
+      ->envname("GEOTRAJ_TLS_KEY")
+      ->group("Listening");
+  app.add_option("--tls-client-ca", options.tls.client_ca_file,
+                 "CA certificates, PEM file: require client certificates signed by them (mutual TLS)")
+      ->envname("GEOTRAJ_TLS_CLIENT_CA")
+      ->group("Listening");
+  app.add_option("--auth-tokens-file", options.auth_tokens_file,
+                 "bearer tokens, one per line: `TOKEN [plan,stream]` (no scopes: both); every call then needs "
+                 "`authorization: Bearer TOKEN` (UNAUTHENTICATED / PERMISSION_DENIED)")
+      ->envname("GEOTRAJ_AUTH_TOKENS_FILE")
+      ->group("Listening");
+  app.add_option("--health-address", options.health_address,
+                 "second plaintext address serving only grpc.health.v1.Health (for kubelet gRPC probes when the "
+                 "main port is TLS)")
+      ->envname("GEOTRAJ_HEALTH_ADDRESS")
+      ->group("Listening");
+  app.add_option("--metrics-address", options.metrics_address,
+                 "HTTP address of Prometheus metrics (GET /metrics) and GET /healthz; empty: off")
+      ->envname("GEOTRAJ_METRICS_ADDRESS")
+      ->group("Listening");
+
+  // Limits.
+  auto& limits = options.limits;
+  app.add_option("--max-streams", limits.max_streams, "streams in flight; beyond: RESOURCE_EXHAUSTED")
+      ->envname("GEOTRAJ_MAX_STREAMS")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str()
+      ->group("Limits");
+  app.add_option("--max-unary-calls", limits.max_unary_calls,
+                 "unary calls in flight (plans, analyses, conversions); beyond: RESOURCE_EXHAUSTED")
+      ->envname("GEOTRAJ_MAX_UNARY_CALLS")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str()
+      ->group("Limits");
   app.add_option("--max-request-bytes", options.max_receive_message_bytes, "largest request message [bytes]")
       ->envname("GEOTRAJ_MAX_REQUEST_BYTES")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
+      ->check(CLI::Range(1024, 1 << 30))
+      ->capture_default_str()
+      ->group("Limits");
+  app.add_option("--max-frames", limits.max_frames, "key frames in one path")
+      ->envname("GEOTRAJ_MAX_FRAMES")
+      ->check(CLI::Range(2, 1'000'000))
+      ->capture_default_str()
+      ->group("Limits");
+  app.add_option("--max-stream-samples", limits.max_stream_samples,
+                 "samples in one motion that is streamed or checked on a robot")
+      ->envname("GEOTRAJ_MAX_STREAM_SAMPLES")
+      ->check(CLI::Range(std::uint64_t{2}, std::uint64_t{1'000'000'000}))
+      ->capture_default_str()
+      ->group("Limits");
+  app.add_option("--max-optimize-seconds", limits.max_optimize_seconds,
+                 "time one call may optimise [s] (largest optimize.timeBudgetS)")
+      ->envname("GEOTRAJ_MAX_OPTIMIZE_SECONDS")
+      ->check(CLI::Range(0.001, 3600.0))
+      ->capture_default_str()
+      ->group("Limits");
+
+  // Connections and shutdown.
+  auto& connections = options.connections;
+  app.add_option("--keepalive-seconds", connections.keepalive_s, "ping a connection idle this long [s]")
+      ->envname("GEOTRAJ_KEEPALIVE_SECONDS")
+      ->check(CLI::Range(1.0, 86400.0))
+      ->capture_default_str()
+      ->group("Connections");
+  app.add_option("--keepalive-timeout-seconds", connections.keepalive_timeout_s,
+                 "close a connection whose ping is unanswered this long [s]")
+      ->envname("GEOTRAJ_KEEPALIVE_TIMEOUT_SECONDS")
+      ->check(CLI::Range(1.0, 3600.0))
+      ->capture_default_str()
+      ->group("Connections");
+  app.add_option("--max-connection-age-seconds", connections.max_connection_age_s,
+                 "ask clients to reconnect after this long, so they spread over new replicas [s]; 0: never")
+      ->envname("GEOTRAJ_MAX_CONNECTION_AGE_SECONDS")
+      ->check(CLI::Range(0.0, 1e7))
+      ->capture_default_str()
+      ->group("Connections");
+  app.add_option("--max-connection-age-grace-seconds", connections.max_connection_age_grace_s,
+                 "calls in flight on an aged connection may finish within this [s]; keep it longer than the longest "
+                 "real-time stream")
+      ->envname("GEOTRAJ_MAX_CONNECTION_AGE_GRACE_SECONDS")
+      ->check(CLI::Range(0.0, 1e7))
+      ->capture_default_str()
+      ->group("Connections");
+  app.add_option("--drain-seconds,--shutdown-grace", drain_s,
+                 "after SIGTERM/SIGINT, calls in flight may finish this long [s]; keep Kubernetes' "
+                 "terminationGracePeriodSeconds longer")
+      ->envname("GEOTRAJ_DRAIN_SECONDS")
+      ->check(CLI::Range(0.0, 86400.0))
+      ->capture_default_str()
+      ->group("Connections");
+
+  // Logs and models.
+  app.add_option("--log-format", options.log_format, "text or json (one object per line)")
+      ->envname("GEOTRAJ_LOG_FORMAT")
+      ->check(CLI::IsMember({"text", "json"}))
+      ->capture_default_str()
+      ->group("Logs");
+  app.add_option("--log-level", options.log_level, "debug, info (one line per call), warning or error")
+      ->envname("GEOTRAJ_LOG_LEVEL")
+      ->check(CLI::IsMember({"debug", "info", "warning", "error"}))
+      ->capture_default_str()
+      ->group("Logs");
   app.add_option("--robot-model", options.robot_model_files,
                  "robot model file (proto3 JSON of geotraj.v1.RobotModel, as ListRobots prints it), served by its "
                  "name beside the built-in models; repeat for several (environment: comma-separated)")
       ->envname("GEOTRAJ_ROBOT_MODELS")
-      ->delimiter(',');
+      ->delimiter(',')
+      ->group("Models");
   CLI11_PARSE(app, argc, argv);
+  if (const char* token = std::getenv("GEOTRAJ_AUTH_TOKEN")) options.auth_token = token;
 
   // Block the stop signals in every thread (gRPC's threads inherit the mask) and take them
   // synchronously below, so no handler runs in an arbitrary thread.
@@ -49,15 +176,26 @@ int main(int argc, char** argv) {
     return 1;
   }
   const auto host = options.address.substr(0, options.address.rfind(':'));
-  std::printf("geotrajd: serving %s on %s:%d (health SERVING, reflection on)\n", geotraj::server::kServiceName,
-              host.c_str(), running->port);
+  const bool tls = options.tls.enabled();
+  // The first line on stdout names the bound port: scripts and tests read it.
+  std::printf("geotrajd: serving %s on %s:%d (%s, health SERVING, reflection on)\n", geotraj::server::kServiceName,
+              host.c_str(), running->port, tls ? (options.tls.client_ca_file.empty() ? "TLS" : "mutual TLS") : "plaintext");
+  if (running->health_port != 0) std::printf("geotrajd: health on port %d\n", running->health_port);
+  if (running->metrics_port != 0) std::printf("geotrajd: metrics on http port %d\n", running->metrics_port);
   std::fflush(stdout);
+  geotraj::server::log_info(*running, "serving",
+                            {{"address", host + ":" + std::to_string(running->port)},
+                             {"transport", tls ? "tls" : "plaintext"},
+                             {"client_certificates", options.tls.client_ca_file.empty() ? "no" : "required"},
+                             {"bearer_tokens", options.auth_tokens_file.empty() && options.auth_token.empty() ? "no" : "required"}});
 
   int signal = 0;
   sigwait(&stop_signals, &signal);
-  std::printf("geotrajd: %s received, shutting down (grace %.3g s)\n", signal == SIGINT ? "SIGINT" : "SIGTERM",
-              grace_s);
+  const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
+  std::printf("geotrajd: %s received, draining (up to %.3g s)\n", name, drain_s);
   std::fflush(stdout);
-  geotraj::server::stop_server(*running, std::chrono::milliseconds(static_cast<long long>(grace_s * 1000.0)));
+  geotraj::server::log_info(*running, "draining", {{"signal", name}, {"drain_seconds", std::to_string(drain_s)}});
+  geotraj::server::stop_server(*running, std::chrono::milliseconds(static_cast<long long>(drain_s * 1000.0)));
+  geotraj::server::log_info(*running, "stopped");
   return 0;
 }

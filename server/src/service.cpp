@@ -22,6 +22,7 @@
 #include "geotraj/optim/tangent_scales.hpp"
 #include "geotraj/optim/time_optimal_jerk.hpp"
 #include "geotraj/core/time_optimal.hpp"
+#include "runtime.hpp"
 #include "status.hpp"
 
 namespace geotraj::server {
@@ -31,11 +32,15 @@ namespace {
 // cancelled call or a passed deadline stops it at the next stage.
 class Abandon {
  public:
-  explicit Abandon(grpc::CallbackServerContext& context) : context_(context) {}
+  explicit Abandon(grpc::CallbackServerContext& context) : context_(&context), deadline_(context.deadline()) {}
+  /// Work that no client waits for (the warm-up): only the deadline ends it.
+  explicit Abandon(std::chrono::system_clock::time_point deadline) : deadline_(deadline) {}
   /// The status to finish with when the call is no longer wanted.
   std::optional<grpc::Status> check() const {
-    if (context_.IsCancelled()) return grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled");
-    if (context_.deadline() <= std::chrono::system_clock::now()) {
+    if (context_ != nullptr && context_->IsCancelled()) {
+      return grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled");
+    }
+    if (deadline_ <= std::chrono::system_clock::now()) {
       return grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, "the deadline passed before the work was done");
     }
     return std::nullopt;
@@ -43,19 +48,40 @@ class Abandon {
 
   /// When the caller stops waiting, on the steady clock (the RPC's deadline).
   std::chrono::steady_clock::time_point deadline() const {
-    const auto left = context_.deadline() - std::chrono::system_clock::now();
+    const auto left = deadline_ - std::chrono::system_clock::now();
     if (left > std::chrono::hours(24 * 365)) return std::chrono::steady_clock::time_point::max();  // no deadline
     return std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(left);
   }
 
  private:
-  grpc::CallbackServerContext& context_;
+  grpc::CallbackServerContext* context_ = nullptr;
+  std::chrono::system_clock::time_point deadline_;
 };
+
+// What the work of one call needs from the service: its robots, its limits, its metrics.
+struct Services {
+  const RobotCatalog& robots;
+  const ServiceLimits& limits;
+  Metrics& metrics;
+};
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// INVALID_ARGUMENT when a path has more key frames than the server accepts.
+std::optional<grpc::Status> frame_limit(const v1::PathSpec& path, const ServiceLimits& limits) {
+  if (path.frames_size() <= limits.max_frames) return std::nullopt;
+  return invalid_argument(core::Violations{
+      {"path.frames", "has " + std::to_string(path.frames_size()) + " key frames; this server accepts at most " +
+                          std::to_string(limits.max_frames) + " (geotrajd --max-frames)"}});
+}
 
 // The request's path spec after the optimisers it asks for (tangent scales, then
 // breakpoints; both within the RPC's deadline and optimize.timeBudgetS), their reports in
 // `report`; or the status to finish with (every violation of the request together).
-tl::expected<core::PathSpec, grpc::Status> optimized_path(const Abandon& abandon, const v1::PlanRequest& request,
+tl::expected<core::PathSpec, grpc::Status> optimized_path(const Abandon& abandon, const Services& services,
+                                                          const v1::PlanRequest& request,
                                                           v1::OptimizationReport* report) {
   auto spec = path_from_request(request);
   if (!request.has_optimize()) {
@@ -63,7 +89,7 @@ tl::expected<core::PathSpec, grpc::Status> optimized_path(const Abandon& abandon
     return std::move(*spec);
   }
   core::Violations violations = spec ? core::Violations{} : spec.error();
-  const auto budget = optimize_budget(request);
+  const auto budget = optimize_budget(request, services.limits.max_optimize_seconds);
   if (!budget) violations.insert(violations.end(), budget.error().begin(), budget.error().end());
   const auto& optimize = request.optimize();
   std::optional<optim::TangentScaleOptions> scales;
@@ -92,14 +118,18 @@ tl::expected<core::PathSpec, grpc::Status> optimized_path(const Abandon& abandon
   core::PathSpec path = std::move(*spec);
   if (scales) {
     scales->deadline = deadline;
+    const auto started = std::chrono::steady_clock::now();
     auto result = optim::optimize_tangent_scales(path, *scales);
+    services.metrics.optimization("tangent_scales", seconds_since(started));
     if (!result) return tl::unexpected(invalid_argument(result.error()));
     path = result->spec;
     if (report != nullptr) to_proto(*result, *report->mutable_tangent_scales());
   }
   if (breakpoints) {
     breakpoints->deadline = deadline;
+    const auto started = std::chrono::steady_clock::now();
     auto result = optim::optimize_breakpoints(path, *breakpoints);
+    services.metrics.optimization("breakpoints", seconds_since(started));
     if (!result) return tl::unexpected(invalid_argument(core::prefixed(result.error(), "path.")));
     path = result->spec;
     if (report != nullptr) to_proto(*result, *report->mutable_breakpoints());
@@ -108,9 +138,10 @@ tl::expected<core::PathSpec, grpc::Status> optimized_path(const Abandon& abandon
   return path;
 }
 
-grpc::Status convert_constraints(const Abandon& abandon, const v1::ConvertRequest& request,
+grpc::Status convert_constraints(const Abandon& abandon, const Services& services, const v1::ConvertRequest& request,
                                  v1::ConvertResponse& response) {
   if (auto stop = abandon.check()) return *stop;
+  if (auto refused = frame_limit(request.path(), services.limits)) return *refused;
   const auto spec = path_from_request(request);
   if (!spec) return invalid_argument(spec.error());
   const auto frames = core::convert_path(*spec);
@@ -122,8 +153,14 @@ grpc::Status convert_constraints(const Abandon& abandon, const v1::ConvertReques
 // A server-streaming call that ends at once with `status`.
 class FinishedWriter final : public grpc::ServerWriteReactor<v1::SampleBatch> {
  public:
-  explicit FinishedWriter(const grpc::Status& status) { Finish(status); }
+  FinishedWriter(Call call, const grpc::Status& status) : call_(std::move(call)) {
+    call_.finish(status);
+    Finish(status);
+  }
   void OnDone() override { delete this; }
+
+ private:
+  Call call_;
 };
 
 // Everything a request plans: the trajectory (along the path, or a move) and, with a
@@ -162,7 +199,8 @@ grpc::Status failed_precondition_or_invalid(const core::Violations& violations) 
 // limits by the NLP warm-started from it (optim/time_optimal_jerk.hpp). Its report, with
 // which limit binds where, goes to `report` (PlanTrajectory). A path that no positive speed
 // can follow is FAILED_PRECONDITION naming where.
-tl::expected<core::MotionPlan, grpc::Status> time_optimal_timing(const Abandon& abandon, const core::Path& path,
+tl::expected<core::MotionPlan, grpc::Status> time_optimal_timing(const Abandon& abandon, const Services& services,
+                                                                  const core::Path& path,
                                                                   const core::OrientationPlan& orientation,
                                                                   const core::MotionSpec& motion,
                                                                   const RobotRequest* robot, bool jerk_limited,
@@ -180,7 +218,7 @@ tl::expected<core::MotionPlan, grpc::Status> time_optimal_timing(const Abandon& 
   if (jerk_limited) {
     optim::JerkTimingOptions options;
     const auto left = std::chrono::duration<double>(abandon.deadline() - started).count();
-    options.time_budget_s = std::clamp(left, 0.0, kDefaultOptimizeBudgetS);
+    options.time_budget_s = std::clamp(left, 0.0, std::min(kDefaultOptimizeBudgetS, services.limits.max_optimize_seconds));
     auto result = optim::plan_time_optimal_jerk(path, orientation, motion, model, seed, {}, options);
     if (!result) return tl::unexpected(failed_precondition_or_invalid(result.error()));
     plan = std::move(result->motion);
@@ -195,6 +233,7 @@ tl::expected<core::MotionPlan, grpc::Status> time_optimal_timing(const Abandon& 
     solver.iterations = result->refinements + 1;
     solver.objective_after = plan.duration_s;
   }
+  services.metrics.optimization(jerk_limited ? "time_optimal_jerk" : "time_optimal", seconds_since(started));
   if (auto stop = abandon.check()) return tl::unexpected(*stop);
   if (report != nullptr) {
     solver.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
@@ -212,8 +251,8 @@ tl::expected<core::MotionPlan, grpc::Status> time_optimal_timing(const Abandon& 
 
 // Plans the trajectory of a request with `motion`, or the status to finish with (every
 // violation of the request's parts together).
-tl::expected<Planned, grpc::Status> plan_request(const Abandon& abandon, const v1::PlanRequest& request,
-                                                 const RobotCatalog& catalog, v1::OptimizationReport* optimization) {
+tl::expected<Planned, grpc::Status> plan_request(const Abandon& abandon, const Services& services,
+                                                 const v1::PlanRequest& request, v1::OptimizationReport* optimization) {
   const int kinds = int(request.has_path()) + int(request.has_joint_move()) + int(request.has_linear_move());
   if (kinds != 1) {
     return tl::unexpected(invalid_argument(core::Violations{
@@ -228,7 +267,7 @@ tl::expected<Planned, grpc::Status> plan_request(const Abandon& abandon, const v
   if (!motion) violations = joined(std::move(violations), motion.error());
   std::shared_ptr<const RobotRequest> robot;
   if (request.has_robot()) {
-    auto resolved = robot_from_request(request, catalog);
+    auto resolved = robot_from_request(request, services.robots);
     if (resolved) {
       robot = std::make_shared<const RobotRequest>(std::move(*resolved));
     } else {
@@ -264,7 +303,7 @@ tl::expected<Planned, grpc::Status> plan_request(const Abandon& abandon, const v
     const auto spec = path_from_request(request);
     return tl::unexpected(invalid_argument(spec ? violations : joined(spec.error(), violations)));
   }
-  auto spec = optimized_path(abandon, request, optimization);
+  auto spec = optimized_path(abandon, services, request, optimization);
   if (!spec) return tl::unexpected(spec.error());
   auto path = core::build_path(*spec);
   if (!path) return tl::unexpected(invalid_argument(core::prefixed(path.error(), "path.")));
@@ -278,7 +317,7 @@ tl::expected<Planned, grpc::Status> plan_request(const Abandon& abandon, const v
                             (robot || motion->profile == core::ProfileShape::kTrapezoidal);
   const bool time_optimal = timing_request.time_optimal() || timing_request.jerk_limited() || minimum_time;
   if (time_optimal) {
-    auto timing = time_optimal_timing(abandon, *path, *orientation, *motion, robot.get(), timing_request.jerk_limited(),
+    auto timing = time_optimal_timing(abandon, services, *path, *orientation, *motion, robot.get(), timing_request.jerk_limited(),
                                       optimization);
     if (!timing) return tl::unexpected(timing.error());
     return Planned{core::Trajectory(std::in_place_type<core::PathMotion>,
@@ -303,6 +342,19 @@ struct RobotPass {
   double peak_speed = 0.0;
   double peak_acceleration = 0.0;
 };
+
+// INVALID_ARGUMENT when a motion that is streamed or followed by a robot (the IK runs at
+// every sample) has more samples than the server allows.
+std::optional<grpc::Status> sample_limit(const Planned& planned, const ServiceLimits& limits) {
+  const auto count = core::sample_count(planned.trajectory);
+  if (count <= limits.max_stream_samples) return std::nullopt;
+  return invalid_argument(core::Violations{
+      {"motion.durationS", "the motion has " + std::to_string(count) + " samples (" +
+                               std::to_string(core::duration(planned.trajectory)) +
+                               " s at the cycle rate); this server streams and checks at most " +
+                               std::to_string(limits.max_stream_samples) +
+                               " per call (geotrajd --max-stream-samples): shorten it or lower cycleRateHz"}});
+}
 
 tl::expected<RobotPass, grpc::Status> robot_pass(const Abandon& abandon, const Planned& planned) {
   const RobotRequest& robot = *planned.robot;
@@ -361,16 +413,17 @@ void summarize(const core::Trajectory& trajectory, const RobotPass* pass, v1::Mo
 
 // PlanTrajectory: the geometry; with `motion`, the motion summary; with a robot, the joint
 // report (or FAILED_PRECONDITION when the robot cannot follow, unless reportOnly).
-grpc::Status plan_trajectory(const Abandon& abandon, const RobotCatalog& catalog, const v1::PlanRequest& request,
+grpc::Status plan_trajectory(const Abandon& abandon, const Services& services, const v1::PlanRequest& request,
                              v1::PlanResponse& response) {
   if (auto stop = abandon.check()) return *stop;
+  if (auto refused = frame_limit(request.path(), services.limits)) return *refused;
   const bool motion_needed = request.has_robot() || request.has_joint_move() || request.has_linear_move();
   if (request.has_motion() || motion_needed) {
     if (!request.has_motion()) {
       return invalid_argument(core::Violations{
           {"motion", "is required with a robot or a move: give durationS (s), or the limits for a minimum-time move"}});
     }
-    auto planned = plan_request(abandon, request, catalog,
+    auto planned = plan_request(abandon, services, request,
                                 request.has_optimize() ? response.mutable_optimization() : nullptr);
     if (!planned) return planned.error();
     if (auto stop = abandon.check()) return *stop;
@@ -380,6 +433,7 @@ grpc::Status plan_trajectory(const Abandon& abandon, const RobotCatalog& catalog
     }
     std::optional<RobotPass> pass;
     if (planned->robot) {
+      if (auto refused = sample_limit(*planned, services.limits)) return *refused;
       auto result = robot_pass(abandon, *planned);
       if (!result) return result.error();
       pass = std::move(*result);
@@ -391,7 +445,8 @@ grpc::Status plan_trajectory(const Abandon& abandon, const RobotCatalog& catalog
     summarize(planned->trajectory, pass ? &*pass : nullptr, *response.mutable_motion());
     return grpc::Status::OK;
   }
-  const auto spec = optimized_path(abandon, request, request.has_optimize() ? response.mutable_optimization() : nullptr);
+  const auto spec =
+      optimized_path(abandon, services, request, request.has_optimize() ? response.mutable_optimization() : nullptr);
   if (!spec) return spec.error();
   const auto path = core::build_path(*spec);
   if (!path) return invalid_argument(core::prefixed(path.error(), "path."));
@@ -411,8 +466,10 @@ grpc::Status plan_trajectory(const Abandon& abandon, const RobotCatalog& catalog
 // the next one is not due, an alarm wakes the reactor, and cancellation cancels the alarm.
 class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
  public:
-  SampleStreamer(grpc::CallbackServerContext& context, Planned planned, std::size_t batch_size, bool real_time)
-      : abandon_(context),
+  SampleStreamer(Call call, grpc::CallbackServerContext& context, Planned planned, std::size_t batch_size,
+                 bool real_time)
+      : call_(std::move(call)),
+        abandon_(context),
         planned_(std::make_unique<Planned>(std::move(planned))),
         sampler_(planned_->trajectory, planned_->robot ? &planned_->robot->model : nullptr,
                  planned_->robot ? planned_->robot->seed : core::JointVector()),
@@ -429,18 +486,28 @@ class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
 
   void OnWriteDone(bool ok) override {
     if (!ok) {  // the client went away (cancelled, deadline, connection lost)
-      Finish(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled"));
+      End(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled"));
       return;
     }
+    call_.runtime().metrics().samples_streamed(static_cast<std::uint64_t>(batch_.samples_size()));
+    sent_ += static_cast<std::uint64_t>(batch_.samples_size());
     NextWrite();
   }
 
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    call_.finish(status_, sent_);
+    delete this;
+  }
 
  private:
+  void End(const grpc::Status& status) {
+    status_ = status;
+    Finish(status);
+  }
+
   void NextWrite() {
     if (auto stop = abandon_.check()) {
-      Finish(*stop);
+      End(*stop);
       return;
     }
     batch_.clear_samples();
@@ -457,7 +524,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
             if (ok) {
               NextWrite();
             } else {
-              Finish(abandon_.check().value_or(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled")));
+              End(abandon_.check().value_or(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled")));
             }
           });
           return;
@@ -467,12 +534,15 @@ class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
       has_pending_ = false;
     }
     if (batch_.samples_size() == 0) {
-      Finish(grpc::Status::OK);
+      End(grpc::Status::OK);
       return;
     }
     StartWrite(&batch_);
   }
 
+  Call call_;
+  grpc::Status status_;     // the status the stream finished with
+  std::uint64_t sent_ = 0;  // samples written
   Abandon abandon_;
   std::unique_ptr<Planned> planned_;  // stable address: the sampler refers to it
   core::TrajectorySampler sampler_;
@@ -485,25 +555,32 @@ class SampleStreamer final : public grpc::ServerWriteReactor<v1::SampleBatch> {
   v1::SampleBatch batch_;
 };
 
-grpc::ServerWriteReactor<v1::SampleBatch>* stream_samples(grpc::CallbackServerContext& context,
-                                                          const RobotCatalog& catalog,
+grpc::ServerWriteReactor<v1::SampleBatch>* stream_samples(grpc::CallbackServerContext& context, Call call,
+                                                          const Services& services,
                                                           const v1::PlanRequest& request) {
+  if (call.refusal()) {
+    const grpc::Status refusal = *call.refusal();
+    return new FinishedWriter(std::move(call), refusal);
+  }
   const Abandon abandon(context);
-  if (auto stop = abandon.check()) return new FinishedWriter(*stop);
+  auto finished = [&call](const grpc::Status& status) { return new FinishedWriter(std::move(call), status); };
+  if (auto stop = abandon.check()) return finished(*stop);
+  if (auto refused = frame_limit(request.path(), services.limits)) return finished(*refused);
   if (!request.has_motion()) {
-    return new FinishedWriter(invalid_argument(core::Violations{
+    return finished(invalid_argument(core::Violations{
         {"motion", "is required to stream samples: give durationS (s), or maxSpeed and maxAcceleration"}}));
   }
   if (!v1::StreamPacing_IsValid(request.pacing())) {
-    return new FinishedWriter(invalid_argument(
+    return finished(invalid_argument(
         core::Violations{{"pacing", "unknown value " + std::to_string(request.pacing()) +
                                         "; use STREAM_PACING_AS_FAST_AS_POSSIBLE or STREAM_PACING_REAL_TIME"}}));
   }
-  auto planned = plan_request(abandon, request, catalog, nullptr);
-  if (!planned) return new FinishedWriter(planned.error());
+  auto planned = plan_request(abandon, services, request, nullptr);
+  if (!planned) return finished(planned.error());
+  if (auto refused = sample_limit(*planned, services.limits)) return finished(*refused);
   if (planned->robot) {
     auto pass = robot_pass(abandon, *planned);
-    if (!pass) return new FinishedWriter(pass.error());
+    if (!pass) return finished(pass.error());
     // reportOnly streams a motion that breaks joint limits (for simulation and analysis),
     // never one whose IK failed or jumped branches: those joints would be meaningless.
     const auto& violations = pass->report.violations;
@@ -511,17 +588,19 @@ grpc::ServerWriteReactor<v1::SampleBatch>* stream_samples(grpc::CallbackServerCo
       return e.kind != core::LimitKind::kIk && e.kind != core::LimitKind::kBranch;
     });
     if (!pass->report.feasible() && !(planned->robot->report_only && only_limits)) {
-      return new FinishedWriter(robot_cannot_follow(planned->robot->model.name, pass->report));
+      return finished(robot_cannot_follow(planned->robot->model.name, pass->report));
     }
   }
-  return new SampleStreamer(context, std::move(*planned), samples_per_batch(request),
+  return new SampleStreamer(std::move(call), context, std::move(*planned), samples_per_batch(request),
                             request.pacing() == v1::STREAM_PACING_REAL_TIME);
 }
 
 // The analysis is the path's geometry: a robot, when given, does not change it.
-grpc::Status analyze_path(const Abandon& abandon, const v1::PlanRequest& request, v1::PathProfile& profile) {
+grpc::Status analyze_path(const Abandon& abandon, const Services& services, const v1::PlanRequest& request,
+                          v1::PathProfile& profile) {
   if (auto stop = abandon.check()) return *stop;
-  const auto spec = optimized_path(abandon, request, nullptr);
+  if (auto refused = frame_limit(request.path(), services.limits)) return *refused;
+  const auto spec = optimized_path(abandon, services, request, nullptr);
   if (!spec) return spec.error();
   const auto path = core::build_path(*spec);
   if (!path) return invalid_argument(core::prefixed(path.error(), "path."));
@@ -531,52 +610,90 @@ grpc::Status analyze_path(const Abandon& abandon, const v1::PlanRequest& request
 }
 
 class TrajectoryService final : public v1::TrajectoryService::CallbackService {
+ public:
+  TrajectoryService(RobotCatalog robots, std::shared_ptr<Runtime> runtime)
+      : robots_(std::move(robots)), runtime_(std::move(runtime)) {}
+
   grpc::ServerUnaryReactor* ConvertConstraints(grpc::CallbackServerContext* context,
                                                const v1::ConvertRequest* request,
                                                v1::ConvertResponse* response) override {
-    auto* reactor = context->DefaultReactor();
-    reactor->Finish(convert_constraints(Abandon(*context), *request, *response));
-    return reactor;
+    return unary(*context, Method::kConvertConstraints, [&] {
+      return convert_constraints(Abandon(*context), services(), *request, *response);
+    });
   }
 
   grpc::ServerUnaryReactor* PlanTrajectory(grpc::CallbackServerContext* context, const v1::PlanRequest* request,
                                            v1::PlanResponse* response) override {
-    auto* reactor = context->DefaultReactor();
-    reactor->Finish(plan_trajectory(Abandon(*context), robots_, *request, *response));
-    return reactor;
+    return unary(*context, Method::kPlanTrajectory,
+                 [&] { return plan_trajectory(Abandon(*context), services(), *request, *response); });
   }
 
   grpc::ServerWriteReactor<v1::SampleBatch>* StreamSamples(grpc::CallbackServerContext* context,
                                                            const v1::PlanRequest* request) override {
-    return stream_samples(*context, robots_, *request);
+    return stream_samples(*context, Call(*runtime_, *context, Method::kStreamSamples), services(), *request);
   }
 
   grpc::ServerUnaryReactor* AnalyzePath(grpc::CallbackServerContext* context, const v1::PlanRequest* request,
                                         v1::PathProfile* profile) override {
-    auto* reactor = context->DefaultReactor();
-    reactor->Finish(analyze_path(Abandon(*context), *request, *profile));
-    return reactor;
+    return unary(*context, Method::kAnalyzePath,
+                 [&] { return analyze_path(Abandon(*context), services(), *request, *profile); });
   }
 
   grpc::ServerUnaryReactor* ListRobots(grpc::CallbackServerContext* context, const v1::ListRobotsRequest* /*request*/,
                                        v1::ListRobotsResponse* response) override {
-    auto* reactor = context->DefaultReactor();
-    for (const auto& model : robots_.models) to_proto(model, *response->add_robots());
-    reactor->Finish(grpc::Status::OK);
+    return unary(*context, Method::kListRobots, [&] {
+      for (const auto& model : robots_.models) to_proto(model, *response->add_robots());
+      return grpc::Status::OK;
+    });
+  }
+
+  /// One plan with a motion and one analysis of a small path: the code paths of a real call
+  /// run once (and their pages load) before the server reports ready.
+  grpc::Status WarmUp() {
+    const Abandon abandon(std::chrono::system_clock::now() + std::chrono::seconds(30));
+    v1::PlanRequest request;
+    auto* path = request.mutable_path();
+    const double points[3][3] = {{0.45, -0.2, 0.6}, {0.5, 0.0, 0.65}, {0.45, 0.2, 0.6}};
+    for (const auto& p : points) {
+      auto* frame = path->add_frames();
+      frame->mutable_position()->set_x(p[0]);
+      frame->mutable_position()->set_y(p[1]);
+      frame->mutable_position()->set_z(p[2]);
+      frame->mutable_tangent()->set_y(1.0);
+      frame->set_tangent_scale(0.2);
+    }
+    request.mutable_motion()->set_duration_s(2.0);
+    v1::PlanResponse plan;
+    if (auto status = plan_trajectory(abandon, services(), request, plan); !status.ok()) return status;
+    v1::PathProfile profile;
+    return analyze_path(abandon, services(), request, profile);
+  }
+
+ private:
+  Services services() const { return Services{robots_, runtime_->limits(), runtime_->metrics()}; }
+
+  // Admits the call, runs `work` when admitted, records and finishes it.
+  template <typename Work>
+  grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext& context, Method method, Work&& work) {
+    auto* reactor = context.DefaultReactor();
+    Call call(*runtime_, context, method);
+    const grpc::Status status = call.refusal() ? *call.refusal() : work();
+    call.finish(status);
+    reactor->Finish(status);
     return reactor;
   }
 
- public:
-  explicit TrajectoryService(RobotCatalog robots) : robots_(std::move(robots)) {}
-
- private:
   const RobotCatalog robots_;
+  std::shared_ptr<Runtime> runtime_;
 };
 
 }  // namespace
 
-std::unique_ptr<v1::TrajectoryService::CallbackService> make_trajectory_service(RobotCatalog robots) {
-  return std::make_unique<TrajectoryService>(std::move(robots));
+std::unique_ptr<v1::TrajectoryService::CallbackService> make_trajectory_service(RobotCatalog robots,
+                                                                                 std::shared_ptr<Runtime> runtime) {
+  return std::make_unique<TrajectoryService>(std::move(robots), std::move(runtime));
 }
+
+grpc::Status warm_up(grpc::Service& service) { return static_cast<TrajectoryService&>(service).WarmUp(); }
 
 }  // namespace geotraj::server

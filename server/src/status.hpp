@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <grpcpp/support/status.h>
@@ -29,5 +30,7 @@ struct PreconditionViolation {
 /// google.rpc.PreconditionFailure with `violations`.
 grpc::Status failed_precondition(const std::string& message, const std::vector<PreconditionViolation>& violations);
 
+/// The canonical name of a status code ("OK", "INVALID_ARGUMENT", ...), as gRPC documents it.
+std::string_view status_code_name(grpc::StatusCode code);
 
 }  // namespace geotraj::server

@@ -38,8 +38,9 @@ class PythonClient(unittest.TestCase):
         from geotraj.v1 import geotraj_pb2_grpc as rpc
         from google.rpc import error_details_pb2, status_pb2
         cls.port = free_port()
+        # Its log (one line per call) goes nowhere: an unread pipe would fill and block it.
         cls.proc = subprocess.Popen([ARGS.server, "--address", f"127.0.0.1:{cls.port}"],
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         cls.channel = grpc.insecure_channel(f"127.0.0.1:{cls.port}")
         grpc.channel_ready_future(cls.channel).result(timeout=30)
         cls.stub = rpc.TrajectoryServiceStub(cls.channel)

@@ -1,5 +1,5 @@
 // geotrajd as a process: it serves on the address it is given (here through the environment
-// variables GEOTRAJ_ADDRESS, port 0, and GEOTRAJ_SHUTDOWN_GRACE), logs the bound port,
+// variables GEOTRAJ_ADDRESS, port 0, and GEOTRAJ_DRAIN_SECONDS), logs the bound port,
 // reports SERVING, and exits 0 on SIGTERM and on SIGINT.
 #include <signal.h>
 #include <sys/wait.h>
@@ -31,7 +31,7 @@ class Daemon {
       ::close(fds[1]);
       ::setenv("GEOTRAJ_ADDRESS", "127.0.0.1:0", 1);
       // Connected clients (this test's channel) are disconnected when the grace ends.
-      ::setenv("GEOTRAJ_SHUTDOWN_GRACE", "0.2", 1);
+      ::setenv("GEOTRAJ_DRAIN_SECONDS", "0.2", 1);
       ::execl(GEOTRAJD, GEOTRAJD, static_cast<char*>(nullptr));
       std::_Exit(127);
     }
@@ -96,7 +96,7 @@ TEST_P(GeotrajdTest, ServesAndStopsOnSignal) {
   EXPECT_EQ(response.status(), grpc::health::v1::HealthCheckResponse::SERVING);
 
   daemon.signal(GetParam());
-  EXPECT_THAT(daemon.line(), ::testing::HasSubstr("shutting down (grace 0.2 s)"));
+  EXPECT_THAT(daemon.line(), ::testing::HasSubstr("draining (up to 0.2 s)"));
   EXPECT_EQ(daemon.wait(), 0);
 }
 

@@ -665,7 +665,7 @@ TEST_F(RobotTest, GeotrajdServesARobotModelFile) {
   arm.set_description("the PA-10 under another name");
   const TempFile file("my_arm.json", to_json(arm));
 
-  Daemon daemon({"--address", "127.0.0.1:0", "--shutdown-grace", "0.2", "--robot-model", file.path()});
+  Daemon daemon({"--address", "127.0.0.1:0", "--drain-seconds", "0.2", "--robot-model", file.path()});
   ASSERT_TRUE(daemon.started());
   const std::string serving = daemon.line();
   const int port = port_of(serving);

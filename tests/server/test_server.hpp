@@ -27,6 +27,7 @@ class ServerTest : public ::testing::Test {
   void SetUp() override {
     server::ServerOptions options;
     options.address = "127.0.0.1:0";
+    options.log_level = "warning";  // no line per call in the test output
     auto started = server::start_server(options);
     ASSERT_TRUE(started) << started.error();
     running_ = std::move(*started);

@@ -1,0 +1,68 @@
+// A minimal HTTP/1.1 server for scrapes and probes (GET /metrics, GET /healthz) on its own
+// thread, on POSIX sockets only: geotrajd needs no HTTP library for this.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include <tl/expected.hpp>
+
+namespace geotraj::server {
+
+/// Limits of the exporter; the defaults suit production.
+struct HttpExporterOptions {
+  /// A connection must deliver its request and take its response within this time.
+  std::chrono::milliseconds timeout{5000};
+  /// Connections served at once; more wait in the listen backlog.
+  std::size_t max_connections = 64;
+};
+
+/// Serves, one request per connection (Connection: close):
+///   GET /metrics -> 200, text/plain; version=0.0.4; charset=utf-8, the body of metrics_body()
+///   GET /healthz -> 200, "ok"
+///   other paths -> 404, other methods -> 405, a malformed or oversized (> 8 KiB) request
+///   line or header block -> 400; then the connection is closed.
+/// One thread multiplexes all connections with poll() on non-blocking sockets, so a slow
+/// or silent client holds only its own slot, and only until the timeout.
+class HttpExporter {
+ public:
+  /// Listens on `address` (HOST:PORT; [IPv6]:PORT; a host name is resolved; an empty host
+  /// means every address; port 0 picks a free port) and starts serving. `metrics_body` is
+  /// called on the exporter's thread for each scrape and must be thread-safe. The error is
+  /// a sentence naming the address, e.g.
+  /// `cannot listen on metrics address "127.0.0.1:9090": Address already in use`.
+  static tl::expected<std::unique_ptr<HttpExporter>, std::string> start(const std::string& address,
+                                                                        std::function<std::string()> metrics_body,
+                                                                        HttpExporterOptions options = {});
+
+  HttpExporter(const HttpExporter&) = delete;
+  HttpExporter& operator=(const HttpExporter&) = delete;
+  ~HttpExporter();
+
+  /// The bound port (the chosen one when started with port 0).
+  int port() const { return port_; }
+  /// Stops serving, closes every connection and the listening socket; returns as soon as
+  /// the thread has exited (it is woken through a pipe, not by a timeout). Idempotent.
+  void stop();
+
+ private:
+  HttpExporter(int listen_fd, int wake_read_fd, int wake_write_fd, int port,
+               std::function<std::string()> metrics_body, HttpExporterOptions options);
+  void run();
+
+  int listen_fd_;  // closed by stop(), which frees the port
+  const int wake_read_fd_;
+  const int wake_write_fd_;
+  const int port_;
+  const std::function<std::string()> metrics_body_;
+  const HttpExporterOptions options_;
+  std::mutex stop_mutex_;
+  std::thread thread_;
+};
+
+}  // namespace geotraj::server

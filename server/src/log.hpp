@@ -1,0 +1,65 @@
+// Structured logging for geotrajd: one line per event, as text for people or as JSON for log
+// pipelines, and the request ids that tie a call's lines together.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include <tl/expected.hpp>
+
+namespace geotraj::server {
+
+enum class LogFormat { kText, kJson };
+enum class LogLevel { kDebug, kInfo, kWarning, kError };
+
+/// "text" or "json"; otherwise a sentence naming the value and the choices.
+tl::expected<LogFormat, std::string> parse_log_format(std::string_view text);
+/// "debug", "info", "warning" or "error"; otherwise a sentence naming the value and the choices.
+tl::expected<LogLevel, std::string> parse_log_level(std::string_view text);
+
+/// One key/value of an event.
+struct LogField {
+  std::string key;
+  std::variant<std::string, std::int64_t, double, bool> value;
+};
+
+/// Writes events at or above a level to a stream. Thread-safe: each event is formatted
+/// first, then written with one fwrite under a process-wide mutex and flushed, so lines
+/// never interleave (not even those of two loggers on one stream). Copyable and movable.
+///
+/// JSON: {"ts":"2026-11-30T16:40:01.123Z","level":"info","msg":"...",<fields>} with strings
+/// escaped (control characters as \u00XX, valid UTF-8 passed through, invalid bytes as
+/// U+FFFD) and non-finite doubles as null; a field named ts, level or msg is written as
+/// _ts, _level or _msg so keys stay unique.
+/// Text: 2026-11-30T16:40:01.123Z INFO msg key=value key2="quoted value"; the message has
+/// control characters escaped; values with spaces, quotes, '=' or control characters (and
+/// empty ones) are quoted with backslash escapes.
+class Logger {
+ public:
+  Logger(LogFormat format, LogLevel level, std::FILE* out = stderr);
+
+  void log(LogLevel level, std::string_view message, std::vector<LogField> fields = {}) const;
+  /// Whether log(level, ...) writes anything: lets callers skip building costly fields.
+  bool enabled(LogLevel level) const;
+
+ private:
+  LogFormat format_;
+  LogLevel level_;
+  std::FILE* out_;
+};
+
+/// 16 lowercase hex characters (64 random bits) for a call without a usable x-request-id.
+/// Thread-safe: each thread has its own generator seeded from std::random_device.
+std::string new_request_id();
+/// Whether a client's x-request-id can be logged as is: 1 to 64 characters of [A-Za-z0-9._-].
+bool valid_request_id(std::string_view id);
+
+/// Length of the valid UTF-8 sequence that starts at s[i] (1 to 4), or 0 if none does
+/// (overlong forms, surrogates and code points above U+10FFFF are not valid).
+std::size_t utf8_sequence(std::string_view s, std::size_t i);
+
+}  // namespace geotraj::server

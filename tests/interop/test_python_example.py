@@ -1,0 +1,171 @@
+#!/usr/bin/env python3
+"""The example client client/python/geotraj_example.py run as a user runs it, against a real
+geotrajd: a plan streamed to CSV, and a bad request whose field violations it prints.
+
+Run: test_python_example.py --server build/server/geotrajd --stubs build/tests/interop/pystubs
+         --example client/python/geotraj_example.py --requests client/grpcurl
+"""
+import argparse
+import csv
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+ARGS = None
+
+
+def start_geotrajd(tmp, extra_args, extra_env, dropped):
+    """geotrajd on 127.0.0.1:0; its output goes to a file (a pipe that nobody reads could fill
+    and block it), whose first line tells the address. Returns (process, address, log)."""
+    log = open(os.path.join(tmp, "geotrajd.log"), "w+")
+    env = {k: v for k, v in os.environ.items() if k not in dropped and k != "GEOTRAJ_PLAINTEXT"}
+    if "--tls-cert" not in extra_args:
+        env["GEOTRAJ_PLAINTEXT"] = "true"  # harmless on loopback; excluded with TLS
+    env.update(extra_env)
+    proc = subprocess.Popen([ARGS.server, "--address", "127.0.0.1:0", *extra_args], env=env,
+                            stdout=log, stderr=subprocess.STDOUT)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and proc.poll() is None:
+        log.seek(0)
+        m = re.search(r"^geotrajd: serving .* on (\S+:\d+)", log.read(), re.M)
+        if m:
+            return proc, m.group(1), log
+        time.sleep(0.05)
+    proc.kill()
+    proc.wait()
+    log.seek(0)
+    raise RuntimeError(f"geotrajd did not report its address: {log.read()}")
+
+
+class PythonExample(unittest.TestCase):
+    CLIENT_ARGS = ()
+    # Variables that would make the server ask for tokens or TLS: not in this class's server.
+    SERVER_ENV_DROPPED = ("GEOTRAJ_AUTH_TOKEN", "GEOTRAJ_AUTH_TOKENS_FILE", "GEOTRAJ_TLS_CERT",
+                          "GEOTRAJ_TLS_KEY", "GEOTRAJ_TLS_CLIENT_CA")
+    SERVER_ARGS = ()
+    SERVER_ENV = {}
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        try:
+            cls.prepare()
+            cls.proc, cls.address, cls.log = start_geotrajd(cls.tmp.name, list(cls.SERVER_ARGS), cls.SERVER_ENV,
+                                                            cls.SERVER_ENV_DROPPED)
+        except BaseException:
+            cls.tmp.cleanup()
+            raise
+
+    @classmethod
+    def prepare(cls):
+        pass
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.proc.terminate()
+        cls.proc.wait(timeout=30)
+        cls.log.close()
+        cls.tmp.cleanup()
+
+    def run_example(self, *args):
+        cmd = [sys.executable, ARGS.example, "--server", self.address, "--stubs", ARGS.stubs, *args]
+        cmd += list(self.CLIENT_ARGS)
+        env = {k: v for k, v in os.environ.items() if k != "GEOTRAJ_TOKEN"}
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env)
+
+    def test_plan_and_stream_to_csv(self):
+        out = os.path.join(self.tmp.name, "path_a.csv")
+        res = self.run_example("--request", os.path.join(ARGS.requests, "plan_demo_path_a.json"), "--csv", out)
+        self.assertEqual(res.returncode, 0, res.stderr)
+        self.assertIn("plan: 3 segments", res.stdout)
+        self.assertIn("1001 samples", res.stdout)
+        self.assertIn(f"stream: 1001 samples written to {out}", res.stdout)
+        with open(out, newline="") as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(len(rows), 1001)  # 10 s at 100 Hz, both ends
+        ts = [float(r["t"]) for r in rows]
+        self.assertEqual(ts[0], 0.0)
+        self.assertAlmostEqual(ts[-1], 10.0, places=9)
+        self.assertTrue(all(b > a for a, b in zip(ts, ts[1:])))
+        for r in rows:
+            self.assertTrue(all(math.isfinite(float(v)) for v in r.values()))
+
+    def test_robot_joints_in_csv(self):
+        res = self.run_example("--request", os.path.join(ARGS.requests, "joint_move_pa10.json"), "--csv", "-")
+        self.assertEqual(res.returncode, 0, res.stderr)
+        rows = list(csv.reader(res.stdout.splitlines()))
+        self.assertEqual(rows[0][-7:], [f"q{j}" for j in range(7)])  # the PA-10's seven joints
+        goal = [0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8]
+        for q, g in zip(rows[-1][-7:], goal):
+            self.assertAlmostEqual(float(q), g, places=9)
+        self.assertIn("robot: feasible True", res.stderr)  # the summary goes to stderr with '-'
+
+    def test_bad_request_prints_field_violations(self):
+        res = self.run_example("--request", os.path.join(ARGS.requests, "bad_request.json"))
+        self.assertEqual(res.returncode, 1, res.stdout + res.stderr)
+        self.assertIn("error: INVALID_ARGUMENT", res.stderr)
+        self.assertIn("bad request, field violations:", res.stderr)
+        for field in ("path.frames[0].tangent", "path.frames[1].torsion", "path.frames[2].tangent", "analysisPoints"):
+            self.assertRegex(res.stderr, rf"(?m)^  {re.escape(field)}: \S")
+
+
+def server_supports(*flags):
+    help_text = subprocess.run([ARGS.server, "--help"], capture_output=True, text=True).stdout
+    return all(flag in help_text for flag in flags)
+
+
+class PythonExampleTlsAndToken(PythonExample):
+    """The same, over TLS with a bearer token (--tls-ca, --token), where geotrajd has them."""
+    TOKEN = "interop-example-token-0123456789"
+    CLIENT_ARGS = ("--token", TOKEN)
+
+    @classmethod
+    def setUpClass(cls):
+        if not server_supports("--tls-cert", "--auth-tokens-file"):
+            raise unittest.SkipTest("this geotrajd has no --tls-cert or --auth-tokens-file")
+        if shutil.which("openssl") is None:
+            raise unittest.SkipTest("openssl not found (it makes the test's certificate)")
+        super().setUpClass()
+
+    @classmethod
+    def prepare(cls):
+        cert, key = os.path.join(cls.tmp.name, "cert.pem"), os.path.join(cls.tmp.name, "key.pem")
+        subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1",
+                        "-keyout", key, "-out", cert, "-subj", "/CN=geotrajd-interop",
+                        "-addext", "subjectAltName=IP:127.0.0.1"], check=True, capture_output=True)
+        cls.SERVER_ARGS = ("--tls-cert", cert, "--tls-key", key)
+        cls.SERVER_ENV = {"GEOTRAJ_AUTH_TOKEN": cls.TOKEN}
+        cls.CLIENT_ARGS = ("--token", cls.TOKEN, "--tls-ca", cert)
+
+    def test_refused_without_the_token(self):
+        cert = self.CLIENT_ARGS[-1]
+        for extra in ((), ("--token", "not-the-token-0123456789abcdef")):
+            cmd = [sys.executable, ARGS.example, "--server", self.address, "--stubs", ARGS.stubs,
+                   "--tls-ca", cert, "--no-stream", *extra]
+            env = {k: v for k, v in os.environ.items() if k != "GEOTRAJ_TOKEN"}
+            res = subprocess.run(cmd, capture_output=True, text=True, timeout=60, env=env)
+            self.assertEqual(res.returncode, 1, res.stdout + res.stderr)
+            self.assertIn("error: UNAUTHENTICATED", res.stderr)
+
+    def test_refused_without_tls(self):
+        cmd = [sys.executable, ARGS.example, "--server", self.address, "--stubs", ARGS.stubs,
+               "--token", self.TOKEN, "--no-stream", "--timeout", "10"]
+        res = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+        self.assertEqual(res.returncode, 1, res.stdout + res.stderr)
+        self.assertIn("error: UNAVAILABLE", res.stderr)
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--server", required=True)
+    parser.add_argument("--stubs", required=True)
+    parser.add_argument("--example", required=True)
+    parser.add_argument("--requests", required=True)
+    ARGS, rest = parser.parse_known_args()
+    unittest.main(argv=[sys.argv[0]] + rest, verbosity=2)

@@ -1,0 +1,559 @@
+// The service as operators run it: bearer tokens, TLS and mutual TLS, the caps on calls in
+// flight, the per-call limits, graceful drain, readiness, the health-only port, request
+// ids, JSON logs, metrics over HTTP and the maximum connection age.
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <thread>
+
+#include <gmock/gmock.h>
+#include <grpcpp/security/credentials.h>
+#include <nlohmann/json.hpp>
+
+#include "grpc/health/v1/health.grpc.pb.h"
+#include "test_server.hpp"
+
+namespace geotraj::testing {
+namespace {
+
+using ::testing::HasSubstr;
+using HealthStatus = grpc::health::v1::HealthCheckResponse;
+
+std::unique_ptr<grpc::ClientContext> short_context(double seconds = 60.0) {
+  auto c = std::make_unique<grpc::ClientContext>();
+  c->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(static_cast<int>(seconds * 1e3)));
+  return c;
+}
+
+server::RunningServer start(server::ServerOptions options) {
+  if (options.address == "127.0.0.1:50051") options.address = "127.0.0.1:0";
+  if (options.log_output == nullptr) options.log_level = "warning";  // no line per call in the test output
+  auto started = server::start_server(options);
+  EXPECT_TRUE(started) << started.error();
+  return started ? std::move(*started) : server::RunningServer{};
+}
+
+std::unique_ptr<v1::TrajectoryService::Stub> stub_to(int port,
+                                                     std::shared_ptr<grpc::ChannelCredentials> creds = nullptr,
+                                                     const grpc::ChannelArguments& args = {}) {
+  return v1::TrajectoryService::NewStub(grpc::CreateCustomChannel(
+      "127.0.0.1:" + std::to_string(port), creds ? creds : grpc::InsecureChannelCredentials(), args));
+}
+
+HealthStatus::ServingStatus health(int port, const std::string& service) {
+  auto stub = grpc::health::v1::Health::NewStub(
+      grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials()));
+  grpc::health::v1::HealthCheckRequest request;
+  request.set_service(service);
+  HealthStatus response;
+  const auto status = stub->Check(short_context(10).get(), request, &response);
+  if (!status.ok()) return HealthStatus::UNKNOWN;
+  return response.status();
+}
+
+grpc::Status list_robots(v1::TrajectoryService::Stub& stub, const std::string& token = "") {
+  auto ctx = short_context();
+  if (!token.empty()) ctx->AddMetadata("authorization", "Bearer " + token);
+  v1::ListRobotsResponse response;
+  return stub.ListRobots(ctx.get(), {}, &response);
+}
+
+// A short motion along path A streamed at the cycle rate (real time), `seconds` long.
+v1::PlanRequest real_time_request(double seconds) {
+  auto request = demo_request('a');
+  request.mutable_motion()->set_duration_s(seconds);
+  request.set_pacing(v1::STREAM_PACING_REAL_TIME);
+  return request;
+}
+
+// Reads a whole stream; returns its status and counts the samples.
+grpc::Status read_stream(v1::TrajectoryService::Stub& stub, const v1::PlanRequest& request, std::size_t& samples,
+                         grpc::ClientContext& context) {
+  auto reader = stub.StreamSamples(&context, request);
+  v1::SampleBatch batch;
+  samples = 0;
+  while (reader->Read(&batch)) samples += static_cast<std::size_t>(batch.samples_size());
+  return reader->Finish();
+}
+
+// The value of one series in a Prometheus exposition (0 when absent).
+double series(const std::string& exposition, const std::string& name) {
+  std::istringstream lines(exposition);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind(name + " ", 0) == 0) return std::stod(line.substr(name.size() + 1));
+  }
+  return 0.0;
+}
+
+// Polls until `done` or ten seconds have passed.
+template <typename Done>
+bool eventually(Done done) {
+  for (int i = 0; i < 1000; ++i) {
+    if (done()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return done();
+}
+
+// ---- Bearer tokens --------------------------------------------------------------------
+
+class TokenTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() / ("geotraj_tokens_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir_);
+    std::ofstream(dir_ / "tokens") << "# operators\n"
+                                   << "planner-token-0123456789 plan\n"
+                                   << "\n"
+                                   << "cell-token-0123456789abc plan,stream\n";
+    server::ServerOptions options;
+    options.auth_tokens_file = (dir_ / "tokens").string();
+    options.auth_token = "environment-token-0123456789";
+    running_ = start(options);
+    stub_ = stub_to(running_.port);
+  }
+  void TearDown() override {
+    server::stop_server(running_, std::chrono::seconds(1));
+    std::filesystem::remove_all(dir_);
+  }
+
+  std::filesystem::path dir_;
+  server::RunningServer running_;
+  std::unique_ptr<v1::TrajectoryService::Stub> stub_;
+};
+
+TEST_F(TokenTest, RefusesCallsWithoutAValidToken) {
+  auto missing = list_robots(*stub_);
+  EXPECT_EQ(missing.error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_THAT(missing.error_message(), HasSubstr("authorization: Bearer"));
+  auto wrong = list_robots(*stub_, "planner-token-0123456780");
+  EXPECT_EQ(wrong.error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_THAT(wrong.error_message(), HasSubstr("not valid"));
+  auto ctx = short_context();
+  ctx->AddMetadata("authorization", "Basic planner-token-0123456789");
+  v1::ListRobotsResponse response;
+  EXPECT_EQ(stub_->ListRobots(ctx.get(), {}, &response).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+}
+
+TEST_F(TokenTest, AcceptsTokensFromTheFileAndTheEnvironment) {
+  EXPECT_TRUE(list_robots(*stub_, "planner-token-0123456789").ok());
+  EXPECT_TRUE(list_robots(*stub_, "cell-token-0123456789abc").ok());
+  EXPECT_TRUE(list_robots(*stub_, "environment-token-0123456789").ok());
+}
+
+TEST_F(TokenTest, ScopesLimitWhatATokenMayCall) {
+  auto request = demo_request('a');
+  request.mutable_motion()->set_duration_s(0.05);
+  std::size_t samples = 0;
+  auto planner = short_context();
+  planner->AddMetadata("authorization", "Bearer planner-token-0123456789");
+  const auto denied = read_stream(*stub_, request, samples, *planner);
+  EXPECT_EQ(denied.error_code(), grpc::StatusCode::PERMISSION_DENIED);
+  EXPECT_THAT(denied.error_message(), HasSubstr("scope `stream`"));
+  EXPECT_EQ(samples, 0u);
+  auto cell = short_context();
+  cell->AddMetadata("authorization", "bearer cell-token-0123456789abc");  // the scheme is case-insensitive
+  EXPECT_TRUE(read_stream(*stub_, request, samples, *cell).ok());
+  EXPECT_EQ(samples, 6u);
+  const auto exposition = server::metrics_exposition(running_);
+  EXPECT_EQ(series(exposition, R"(geotraj_rpc_rejected_total{method="StreamSamples",reason="permission_denied"})"), 1);
+}
+
+TEST_F(TokenTest, HealthAndReflectionNeedNoToken) {
+  EXPECT_EQ(health(running_.port, ""), HealthStatus::SERVING);
+  EXPECT_EQ(health(running_.port, server::kReadinessService), HealthStatus::SERVING);
+}
+
+TEST(TokenFile, ErrorsNameTheFileAndLineButNotTheToken) {
+  const auto path = std::filesystem::temp_directory_path() / ("geotraj_bad_tokens_" + std::to_string(::getpid()));
+  std::ofstream(path) << "good-token-0123456789\nsecret-token-0123456789 plan,drive\n";
+  server::ServerOptions options;
+  options.address = "127.0.0.1:0";
+  options.auth_tokens_file = path.string();
+  auto started = server::start_server(options);
+  ASSERT_FALSE(started);
+  EXPECT_THAT(started.error(), HasSubstr("line 2"));
+  EXPECT_THAT(started.error(), HasSubstr("\"drive\""));
+  EXPECT_THAT(started.error(), ::testing::Not(HasSubstr("secret-token")));
+  std::ofstream(path) << "short\n";
+  started = server::start_server(options);
+  ASSERT_FALSE(started);
+  EXPECT_THAT(started.error(), HasSubstr("at least 16 characters"));
+  std::filesystem::remove(path);
+}
+
+// ---- TLS --------------------------------------------------------------------------------
+
+// A CA, a server certificate for 127.0.0.1 and a client certificate, made by openssl.
+class TlsTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = std::filesystem::temp_directory_path() / ("geotraj_tls_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir_);
+    const std::string d = dir_.string();
+    std::ofstream(dir_ / "server.ext") << "subjectAltName=IP:127.0.0.1,DNS:localhost\n";
+    std::ofstream(dir_ / "client.ext") << "extendedKeyUsage=clientAuth\n";
+    const std::string ec = " -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes ";
+    const std::string script =
+        "cd " + d + " && openssl req -x509" + ec + "-keyout ca.key -out ca.pem -days 2 -subj /CN=geotraj-test-ca" +
+        " && openssl req" + ec + "-keyout server.key -out server.csr -subj /CN=localhost" +
+        " && openssl x509 -req -in server.csr -CA ca.pem -CAkey ca.key -CAcreateserial -out server.pem -days 2"
+        " -extfile server.ext" +
+        " && openssl req" + ec + "-keyout client.key -out client.csr -subj /CN=cell-7" +
+        " && openssl x509 -req -in client.csr -CA ca.pem -CAkey ca.key -CAcreateserial -out client.pem -days 2"
+        " -extfile client.ext" +
+        " && openssl req -x509" + ec + "-keyout other.key -out other.pem -days 2 -subj /CN=stranger";
+    ASSERT_EQ(std::system((script + " > openssl.log 2>&1").c_str()), 0) << "openssl failed, see " << d;
+  }
+  static void TearDownTestSuite() { std::filesystem::remove_all(dir_); }
+
+  static std::string file(const std::string& name) {
+    std::ifstream in(dir_ / name);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+  }
+  static server::ServerOptions tls_options(bool mutual) {
+    server::ServerOptions options;
+    options.tls.cert_file = (dir_ / "server.pem").string();
+    options.tls.key_file = (dir_ / "server.key").string();
+    if (mutual) options.tls.client_ca_file = (dir_ / "ca.pem").string();
+    return options;
+  }
+  static std::shared_ptr<grpc::ChannelCredentials> client(const std::string& cert = "", const std::string& key = "") {
+    grpc::SslCredentialsOptions ssl;
+    ssl.pem_root_certs = file("ca.pem");
+    if (!cert.empty()) {
+      ssl.pem_cert_chain = file(cert);
+      ssl.pem_private_key = file(key);
+    }
+    return grpc::SslCredentials(ssl);
+  }
+
+  static std::filesystem::path dir_;
+};
+std::filesystem::path TlsTest::dir_;
+
+TEST_F(TlsTest, ServesTlsAndNotPlaintext) {
+  auto running = start(tls_options(false));
+  EXPECT_TRUE(list_robots(*stub_to(running.port, client())).ok());
+  // A plaintext client cannot talk to a TLS port.
+  const auto plaintext = list_robots(*stub_to(running.port));
+  EXPECT_EQ(plaintext.error_code(), grpc::StatusCode::UNAVAILABLE);
+  server::stop_server(running, std::chrono::seconds(1));
+}
+
+TEST_F(TlsTest, MutualTlsNeedsACertificateTheCaSigned) {
+  auto running = start(tls_options(true));
+  EXPECT_TRUE(list_robots(*stub_to(running.port, client("client.pem", "client.key"))).ok());
+  EXPECT_EQ(list_robots(*stub_to(running.port, client())).error_code(), grpc::StatusCode::UNAVAILABLE);
+  EXPECT_EQ(list_robots(*stub_to(running.port, client("other.pem", "other.key"))).error_code(),
+            grpc::StatusCode::UNAVAILABLE);
+  server::stop_server(running, std::chrono::seconds(1));
+}
+
+TEST_F(TlsTest, TokensWorkOverTls) {
+  auto options = tls_options(false);
+  options.auth_token = "tls-token-0123456789abcdef";
+  auto running = start(options);
+  auto stub = stub_to(running.port, client());
+  EXPECT_EQ(list_robots(*stub).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_TRUE(list_robots(*stub, "tls-token-0123456789abcdef").ok());
+  server::stop_server(running, std::chrono::seconds(1));
+}
+
+TEST_F(TlsTest, StartupErrorsNameTheFile) {
+  auto options = tls_options(false);
+  options.address = "127.0.0.1:0";
+  options.tls.key_file = (dir_ / "missing.key").string();
+  auto started = server::start_server(options);
+  ASSERT_FALSE(started);
+  EXPECT_THAT(started.error(), HasSubstr("missing.key"));
+  options = tls_options(false);
+  options.address = "127.0.0.1:0";
+  options.tls.key_file.clear();
+  started = server::start_server(options);
+  ASSERT_FALSE(started);
+  EXPECT_THAT(started.error(), HasSubstr("--tls-key"));
+}
+
+TEST(Plaintext, OnlyLoopbackWithoutTheFlag) {
+  server::ServerOptions options;
+  options.address = "0.0.0.0:0";
+  auto refused = server::start_server(options);
+  ASSERT_FALSE(refused);
+  EXPECT_THAT(refused.error(), HasSubstr("--plaintext"));
+  options.plaintext = true;
+  auto running = server::start_server(options);
+  ASSERT_TRUE(running) << running.error();
+  EXPECT_TRUE(list_robots(*stub_to(running->port)).ok());
+  server::stop_server(*running, std::chrono::seconds(1));
+}
+
+// ---- Caps and limits --------------------------------------------------------------------
+
+TEST(Caps, StreamsBeyondTheCapAreResourceExhausted) {
+  server::ServerOptions options;
+  options.limits.max_streams = 2;
+  auto running = start(options);
+  auto stub = stub_to(running.port);
+  const auto request = real_time_request(1.5);
+  grpc::ClientContext c1, c2;
+  auto r1 = stub->StreamSamples(&c1, request);
+  auto r2 = stub->StreamSamples(&c2, request);
+  v1::SampleBatch batch;
+  ASSERT_TRUE(r1->Read(&batch));  // both streams are running
+  ASSERT_TRUE(r2->Read(&batch));
+  std::size_t samples = 0;
+  auto ctx = short_context();
+  const auto third = read_stream(*stub, request, samples, *ctx);
+  EXPECT_EQ(third.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(third.error_message(), HasSubstr("--max-streams"));
+  c1.TryCancel();
+  while (r1->Read(&batch)) {
+  }
+  EXPECT_EQ(r1->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  // The slot is free again once the cancelled stream is done on the server.
+  ASSERT_TRUE(eventually([&] { return series(server::metrics_exposition(running), "geotraj_active_streams") == 1; }));
+  auto again = short_context();
+  auto short_request = request;
+  short_request.mutable_motion()->set_duration_s(0.05);
+  EXPECT_TRUE(read_stream(*stub, short_request, samples, *again).ok());
+  c2.TryCancel();
+  while (r2->Read(&batch)) {
+  }
+  r2->Finish();
+  server::stop_server(running, std::chrono::seconds(1));
+}
+
+TEST(Caps, UnaryCallsBeyondTheCapAreResourceExhausted) {
+  server::ServerOptions options;
+  options.limits.max_unary_calls = 1;
+  auto running = start(options);
+  auto stub = stub_to(running.port);
+  // A breakpoint optimisation that runs for its whole budget keeps the one slot busy.
+  auto slow = example<v1::PlanRequest>("appendix_b_optimized.json");
+  slow.mutable_optimize()->set_time_budget_s(2.0);
+  auto busy = std::async(std::launch::async, [&] {
+    v1::PlanResponse response;
+    return stub->PlanTrajectory(short_context().get(), slow, &response);
+  });
+  ASSERT_TRUE(
+      eventually([&] { return series(server::metrics_exposition(running), "geotraj_active_unary_calls") == 1; }));
+  const auto refused = list_robots(*stub);
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(refused.error_message(), HasSubstr("--max-unary-calls"));
+  EXPECT_TRUE(busy.get().ok());
+  EXPECT_TRUE(list_robots(*stub).ok());
+  server::stop_server(running, std::chrono::seconds(1));
+}
+
+TEST(Limits, EachRefusalNamesItsLimit) {
+  server::ServerOptions options;
+  options.limits.max_frames = 3;
+  options.limits.max_stream_samples = 100;
+  options.limits.max_optimize_seconds = 0.5;
+  options.max_receive_message_bytes = 4096;
+  auto running = start(options);
+  auto stub = stub_to(running.port);
+
+  auto four_frames = demo_request('a');  // path A has 4 key frames
+  v1::PlanResponse plan;
+  auto status = stub->PlanTrajectory(short_context().get(), four_frames, &plan);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(violation_of(bad_request_violations(status), "path.frames"), HasSubstr("--max-frames"));
+
+  auto three = demo_request('a');
+  three.mutable_path()->mutable_frames()->DeleteSubrange(2, 1);
+  three.mutable_motion()->set_duration_s(2.0);  // 201 samples at 100 Hz
+  std::size_t samples = 0;
+  auto ctx = short_context();
+  status = read_stream(*stub, three, samples, *ctx);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(violation_of(bad_request_violations(status), "motion.durationS"), HasSubstr("--max-stream-samples"));
+  three.mutable_motion()->set_duration_s(0.5);  // 51 samples
+  ctx = short_context();
+  EXPECT_TRUE(read_stream(*stub, three, samples, *ctx).ok());
+  EXPECT_EQ(samples, 51u);
+
+  auto optimise = three;
+  optimise.mutable_optimize()->mutable_tangent_scales();
+  optimise.mutable_optimize()->set_time_budget_s(5.0);
+  status = stub->PlanTrajectory(short_context().get(), optimise, &plan);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(violation_of(bad_request_violations(status), "optimize.timeBudgetS"),
+              HasSubstr("--max-optimize-seconds"));
+
+  auto big = three;
+  for (int i = 0; i < 1000; ++i) big.mutable_robot()->mutable_initial_joints()->Add(0.0);
+  ASSERT_GT(big.ByteSizeLong(), 4096u);
+  status = stub->PlanTrajectory(short_context().get(), big, &plan);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  server::stop_server(running, std::chrono::seconds(1));
+}
+
+// ---- Drain, readiness, the health port --------------------------------------------------
+
+TEST(Drain, StreamsInFlightFinishWhileNewCallsAreRefused) {
+  server::ServerOptions options;
+  options.health_address = "127.0.0.1:0";
+  auto running = start(options);
+  ASSERT_GT(running.health_port, 0);
+  auto stub = stub_to(running.port);
+  const auto request = real_time_request(1.0);  // 101 samples over 1 s
+  grpc::ClientContext context;
+  auto reader = stub->StreamSamples(&context, request);
+  v1::SampleBatch batch;
+  ASSERT_TRUE(reader->Read(&batch));
+  std::size_t samples = static_cast<std::size_t>(batch.samples_size());
+
+  auto stopping = std::async(std::launch::async, [&] { server::stop_server(running, std::chrono::seconds(20)); });
+  ASSERT_TRUE(eventually([&] { return health(running.health_port, server::kReadinessService) == HealthStatus::NOT_SERVING; }));
+  EXPECT_EQ(health(running.port, ""), HealthStatus::NOT_SERVING);  // the main port still answers health
+  const auto refused = list_robots(*stub);
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::UNAVAILABLE);
+  EXPECT_THAT(refused.error_message(), HasSubstr("shutting down"));
+
+  while (reader->Read(&batch)) samples += static_cast<std::size_t>(batch.samples_size());
+  EXPECT_TRUE(reader->Finish().ok());
+  EXPECT_EQ(samples, 101u);
+  EXPECT_EQ(stopping.wait_for(std::chrono::seconds(10)), std::future_status::ready);
+}
+
+TEST(Drain, TheDrainTimeEndsLongStreams) {
+  auto running = start(server::ServerOptions{});
+  auto stub = stub_to(running.port);
+  grpc::ClientContext context;
+  auto reader = stub->StreamSamples(&context, real_time_request(10.0));
+  v1::SampleBatch batch;
+  ASSERT_TRUE(reader->Read(&batch));
+  const auto before = std::chrono::steady_clock::now();
+  server::stop_server(running, std::chrono::milliseconds(300));
+  EXPECT_LT(std::chrono::steady_clock::now() - before, std::chrono::seconds(5));
+  while (reader->Read(&batch)) {
+  }
+  EXPECT_FALSE(reader->Finish().ok());
+}
+
+TEST(Health, ReadinessAndTheHealthOnlyPort) {
+  server::ServerOptions options;
+  options.health_address = "127.0.0.1:0";
+  auto running = start(options);
+  for (int port : {running.port, running.health_port}) {
+    EXPECT_EQ(health(port, ""), HealthStatus::SERVING);
+    EXPECT_EQ(health(port, server::kServiceName), HealthStatus::SERVING);
+    EXPECT_EQ(health(port, server::kReadinessService), HealthStatus::SERVING);
+  }
+  // The health port serves health only.
+  EXPECT_EQ(list_robots(*stub_to(running.health_port)).error_code(), grpc::StatusCode::UNIMPLEMENTED);
+  server::stop_server(running, std::chrono::seconds(1));
+}
+
+// ---- Request ids, logs, metrics ---------------------------------------------------------
+
+std::string http_get(int port, const std::string& path) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<std::uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) {
+    ::close(fd);
+    return "";
+  }
+  const std::string request = "GET " + path + " HTTP/1.1\r\nHost: localhost\r\n\r\n";
+  (void)!::write(fd, request.data(), request.size());
+  std::string response;
+  char buffer[4096];
+  for (ssize_t n; (n = ::read(fd, buffer, sizeof buffer)) > 0;) response.append(buffer, static_cast<std::size_t>(n));
+  ::close(fd);
+  return response;
+}
+
+TEST(Observability, RequestIdsLogsAndMetrics) {
+  std::FILE* log = std::tmpfile();
+  ASSERT_NE(log, nullptr);
+  server::ServerOptions options;
+  options.log_format = "json";
+  options.log_output = log;
+  options.metrics_address = "127.0.0.1:0";
+  auto running = start(options);
+  ASSERT_GT(running.metrics_port, 0);
+  auto stub = stub_to(running.port);
+
+  grpc::ClientContext given;
+  given.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
+  given.AddMetadata("x-request-id", "cell7-run42.a");
+  v1::PlanResponse plan;
+  ASSERT_TRUE(stub->PlanTrajectory(&given, demo_request('a'), &plan).ok());
+  EXPECT_EQ(given.GetServerInitialMetadata().find("x-request-id")->second, "cell7-run42.a");
+  grpc::ClientContext fresh;
+  fresh.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
+  auto bad = demo_request('a');
+  bad.mutable_path()->mutable_frames(1)->set_curvature(-1.0);
+  EXPECT_EQ(stub->PlanTrajectory(&fresh, bad, &plan).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  const auto generated = fresh.GetServerInitialMetadata().find("x-request-id");
+  ASSERT_NE(generated, fresh.GetServerInitialMetadata().end());
+  const std::string generated_id(generated->second.data(), generated->second.size());
+  EXPECT_EQ(generated_id.size(), 16u);
+  auto stream = demo_request('a');
+  stream.mutable_motion()->set_duration_s(1.0);
+  std::size_t samples = 0;
+  auto ctx = short_context();
+  ASSERT_TRUE(read_stream(*stub, stream, samples, *ctx).ok());
+
+  const std::string response = http_get(running.metrics_port, "/metrics");
+  EXPECT_THAT(response, HasSubstr("200 OK"));
+  EXPECT_EQ(series(response, R"(geotraj_rpc_calls_total{method="PlanTrajectory",code="OK"})"), 1);
+  EXPECT_EQ(series(response, R"(geotraj_rpc_calls_total{method="PlanTrajectory",code="INVALID_ARGUMENT"})"), 1);
+  EXPECT_EQ(series(response, R"(geotraj_rpc_calls_total{method="StreamSamples",code="OK"})"), 1);
+  EXPECT_EQ(series(response, "geotraj_samples_streamed_total"), 101);
+  EXPECT_EQ(series(response, "geotraj_active_streams"), 0);
+  server::stop_server(running, std::chrono::seconds(1));
+
+  // One JSON object per line; each call's line carries its request id, method and code.
+  std::rewind(log);
+  std::vector<nlohmann::json> calls;
+  char line[8192];
+  while (std::fgets(line, sizeof line, log)) {
+    const auto event = nlohmann::json::parse(line);
+    if (event.at("msg") == "call") calls.push_back(event);
+  }
+  std::fclose(log);
+  ASSERT_EQ(calls.size(), 3u);
+  EXPECT_EQ(calls[0].at("request_id"), "cell7-run42.a");
+  EXPECT_EQ(calls[0].at("method"), "PlanTrajectory");
+  EXPECT_EQ(calls[0].at("code"), "OK");
+  EXPECT_EQ(calls[1].at("request_id"), generated_id);
+  EXPECT_EQ(calls[1].at("code"), "INVALID_ARGUMENT");
+  EXPECT_THAT(calls[1].at("error").get<std::string>(), HasSubstr("path.frames[1].curvature"));
+  EXPECT_EQ(calls[2].at("method"), "StreamSamples");
+  EXPECT_EQ(calls[2].at("samples"), 101);
+}
+
+// ---- Connections ------------------------------------------------------------------------
+
+TEST(Connections, AStreamOutlivesTheMaximumConnectionAgeWithinItsGrace) {
+  server::ServerOptions options;
+  options.connections.max_connection_age_s = 0.5;
+  options.connections.max_connection_age_grace_s = 10.0;
+  auto running = start(options);
+  auto stub = stub_to(running.port);
+  std::size_t samples = 0;
+  auto ctx = short_context();
+  EXPECT_TRUE(read_stream(*stub, real_time_request(1.5), samples, *ctx).ok());
+  EXPECT_EQ(samples, 151u);
+  // The aged connection was closed; the channel reconnects for the next call.
+  EXPECT_TRUE(list_robots(*stub).ok());
+  server::stop_server(running, std::chrono::seconds(1));
+}
+
+}  // namespace
+}  // namespace geotraj::testing

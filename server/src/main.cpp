@@ -19,8 +19,8 @@ constexpr const char* kFooter = R"(Environment only (secrets do not belong on a 
 Health (grpc.health.v1.Health): "" and "geotraj.v1.TrajectoryService" are SERVING while
 the process serves (liveness); "geotraj.readiness" once the warm-up plan has run, and
 NOT_SERVING from the first moment of a shutdown. On SIGTERM or SIGINT: health turns
-NOT_SERVING, new calls get UNAVAILABLE, calls in flight may finish for --drain-seconds,
-then the rest are cancelled and the process exits 0.
+NOT_SERVING, new calls get UNAVAILABLE (for --lame-duck-seconds at least), calls in flight
+may finish for --drain-seconds, then the rest are cancelled and the process exits 0.
 
 Refusals name their limit: RESOURCE_EXHAUSTED beyond --max-streams / --max-unary-calls,
 INVALID_ARGUMENT beyond --max-frames, --max-stream-samples, --max-optimize-seconds,
@@ -32,6 +32,7 @@ Documentation: docs/deploy.md, docs/reliability.md.)";
 int main(int argc, char** argv) {
   geotraj::server::ServerOptions options;
   double drain_s = 30.0;
+  double lame_duck_s = 1.0;
   CLI::App app{"geotrajd: the geotraj trajectory service (gRPC). Every flag also reads the environment "
                "variable named beside it; a flag on the command line wins."};
   app.footer(kFooter);
@@ -142,6 +143,14 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->group("Connections");
 
+  app.add_option("--lame-duck-seconds", lame_duck_s,
+                 "after SIGTERM/SIGINT, refuse new calls (UNAVAILABLE, retried elsewhere by clients) for at least "
+                 "this long [s] even when none is in flight, so clients see NOT_SERVING before connections close")
+      ->envname("GEOTRAJ_LAME_DUCK_SECONDS")
+      ->check(CLI::Range(0.0, 3600.0))
+      ->capture_default_str()
+      ->group("Connections");
+
   // Logs and models.
   app.add_option("--log-format", options.log_format, "text or json (one object per line)")
       ->envname("GEOTRAJ_LOG_FORMAT")
@@ -195,7 +204,8 @@ int main(int argc, char** argv) {
   std::printf("geotrajd: %s received, draining (up to %.3g s)\n", name, drain_s);
   std::fflush(stdout);
   geotraj::server::log_info(*running, "draining", {{"signal", name}, {"drain_seconds", std::to_string(drain_s)}});
-  geotraj::server::stop_server(*running, std::chrono::milliseconds(static_cast<long long>(drain_s * 1000.0)));
+  geotraj::server::stop_server(*running, std::chrono::milliseconds(static_cast<long long>(drain_s * 1000.0)),
+                               std::chrono::milliseconds(static_cast<long long>(lame_duck_s * 1000.0)));
   geotraj::server::log_info(*running, "stopped");
   return 0;
 }

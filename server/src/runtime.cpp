@@ -119,16 +119,26 @@ Call::Call(Runtime& runtime, grpc::CallbackServerContext& context, Method method
   } else {
     request_id_ = new_request_id();
   }
-  context.AddInitialMetadata("x-request-id", request_id_);
-
   const bool streaming = method == Method::kStreamSamples;
   const auto name = method_name(method);
+  admit(context, streaming, name);
+  // A refusal is answered with trailers only (no initial metadata), so that a client may
+  // retry it transparently elsewhere (UNAVAILABLE while draining); the id goes with it.
+  if (refusal_) {
+    context.AddTrailingMetadata("x-request-id", request_id_);
+  } else {
+    context.AddInitialMetadata("x-request-id", request_id_);
+  }
+}
+
+void Call::admit(const grpc::CallbackServerContext& context, bool streaming, std::string_view name) {
+  Runtime& runtime = *runtime_;
   if (runtime.draining()) {
     runtime.metrics().rejected(name, "draining");
     refusal_ = grpc::Status(grpc::StatusCode::UNAVAILABLE, "the server is shutting down: retry on another replica");
     return;
   }
-  if (auto denied = runtime.tokens().check(context, method)) {
+  if (auto denied = runtime.tokens().check(context, method_)) {
     runtime.metrics().rejected(
         name, denied->error_code() == grpc::StatusCode::PERMISSION_DENIED ? "permission_denied" : "unauthenticated");
     refusal_ = std::move(denied);

@@ -108,6 +108,9 @@ class Call {
   Runtime& runtime() const { return *runtime_; }
 
  private:
+  // Sets refusal_, or counts the call in flight (admitted_).
+  void admit(const grpc::CallbackServerContext& context, bool streaming, std::string_view name);
+
   Runtime* runtime_;
   Method method_;
   std::string request_id_;

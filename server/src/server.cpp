@@ -226,15 +226,21 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
   return running;
 }
 
-void stop_server(RunningServer& running, std::chrono::milliseconds drain) {
+void stop_server(RunningServer& running, std::chrono::milliseconds drain, std::chrono::milliseconds lame_duck) {
   if (!running.server) return;
+  const auto began = std::chrono::steady_clock::now();
   running.runtime->start_draining();
   set_health(running, nullptr, false);
   set_health(running, kServiceName, false);
   set_health(running, kReadinessService, false);
   // New calls are refused (UNAVAILABLE) from now on; those in flight may finish.
-  const auto until = std::chrono::steady_clock::now() + drain;
-  while (running.runtime->calls_in_flight() > 0 && std::chrono::steady_clock::now() < until) {
+  // The lame duck: even with no call in flight, keep refusing (UNAVAILABLE, which clients
+  // retry elsewhere) while clients and load balancers see NOT_SERVING; calls that reach a
+  // server that has begun its shutdown would be CANCELLED instead.
+  const auto until = began + drain;
+  const auto refuse_until = began + std::min(lame_duck, drain);
+  while ((running.runtime->calls_in_flight() > 0 || std::chrono::steady_clock::now() < refuse_until) &&
+         std::chrono::steady_clock::now() < until) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   const int left = running.runtime->calls_in_flight();

@@ -284,6 +284,30 @@ TEST_F(TlsTest, StartupErrorsNameTheFile) {
   EXPECT_THAT(started.error(), HasSubstr("--tls-key"));
 }
 
+// The CLI as an operator uses it: CA, client certificate and a token from the environment.
+TEST_F(TlsTest, TheCliSpeaksMutualTlsWithAToken) {
+  auto options = tls_options(true);
+  options.auth_token = "cli-token-0123456789abcdef";
+  auto running = start(options);
+  const std::string cli = std::string(GEOTRAJ_CLI) + " --server 127.0.0.1:" + std::to_string(running.port) +
+                          " --tls-ca " + (dir_ / "ca.pem").string() + " --tls-cert " + (dir_ / "client.pem").string() +
+                          " --tls-key " + (dir_ / "client.key").string() + " robots";
+  const auto run = [](const std::string& command) {
+    std::string out;
+    std::FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+    char buffer[4096];
+    while (std::fgets(buffer, sizeof buffer, pipe)) out += buffer;
+    return std::make_pair(::pclose(pipe), out);
+  };
+  const auto [denied, denied_out] = run(cli);
+  EXPECT_NE(denied, 0);
+  EXPECT_THAT(denied_out, HasSubstr("UNAUTHENTICATED"));
+  const auto [ok, ok_out] = run("GEOTRAJ_TOKEN=cli-token-0123456789abcdef " + cli);
+  EXPECT_EQ(ok, 0) << ok_out;
+  EXPECT_THAT(ok_out, HasSubstr("pa10"));
+  server::stop_server(running, std::chrono::seconds(1));
+}
+
 TEST(Plaintext, OnlyLoopbackWithoutTheFlag) {
   server::ServerOptions options;
   options.address = "0.0.0.0:0";

@@ -115,9 +115,12 @@ struct RunningServer {
 tl::expected<RunningServer, std::string> start_server(const ServerOptions& options);
 
 /// Graceful shutdown: health turns NOT_SERVING on every name, new calls are refused with
-/// UNAVAILABLE, and calls in flight may finish until `drain` has passed; then the server
-/// shuts down, cancelling what is left.
-void stop_server(RunningServer& running, std::chrono::milliseconds drain);
+/// UNAVAILABLE (trailers only, so clients retry them elsewhere), and calls in flight may
+/// finish until `drain` has passed; new calls are refused for `lame_duck` at least (at most
+/// `drain`), so that clients and load balancers move away before the server closes its
+/// connections. Then the server shuts down, cancelling what is left.
+void stop_server(RunningServer& running, std::chrono::milliseconds drain,
+                 std::chrono::milliseconds lame_duck = std::chrono::milliseconds(0));
 
 /// The Prometheus text exposition of the server's metrics.
 std::string metrics_exposition(const RunningServer& running);

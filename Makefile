@@ -1,6 +1,8 @@
 # The two commands of the README: `make demo` and `make test`.
 BUILD_DIR ?= build
 ASAN_DIR  ?= build-asan
+FUZZ_DIR  ?= build-fuzz
+FUZZ_SECONDS ?= 45
 JOBS      ?= $(shell nproc)
 CMAKE_FLAGS ?=
 
@@ -28,6 +30,11 @@ sanitize: deps
 	cd $(ASAN_DIR) && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
 	  ctest --output-on-failure -j $(JOBS) -LE slow
 
+# libFuzzer targets (clang, ASan+UBSan) on the service's request parsing, validation and
+# planning: the regression inputs, then FUZZ_SECONDS per target (docs/reliability.md).
+fuzz: deps
+	bash scripts/fuzz.sh $(FUZZ_DIR) $(FUZZ_SECONDS)
+
 bench: build
 	bash scripts/bench.sh $(BUILD_DIR)
 
@@ -36,4 +43,4 @@ image:
 	docker build -f deploy/Dockerfile -t geotraj:dev .
 
 clean:
-	rm -rf $(BUILD_DIR) $(ASAN_DIR) out
+	rm -rf $(BUILD_DIR) $(ASAN_DIR) $(FUZZ_DIR) out

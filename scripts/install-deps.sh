@@ -17,6 +17,7 @@ packages=(
   openssl                             # test certificates for TLS and mutual TLS
   prometheus                          # promtool checks the metrics exposition and alert rules
   yamllint python3-yaml nginx         # deploy/ checks, and the nginx grpc_pass load-balancing test
+  clang libclang-rt-14-dev            # the libFuzzer targets (make fuzz)
 )
 
 # Node.js and npm run the Node interop test and buf (from the npm registry); a machine that

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include <gmock/gmock.h>
+#include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/security/credentials.h>
 #include <nlohmann/json.hpp>
 
@@ -560,6 +561,59 @@ TEST(Observability, RequestIdsLogsAndMetrics) {
   EXPECT_THAT(calls[1].at("error").get<std::string>(), HasSubstr("path.frames[1].curvature"));
   EXPECT_EQ(calls[2].at("method"), "StreamSamples");
   EXPECT_EQ(calls[2].at("samples"), 101);
+}
+
+// ---- Malformed requests ------------------------------------------------------------------
+
+// Bytes that are not a request are the service's INVALID_ARGUMENT, counted like any call.
+TEST(Malformed, BytesThatAreNotARequestAreInvalidArgument) {
+  auto running = start(server::ServerOptions{});
+  auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(running.port), grpc::InsecureChannelCredentials());
+  grpc::GenericStub generic(channel);
+  const char garbage[] = {'\x0a', '\x7f', '\x01'};  // field 1, length 127, one byte given
+  grpc::Slice slice(garbage, sizeof garbage);
+  const grpc::ByteBuffer bytes(&slice, 1);
+  for (const char* method : {"/geotraj.v1.TrajectoryService/PlanTrajectory",
+                             "/geotraj.v1.TrajectoryService/AnalyzePath",
+                             "/geotraj.v1.TrajectoryService/ConvertConstraints"}) {
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
+    std::promise<grpc::Status> done;
+    grpc::ByteBuffer response;
+    generic.UnaryCall(&context, method, grpc::StubOptions(), &bytes, &response,
+                      [&done](grpc::Status status) { done.set_value(std::move(status)); });
+    const auto status = done.get_future().get();
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << method;
+    EXPECT_THAT(status.error_message(), HasSubstr("protobuf wire format")) << method;
+    EXPECT_EQ(bad_request_violations(status).size(), 1u) << method;
+  }
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
+  grpc::CompletionQueue queue;
+  auto reader = generic.PrepareCall(&context, "/geotraj.v1.TrajectoryService/StreamSamples", &queue);
+  reader->StartCall(reinterpret_cast<void*>(1));
+  void* tag = nullptr;
+  bool ok = false;
+  ASSERT_TRUE(queue.Next(&tag, &ok));
+  reader->Write(bytes, grpc::WriteOptions().set_last_message(), reinterpret_cast<void*>(2));
+  ASSERT_TRUE(queue.Next(&tag, &ok));
+  grpc::ByteBuffer batch;
+  reader->Read(&batch, reinterpret_cast<void*>(3));
+  ASSERT_TRUE(queue.Next(&tag, &ok));
+  EXPECT_FALSE(ok);  // no batch
+  grpc::Status status;
+  reader->Finish(&status, reinterpret_cast<void*>(4));
+  ASSERT_TRUE(queue.Next(&tag, &ok));
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  const auto exposition = server::metrics_exposition(running);
+  EXPECT_EQ(series(exposition, R"(geotraj_rpc_calls_total{method="PlanTrajectory",code="INVALID_ARGUMENT"})"), 1);
+  EXPECT_EQ(series(exposition, R"(geotraj_rpc_calls_total{method="StreamSamples",code="INVALID_ARGUMENT"})"), 1);
+  // And the server goes on serving.
+  EXPECT_TRUE(list_robots(*stub_to(running.port)).ok());
+  queue.Shutdown();
+  while (queue.Next(&tag, &ok)) {
+  }
+  server::stop_server(running, std::chrono::seconds(1));
 }
 
 // ---- Connections ------------------------------------------------------------------------

@@ -1,0 +1,76 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (clang, ASan + UBSan, coverage on all geotraj code) and runs
+# each for a while on a copy of its seed corpus; fails on any crash, timeout, leak or
+# out-of-memory. docs/reliability.md, "Fuzzing".
+#
+#   scripts/fuzz.sh [BUILD_DIR] [SECONDS_PER_TARGET]     (defaults: build-fuzz, 45)
+#
+# Environment:
+#   FUZZ_TARGETS     the targets to run (default: all four)
+#   FUZZ_JOBS        build parallelism (default: nproc)
+#   FUZZ_FORK        >0: run each target with -fork=N (N processes; a long job on a big machine)
+#   FUZZ_KEEP_CORPUS 1: keep growing BUILD_DIR/fuzz-corpus/<target> across runs instead of
+#                    starting again from the seeds
+#   FUZZ_NO_BUILD    1: use the binaries already in BUILD_DIR
+#   FUZZ_TIMEOUT     libFuzzer's -timeout per input [s] (default 10)
+#   FUZZ_SKIP_REGRESSIONS 1: do not replay tests/fuzz/regressions first
+# The harness reads GEOTRAJ_FUZZ_TRACE and GEOTRAJ_FUZZ_SERVER_GRACE_S (tests/fuzz/harness.hpp).
+#
+# Artifacts (crash-*, timeout-*, leak-*, oom-*) go to BUILD_DIR/fuzz-artifacts/<target>/,
+# logs to BUILD_DIR/fuzz-logs/<target>.log. Replay one: BUILD_DIR/tests/fuzz/<target> FILE.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+build_dir="${1:-build-fuzz}"
+seconds="${2:-45}"
+targets="${FUZZ_TARGETS:-fuzz_plan_request fuzz_plan_request_json fuzz_convert fuzz_robot_model_json}"
+jobs="${FUZZ_JOBS:-$(nproc)}"
+fork="${FUZZ_FORK:-0}"
+timeout="${FUZZ_TIMEOUT:-10}"
+
+if [ "${FUZZ_NO_BUILD:-0}" != 1 ]; then
+  # Debug: assertions (Eigen's bounds checks included) stay on; GEOTRAJ_SANITIZE builds at -O1.
+  cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_COMPILER=clang++ \
+    -DGEOTRAJ_BUILD_FUZZ=ON -DGEOTRAJ_SANITIZE=ON -DGEOTRAJ_BUILD_TESTS=OFF -DGEOTRAJ_BUILD_BENCH=OFF >/dev/null
+  cmake --build "$build_dir" -j "$jobs" --target $targets fuzz_seeds
+fi
+
+bin="$build_dir/tests/fuzz"
+export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
+export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
+
+status=0
+for target in $targets; do
+  corpus="$build_dir/fuzz-corpus/$target"
+  artifacts="$build_dir/fuzz-artifacts/$target"
+  log="$build_dir/fuzz-logs/$target.log"
+  if [ "${FUZZ_KEEP_CORPUS:-0}" != 1 ]; then rm -rf "$corpus"; fi
+  mkdir -p "$corpus" "$artifacts" "$(dirname "$log")"
+  cp -n "$bin/seeds/$target/"* "$corpus/" 2>/dev/null || true  # a copy: fuzzing adds to it
+
+  # Known findings first: each file of tests/fuzz/regressions/<target>/ must pass now.
+  regressions="tests/fuzz/regressions/$target"
+  if [ "${FUZZ_SKIP_REGRESSIONS:-0}" != 1 ] && compgen -G "$regressions/*" >/dev/null; then
+    echo "== $target: replaying $regressions"
+    if ! "$bin/$target" -timeout="$timeout" -rss_limit_mb=2048 "$regressions"/* >"$log.regressions" 2>&1; then
+      echo "FAIL $target: a regression input fails again; see $log.regressions" >&2
+      status=1
+      continue
+    fi
+  fi
+
+  args=(-max_total_time="$seconds" -timeout="$timeout" -rss_limit_mb=2048 -max_len=65536 -print_final_stats=1
+        -artifact_prefix="$artifacts/")
+  if [ -f "$bin/$target.dict" ]; then args+=(-dict="$bin/$target.dict"); fi
+  if [ "$fork" -gt 0 ]; then args+=(-fork="$fork" -ignore_crashes=0 -ignore_timeouts=0 -ignore_ooms=0); fi
+  echo "== $target: ${seconds} s on $(ls "$corpus" | wc -l) inputs"
+  if "$bin/$target" "${args[@]}" "$corpus" >"$log" 2>&1; then
+    grep -E "^stat::number_of_executed_units|^stat::average_exec_per_sec|^stat::peak_rss_mb" "$log" | tr '\n' ' '
+    grep -oE "cov: [0-9]+ ft: [0-9]+ corp: [0-9]+/[^ ]+" "$log" | tail -1
+  else
+    echo "FAIL $target: see $log; artifacts in $artifacts" >&2
+    grep -E "ERROR: |==== geotraj fuzz check failed|SUMMARY|Test unit written" "$log" | head -8 >&2 || true
+    status=1
+  fi
+done
+exit $status

@@ -1,0 +1,191 @@
+// fuzz_seed_tool OUT_DIR EXAMPLES_DIR EXTRA_DIR: the fuzz targets' seed corpora and
+// dictionaries, made at build time so that they follow every change of the API:
+//
+//   OUT_DIR/seeds/fuzz_plan_request/       every EXAMPLES_DIR/*.json that is a PlanRequest, binary
+//   OUT_DIR/seeds/fuzz_plan_request_json/  the same files as they are (proto3 JSON)
+//   OUT_DIR/seeds/fuzz_convert/            every one that is a ConvertRequest, binary
+//   OUT_DIR/seeds/fuzz_robot_model_json/   the built-in robot models and every request's
+//                                          robot.model, as robot model files (proto3 JSON)
+//   OUT_DIR/<target>.dict                  for the JSON targets: every field name (JSON and
+//                                          proto spelling) and enum value of the messages,
+//                                          and the JSON tokens of proto3's special numbers
+//
+// EXTRA_DIR/<target>/ holds hand-written seeds (tests/fuzz/corpus): added as they are to the
+// JSON targets; for the binary targets a *.json file is converted, any other file is copied.
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/util/json_util.h>
+
+#include "convert.hpp"
+#include "geotraj/core/robot.hpp"
+#include "geotraj/v1/geotraj.pb.h"
+
+namespace fs = std::filesystem;
+namespace pb = google::protobuf;
+
+namespace {
+
+std::string read(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+void write(const fs::path& file, const std::string& bytes) {
+  fs::create_directories(file.parent_path());
+  std::ofstream out(file, std::ios::binary);
+  out << bytes;
+  if (!out) {
+    std::fprintf(stderr, "fuzz_seed_tool: cannot write %s\n", file.c_str());
+    std::exit(1);
+  }
+}
+
+template <class M>
+bool parse_json(const std::string& text, M& message) {
+  return pb::util::JsonStringToMessage(text, &message).ok();
+}
+
+std::string to_json(const pb::Message& message) {
+  std::string json;
+  pb::util::JsonPrintOptions options;
+  options.add_whitespace = true;
+  (void)pb::util::MessageToJsonString(message, &json, options);
+  return json;
+}
+
+std::vector<fs::path> files_in(const fs::path& dir, bool json_only) {
+  std::vector<fs::path> files;
+  if (!fs::is_directory(dir)) return files;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    if (!entry.is_regular_file()) continue;
+    if (json_only && entry.path().extension() != ".json") continue;
+    files.push_back(entry.path());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+// Field names and enum values reachable from `descriptor`.
+void collect_tokens(const pb::Descriptor* descriptor, std::set<const pb::Descriptor*>& seen,
+                    std::set<std::string>& tokens) {
+  if (!seen.insert(descriptor).second) return;
+  for (int i = 0; i < descriptor->field_count(); ++i) {
+    const pb::FieldDescriptor* field = descriptor->field(i);
+    tokens.insert("\"" + field->json_name() + "\"");
+    tokens.insert("\"" + field->name() + "\"");
+    if (const auto* e = field->enum_type()) {
+      for (int v = 0; v < e->value_count(); ++v) tokens.insert("\"" + e->value(v)->name() + "\"");
+    }
+    if (const auto* m = field->message_type()) collect_tokens(m, seen, tokens);
+  }
+}
+
+void write_dictionary(const fs::path& file, const pb::Descriptor* root) {
+  std::set<const pb::Descriptor*> seen;
+  std::set<std::string> tokens{"\"NaN\"",  "\"Infinity\"", "\"-Infinity\"", "1e308", "-1e308", "4.9e-324", "1e-300",
+                               "true",     "false",        "null",           "[]",    "{}",     ":",        ",",
+                               "\"1e400\"", "-0",          "2147483647",     "4294967295", "18446744073709551615"};
+  collect_tokens(root, seen, tokens);
+  std::string text = "# libFuzzer dictionary for " + root->full_name() + " in proto3 JSON (made by fuzz_seed_tool)\n";
+  for (const auto& token : tokens) {
+    std::string escaped;
+    for (char c : token) {
+      if (c == '"' || c == '\\') escaped += '\\';
+      escaped += c;
+    }
+    text += "\"" + escaped + "\"\n";
+  }
+  write(file, text);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 4) {
+    std::fprintf(stderr, "usage: fuzz_seed_tool OUT_DIR EXAMPLES_DIR EXTRA_DIR\n");
+    return 2;
+  }
+  const fs::path out = argv[1];
+  const fs::path examples = argv[2];
+  const fs::path extra = argv[3];
+  const fs::path seeds = out / "seeds";
+  int counts[4] = {0, 0, 0, 0};
+
+  // The documented example requests.
+  for (const auto& file : files_in(examples, true)) {
+    const std::string text = read(file);
+    const std::string stem = file.stem().string();
+    geotraj::v1::PlanRequest plan;
+    if (parse_json(text, plan)) {
+      write(seeds / "fuzz_plan_request_json" / (stem + ".json"), text);
+      write(seeds / "fuzz_plan_request" / (stem + ".bin"), plan.SerializeAsString());
+      counts[0]++;
+      counts[1]++;
+      if (plan.robot().has_model()) {
+        write(seeds / "fuzz_robot_model_json" / (stem + "_robot.json"), to_json(plan.robot().model()));
+        counts[3]++;
+      }
+    }
+    geotraj::v1::ConvertRequest convert;
+    if (parse_json(text, convert)) {
+      write(seeds / "fuzz_convert" / (stem + ".bin"), convert.SerializeAsString());
+      counts[2]++;
+    } else if (plan.has_path()) {  // the path of a PlanRequest is a ConvertRequest's as well
+      *convert.mutable_path() = plan.path();
+      write(seeds / "fuzz_convert" / (stem + "_path.bin"), convert.SerializeAsString());
+      counts[2]++;
+    }
+  }
+  // The built-in robot models, in the form of a robot model file.
+  for (const auto& model : geotraj::core::builtin_robots()) {
+    geotraj::v1::RobotModel wire;
+    geotraj::server::to_proto(model, wire);
+    write(seeds / "fuzz_robot_model_json" / ("builtin_" + model.name + ".json"), to_json(wire));
+    counts[3]++;
+  }
+  // Hand-written seeds.
+  for (const auto& file : files_in(extra / "fuzz_plan_request_json", false)) {
+    write(seeds / "fuzz_plan_request_json" / file.filename(), read(file));
+    counts[1]++;
+  }
+  for (const auto& file : files_in(extra / "fuzz_robot_model_json", false)) {
+    write(seeds / "fuzz_robot_model_json" / file.filename(), read(file));
+    counts[3]++;
+  }
+  for (const char* target : {"fuzz_plan_request", "fuzz_convert"}) {
+    const bool is_plan = std::string(target) == "fuzz_plan_request";
+    for (const auto& file : files_in(extra / target, false)) {
+      std::string bytes = read(file);
+      if (file.extension() == ".json") {
+        geotraj::v1::PlanRequest plan;
+        geotraj::v1::ConvertRequest convert;
+        const bool ok = is_plan ? parse_json(bytes, plan) : parse_json(bytes, convert);
+        if (!ok) {
+          std::fprintf(stderr, "fuzz_seed_tool: %s is not a %s in proto3 JSON\n", file.c_str(),
+                       is_plan ? "PlanRequest" : "ConvertRequest");
+          return 1;
+        }
+        bytes = is_plan ? plan.SerializeAsString() : convert.SerializeAsString();
+      }
+      write(seeds / target / (file.stem().string() + ".bin"), bytes);
+      counts[is_plan ? 0 : 2]++;
+    }
+  }
+  write_dictionary(out / "fuzz_plan_request_json.dict", geotraj::v1::PlanRequest::descriptor());
+  write_dictionary(out / "fuzz_robot_model_json.dict", geotraj::v1::RobotModel::descriptor());
+  std::printf("fuzz_seed_tool: seeds: %d fuzz_plan_request, %d fuzz_plan_request_json, %d fuzz_convert, "
+              "%d fuzz_robot_model_json\n",
+              counts[0], counts[1], counts[2], counts[3]);
+  return 0;
+}

@@ -1,10 +1,14 @@
 // Time-optimal timing of the PA-10 along the thesis's demo path C: the exact sweep given the
 // grid data (100 and 1,000 grid intervals per portion), the grid construction (IK at every
-// grid point), and the jerk-limited Ipopt solve (100 and 1,000 intervals; joint jerk limits
-// of 4 a_max; counters: iterations, its duration and the exact one [s]). Per-portion figures;
+// grid point), and the jerk-limited NLP (100 and 1,000 intervals; joint jerk limits of
+// 4 a_max; counters: iterations, its duration and the exact one [s]) with the default solver
+// (BM_JerkNlp: the banded interior point method, Ipopt only as its fallback) and with Ipopt
+// forced (BM_JerkNlpIpopt, JerkSolver::kIpopt). Per-portion figures;
 // demo path C has two portions (a cusp at frame 2). BM_JerkPlan: the whole jerk-limited plan
 // end to end (grids, exact sweep with its sample check, the NLP on both portions, the sample
 // check of the result and its re-solves; 200 intervals per portion, 100 Hz).
+#include <string>
+
 #include <benchmark/benchmark.h>
 
 #include "geotraj/core/orientation.hpp"
@@ -57,7 +61,7 @@ void BM_Grid(benchmark::State& state) {
 }
 BENCHMARK(BM_Grid)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond);
 
-void BM_JerkNlp(benchmark::State& state) {
+void jerk_nlp(benchmark::State& state, optim::JerkSolver solver) {
   const auto grids = setup().grids(static_cast<std::size_t>(state.range(0)));
   core::RobotModel robot = setup().robot;
   const auto lim = core::time_optimal_limits(core::MotionSpec{}, &robot);
@@ -66,6 +70,7 @@ void BM_JerkNlp(benchmark::State& state) {
   opt.joint_jerk.resize(7);
   for (int j = 0; j < 7; ++j) opt.joint_jerk(j) = 4.0 * lim.joint_acceleration(j);
   opt.time_budget_s = 60.0;
+  opt.solver = solver;
   optim::JerkTiming r;
   for (auto _ : state) {
     r = optim::optimise_jerk_timing(grids[0], lim, exact, opt);
@@ -75,8 +80,13 @@ void BM_JerkNlp(benchmark::State& state) {
   state.counters["iterations"] = r.report.iterations;
   state.counters["duration_s"] = r.duration;
   state.counters["exact_s"] = exact.duration;
+  // 1 when Ipopt ran (forced, or as the banded method's fallback).
+  state.counters["ipopt"] = r.report.message.find("Ipopt") != std::string::npos ? 1 : 0;
 }
+void BM_JerkNlp(benchmark::State& state) { jerk_nlp(state, optim::JerkSolver::kAuto); }
+void BM_JerkNlpIpopt(benchmark::State& state) { jerk_nlp(state, optim::JerkSolver::kIpopt); }
 BENCHMARK(BM_JerkNlp)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(5);
+BENCHMARK(BM_JerkNlpIpopt)->Arg(100)->Arg(1000)->Unit(benchmark::kMillisecond)->Iterations(1)->Repetitions(5);
 
 void BM_JerkPlan(benchmark::State& state) {
   core::RobotModel robot = setup().robot;

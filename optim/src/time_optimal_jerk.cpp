@@ -12,6 +12,8 @@
 #include <IpSolveStatistics.hpp>
 #include <IpTNLP.hpp>
 
+#include "banded_ipm.hpp"
+
 namespace geotraj::optim {
 
 namespace {
@@ -565,47 +567,80 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
 
   nlp->x0_ = x0;
 
-  Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
-  Ipopt::OptionsList& o = *app->Options();
-  o.SetIntegerValue("print_level", options.derivative_test ? 5 : 0);
-  if (!options.derivative_test) o.SetStringValue("sb", "yes");
-  o.SetNumericValue("tol", options.tolerance);
-  o.SetNumericValue("acceptable_tol", 1e3 * options.tolerance);
-  // Adaptive barrier. Mehrotra's predictor-corrector was measured and not taken: half the
-  // iterations on a synthetic grid, ten times as many on the PA-10 (the jerk rows are not
-  // convex).
-  o.SetStringValue("mu_strategy", "adaptive");
-  // MUMPS (Debian's only solver) with AMD ordering: the KKT matrix is banded, and AMD's
-  // ordering factors it fastest here (against METIS, PORD and MUMPS's automatic choice).
-  o.SetIntegerValue("mumps_pivot_order", 0);
-  o.SetNumericValue("constr_viol_tol", 1e-9);
-  // Ipopt relaxes every bound by 1e-8 relative by default; the jerk rows then end up to
-  // 2e-5 relative beyond their limits (the straight-line test). 1e-10 keeps them to 1e-6.
-  o.SetNumericValue("bound_relax_factor", 1e-10);
-  if (options.derivative_test) {
-    o.SetStringValue("derivative_test", "second-order");
-    o.SetNumericValue("derivative_test_perturbation", 1e-8);
-    o.SetNumericValue("derivative_test_tol", 1e-4);
+  // The banded interior point method first (unless Ipopt is asked for), Ipopt when it does
+  // not converge; the deadline is shared.
+  const auto deadline = t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                 std::chrono::duration<double>(std::max(0.0, options.time_budget_s)));
+  bool run_ipopt = options.solver == JerkSolver::kIpopt || options.derivative_test;
+  std::string prefix;
+  if (!run_ipopt) {
+    detail::BandedIpmOptions bo;
+    bo.tol = options.tolerance;
+    bo.constr_viol_tol = 1e-9;  // as Ipopt's below
+    bo.max_iterations = options.max_iterations;
+    bo.deadline = deadline;
+    const detail::BandedIpmResult r = detail::solve_banded_ipm(*nlp, bo);
+    out.report.iterations = r.iterations;
+    switch (r.status) {
+      case detail::BandedIpmResult::Status::kConverged: out.report.status = OptimizerStatus::kConverged; break;
+      case detail::BandedIpmResult::Status::kIterationLimit: out.report.status = OptimizerStatus::kIterationLimit; break;
+      case detail::BandedIpmResult::Status::kTimeLimit: out.report.status = OptimizerStatus::kTimeLimit; break;
+      case detail::BandedIpmResult::Status::kFailed: out.report.status = OptimizerStatus::kFailed; break;
+    }
+    out.report.message = "banded interior point: " + r.message + " after " + std::to_string(r.iterations) +
+                         " iterations";
+    nlp->x_ = r.x;
+    if (options.solver == JerkSolver::kAuto && (out.report.status == OptimizerStatus::kFailed ||
+                                                out.report.status == OptimizerStatus::kIterationLimit)) {
+      run_ipopt = true;
+      prefix = out.report.message + "; then ";
+    }
   }
+  if (run_ipopt) {
+    nlp->x_.clear();
+    Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
+    Ipopt::OptionsList& o = *app->Options();
+    o.SetIntegerValue("print_level", options.derivative_test ? 5 : 0);
+    if (!options.derivative_test) o.SetStringValue("sb", "yes");
+    o.SetNumericValue("tol", options.tolerance);
+    o.SetNumericValue("acceptable_tol", 1e3 * options.tolerance);
+    // Adaptive barrier. Mehrotra's predictor-corrector was measured and not taken: half the
+    // iterations on a synthetic grid, ten times as many on the PA-10 (the jerk rows are not
+    // convex).
+    o.SetStringValue("mu_strategy", "adaptive");
+    // MUMPS (Debian's only solver) with AMD ordering: the KKT matrix is banded, and AMD's
+    // ordering factors it fastest here (against METIS, PORD and MUMPS's automatic choice).
+    o.SetIntegerValue("mumps_pivot_order", 0);
+    o.SetNumericValue("constr_viol_tol", 1e-9);
+    // Ipopt relaxes every bound by 1e-8 relative by default; the jerk rows then end up to
+    // 2e-5 relative beyond their limits (the straight-line test). 1e-10 keeps them to 1e-6.
+    o.SetNumericValue("bound_relax_factor", 1e-10);
+    if (options.derivative_test) {
+      o.SetStringValue("derivative_test", "second-order");
+      o.SetNumericValue("derivative_test_perturbation", 1e-8);
+      o.SetNumericValue("derivative_test_tol", 1e-4);
+    }
 
-  o.SetIntegerValue("max_iter", options.max_iterations);
-  o.SetNumericValue("max_cpu_time", options.time_budget_s);
+    o.SetIntegerValue("max_iter", options.max_iterations);
+    const double left = options.time_budget_s - std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    o.SetNumericValue("max_cpu_time", std::max(1e-6, left));
 
-  // No options file: a stray ipopt.opt in the working directory must not change the result.
-  Ipopt::ApplicationReturnStatus status = app->Initialize("");
-  if (status == Ipopt::Solve_Succeeded) status = app->OptimizeTNLP(nlp);
-  if (Ipopt::SmartPtr<Ipopt::SolveStatistics> stats = app->Statistics(); Ipopt::IsValid(stats))
-    out.report.iterations = stats->IterationCount();
+    // No options file: a stray ipopt.opt in the working directory must not change the result.
+    Ipopt::ApplicationReturnStatus status = app->Initialize("");
+    if (status == Ipopt::Solve_Succeeded) status = app->OptimizeTNLP(nlp);
+    if (Ipopt::SmartPtr<Ipopt::SolveStatistics> stats = app->Statistics(); Ipopt::IsValid(stats))
+      out.report.iterations += stats->IterationCount();
+
+    switch (status) {
+      case Ipopt::Solve_Succeeded:
+      case Ipopt::Solved_To_Acceptable_Level: out.report.status = OptimizerStatus::kConverged; break;
+      case Ipopt::Maximum_Iterations_Exceeded: out.report.status = OptimizerStatus::kIterationLimit; break;
+      case Ipopt::Maximum_CpuTime_Exceeded: out.report.status = OptimizerStatus::kTimeLimit; break;
+      default: out.report.status = OptimizerStatus::kFailed; break;
+    }
+    out.report.message = prefix + "Ipopt return status " + std::to_string(static_cast<int>(status));
+  }
   out.report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-
-  switch (status) {
-    case Ipopt::Solve_Succeeded:
-    case Ipopt::Solved_To_Acceptable_Level: out.report.status = OptimizerStatus::kConverged; break;
-    case Ipopt::Maximum_Iterations_Exceeded: out.report.status = OptimizerStatus::kIterationLimit; break;
-    case Ipopt::Maximum_CpuTime_Exceeded: out.report.status = OptimizerStatus::kTimeLimit; break;
-    default: out.report.status = OptimizerStatus::kFailed; break;
-  }
-  out.report.message = "Ipopt return status " + std::to_string(static_cast<int>(status));
   const bool have_point = nlp->x_.size() == x0.size() && out.report.status != OptimizerStatus::kFailed &&
                           std::all_of(nlp->x_.begin(), nlp->x_.end(), [](double b) { return b > 0.0; });
   if (!have_point) out.report.status = OptimizerStatus::kFailed;

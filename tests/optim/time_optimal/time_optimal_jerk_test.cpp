@@ -26,6 +26,7 @@
 #include "geotraj/core/speed_profile.hpp"
 #include "geotraj/core/time_optimal.hpp"
 #include "geotraj/optim/time_optimal_jerk.hpp"
+#include "jerk_grids.hpp"
 #include "thesis_paths.hpp"
 
 namespace geotraj::optim {
@@ -33,41 +34,10 @@ namespace {
 
 using core::GridPoint;
 using core::JointVector;
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
-std::vector<GridPoint> line_grid(std::size_t n, double L) {
-  std::vector<GridPoint> g(n);
-  for (std::size_t i = 0; i < n; ++i) g[i].s = L * static_cast<double>(i) / static_cast<double>(n - 1);
-  return g;
-}
-
-std::vector<GridPoint> joint_grid(std::size_t n, double L) {
-  std::mt19937_64 rng(5);
-  std::uniform_real_distribution<double> U(-1.0, 1.0);
-  std::vector<GridPoint> g = line_grid(n, L);
-  const double c[2][4] = {{U(rng), U(rng), U(rng), U(rng)}, {U(rng), U(rng), U(rng), U(rng)}};
-  for (auto& p : g) {
-    p.q_s.resize(2);
-    p.q_ss.resize(2);
-    for (int j = 0; j < 2; ++j) {
-      const double w = 3.0 + c[j][2];
-      p.q_s(j) = 1.2 * c[j][0] + 0.5 * std::sin(w * p.s + c[j][3]);
-      p.q_ss(j) = 0.5 * w * std::cos(w * p.s + c[j][3]);
-    }
-    p.kappa = 1.0;
-  }
-  return g;
-}
-
-core::TimeOptimalLimits joint_limits() {
-  core::TimeOptimalLimits lim;
-  lim.joint_velocity = JointVector::Constant(2, 1.0);
-  lim.joint_acceleration = JointVector::Constant(2, 2.0);
-  lim.speed = 1.0;
-  lim.tangential = 3.0;
-  lim.centripetal = 3.0;
-  return lim;
-}
+using jerk_test::joint_grid;
+using jerk_test::joint_limits;
+using jerk_test::kInf;
+using jerk_test::line_grid;
 
 /// tau_i = (t_{i-1} + t_i) / 2 of a result [s] (the rests: t_{-1} = t_N = 0).
 double tau(const JerkTiming& r, std::size_t i) {

@@ -1,5 +1,7 @@
 // Jerk-limited (or smoothness-weighted) time-optimal timing along a path: a nonlinear
-// programme solved by Ipopt, warm-started from the exact sweep of core/time_optimal.hpp.
+// programme solved by a purpose-built banded primal-dual interior point method (falling back
+// to Ipopt when it does not converge), warm-started from the exact sweep of
+// core/time_optimal.hpp.
 //
 // Formulation: the exact problem's, plus jerk. On the grid s_0 = 0 < ... < s_N of one
 // portion (ds_i = s_{i+1} - s_i [m]) the unknowns are b_i = s_dot^2(s_i) [m^2/s^2] at the
@@ -40,31 +42,47 @@
 
 namespace geotraj::optim {
 
+/// Which solver runs the NLP.
+enum class JerkSolver {
+  /// The banded interior point method, then Ipopt from the same start with the budget left
+  /// when it does not converge (neither converged nor out of time).
+  kAuto,
+  kBanded,  ///< the banded interior point method only
+  kIpopt,   ///< Ipopt (MUMPS) only
+};
+
 /// Options of the jerk-limited timing (Ceres-style value).
 struct JerkTimingOptions {
   /// Joint jerk limits [rad/s^3 or m/s^3] per joint (+infinity: none); empty: none.
   core::JointVector joint_jerk;
   std::optional<double> max_jerk;   ///< Cartesian tangential jerk [m/s^3]
   double smoothness_weight = 0.0;   ///< w [s^5/m^2] of the objective above, >= 0
-  double time_budget_s = 1.0;       ///< Ipopt's max_cpu_time [s]
+  /// Time budget [s]: the banded method's wall-clock deadline, checked every iteration, and
+  /// Ipopt's max_cpu_time (the budget left, after a banded attempt).
+  double time_budget_s = 1.0;
+  /// Per solver (after a banded attempt that did not converge Ipopt gets as many).
   int max_iterations = 500;
   /// Per grid point, sigma in (0, 1]: that point's joint velocity limits are multiplied by
   /// sigma, its joint and centripetal acceleration limits by sigma^2 (the sample check's
   /// tightening, as in plan_time_optimal); empty: 1 everywhere, else one per grid point.
   std::vector<double> limit_scale;
-  /// Ipopt starts from the start's b times this, in (0, 1]: the same motion slower
+  /// The solver starts from the start's b times this, in (0, 1]: the same motion slower
   /// (velocities x sqrt, accelerations x, jerks x ^(3/2)), strictly inside the limits the
   /// start meets. An interior point method started on the sweep's many active limits takes
   /// several times the iterations.
   double start_scale = 0.5;
-  double tolerance = 1e-8;          ///< Ipopt's tol (scaled KKT error; the objective is in [s])
+  /// Both solvers' tol (Ipopt's scaled KKT error; the objective is in [s]).
+  double tolerance = 1e-8;
   /// Leave out the jerk rows that the kept ones and the velocity and acceleration limits
-  /// imply (they cannot bind, so the feasible set and the optimum are unchanged; Ipopt's
-  /// KKT system shrinks by two rows each). Off: every row, for comparison.
+  /// imply (they cannot bind, so the feasible set and the optimum are unchanged; each
+  /// solver's system shrinks by two rows each). Off: every row, for comparison.
   bool drop_implied_jerk_rows = true;
   /// Run Ipopt's second-order derivative checker at the start point and print its report
-  /// (and Ipopt's iteration log) on stdout: a debug aid, slow.
+  /// (and Ipopt's iteration log) on stdout: a debug aid, slow (Ipopt runs, whatever `solver`).
   bool derivative_test = false;
+  /// The solver (kAuto: the banded interior point method, Ipopt when it does not converge).
+  /// OptimizerReport::message names the solver whose result is returned.
+  JerkSolver solver = JerkSolver::kAuto;
 };
 
 /// The outcome for one portion.
@@ -85,16 +103,18 @@ struct JerkTiming {
 };
 
 /// Solves one portion's NLP from the exact solution `start` of the same grid and limits
-/// (core::solve_time_optimal). The status is honest: kConverged only when Ipopt converged;
-/// kTimeLimit when time_budget_s ran out, kIterationLimit at max_iterations (the last
-/// iterate is returned, with its max_constraint_violation); kFailed otherwise (the start's
-/// profile is returned). Preconditions: grid.size() >= 3, `start` solved on `grid`.
+/// (core::solve_time_optimal). The status is honest: kConverged only when the solver that
+/// ran last converged (to its tolerance, or Ipopt's acceptable level); kTimeLimit when
+/// time_budget_s ran out, kIterationLimit at max_iterations (the last iterate is returned,
+/// with its max_constraint_violation); kFailed otherwise (the start's profile is returned).
+/// report.iterations sums both solvers' iterations when Ipopt ran after the banded method.
+/// Preconditions: grid.size() >= 3, `start` solved on `grid`.
 JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const core::TimeOptimalLimits& limits,
                                 const core::TimeOptimalSolution& start, const JerkTimingOptions& options);
 
 /// A whole plan: the exact plan (core::plan_time_optimal) re-timed portion by portion.
 /// Relative margin inside every velocity and acceleration limit that plan_time_optimal_jerk
-/// keeps at its grid points (Ipopt meets its constraints to its tolerance only).
+/// keeps at its grid points (the solvers meet the constraints to their tolerance only).
 inline constexpr double kJerkLimitMargin = 1e-6;
 
 struct JerkLimitedPlan {

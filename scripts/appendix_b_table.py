@@ -7,9 +7,9 @@ Usage: appendix_b_table.py CLI [--server HOST:PORT]
   CLI  the geotraj command-line client (e.g. build/client/geotraj)
 
 Each row's request is in client/grpcurl/appendix_b_*.json (analysisPoints 40001: 20000 points
-per segment). The peaks are "between frames", as the optimiser measures them: the largest
-interior local maximum of |torsion| (where the curve has a normal) and of curvature on each
-segment; the frames' own values (fixed by their constraints) only serve as neighbours. The
+per segment). The peaks are measured as the optimiser measures them: the largest |torsion|
+(where the curve has a normal) and curvature over each segment, its frames included (their
+values are fixed by the constraints, so no breakpoint changes them). The
 optimised row's breakpoints come from `plan` (PlanResponse.optimization.breakpoints, a
 BreakpointReport); its profile from `analyze` of the same request (an analysis of a request
 with `optimize` uses the optimised path). Only the Python standard library is used.
@@ -32,17 +32,9 @@ def call(cli, extra, command, request):
     return json.loads(out)
 
 
-def interior_peak(points, value):
-    """Largest interior local maximum of value(point) per segment, frames (integer u) excluded."""
-    peak = 0.0
-    for i in range(1, len(points) - 1):
-        u = points[i].get("u", 0.0)
-        if abs(u - round(u)) < 1e-12:
-            continue
-        a, b, c = value(points[i - 1]), value(points[i]), value(points[i + 1])
-        if b >= a and b >= c and (b > a or b > c):
-            peak = max(peak, b)
-    return peak
+def peak(points, value):
+    """Largest value(point) over the profile, the frames (integer u) included."""
+    return max((value(p) for p in points), default=0.0)
 
 
 def breakpoint_text(entries):
@@ -66,8 +58,8 @@ def main():
     for name, request in ROWS:
         profile = call(cli, extra, "analyze", request)
         points = profile.get("points", [])
-        tau = interior_peak(points, lambda p: abs(p.get("torsion", 0.0)))
-        kappa = interior_peak(points, lambda p: p.get("curvature", 0.0))
+        tau = peak(points, lambda p: abs(p.get("torsion", 0.0)))
+        kappa = peak(points, lambda p: p.get("curvature", 0.0))
         print(f"{name:<18} {tau:>17.4f} {kappa:>17.4f}")
         with open(os.path.join(REQUESTS, request)) as f:
             entries = json.load(f)["path"].get("breakpoints", [])

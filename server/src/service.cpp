@@ -34,18 +34,23 @@ namespace {
 // Whether the caller still wants the answer: checked before each stage of work, so that a
 // cancelled call or a passed deadline stops it at the next stage.
 class Abandon {
+  static constexpr std::chrono::milliseconds kDeadlineSlack{20};
+
  public:
   explicit Abandon(grpc::CallbackServerContext& context) : context_(&context), deadline_(context.deadline()) {}
   /// Work that no client waits for (the warm-up): only the deadline ends it.
   explicit Abandon(std::chrono::system_clock::time_point deadline) : deadline_(deadline) {}
   /// The status to finish with when the call is no longer wanted.
+  /// A passed deadline first: gRPC also cancels the call then, and the code should say why.
+  /// gRPC's timer may fire a little before this clock reaches the deadline, so a
+  /// cancellation within kDeadlineSlack of it counts as the deadline.
   std::optional<grpc::Status> check() const {
-    if (context_ != nullptr && context_->IsCancelled()) {
-      return grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled");
-    }
-    if (deadline_ <= std::chrono::system_clock::now()) {
+    const auto now = std::chrono::system_clock::now();
+    const bool cancelled = context_ != nullptr && context_->IsCancelled();
+    if (deadline_ <= now || (cancelled && deadline_ - now <= kDeadlineSlack)) {
       return grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, "the deadline passed before the work was done");
     }
+    if (cancelled) return grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled");
     return std::nullopt;
   }
 
@@ -519,7 +524,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
 
   void OnWriteDone(bool ok) override {
     if (!ok) {  // the client went away (cancelled, deadline, connection lost)
-      End(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled"));
+      End(abandon_.check().value_or(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled")));
       return;
     }
     call_.runtime().metrics().samples_streamed(static_cast<std::uint64_t>(batch_.samples_size()));

@@ -16,7 +16,9 @@ std::string summary(const core::Violations& violations) {
   std::string message = "invalid request: " + std::to_string(violations.size()) +
                          (violations.size() == 1 ? " problem" : " problems");
   for (std::size_t i = 0; i < violations.size() && i < kViolationsInMessage; ++i) {
-    message += (i == 0 ? ": " : "; ") + violations[i].field + ": " + violations[i].description;
+    // An empty field is the request as a whole (bytes that are no request).
+    const std::string& field = violations[i].field;
+    message += (i == 0 ? ": " : "; ") + (field.empty() ? "" : field + ": ") + violations[i].description;
   }
   if (violations.size() > kViolationsInMessage) {
     message += "; and " + std::to_string(violations.size() - kViolationsInMessage) +

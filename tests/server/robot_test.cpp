@@ -23,6 +23,7 @@
 #include <Eigen/Geometry>
 #include <gmock/gmock.h>
 
+#include "daemon.hpp"
 #include "test_server.hpp"
 
 namespace geotraj::testing {
@@ -95,7 +96,6 @@ class RobotTest : public ServerTest {
     EXPECT_TRUE(status.ok()) << status.error_message();
     return response;
   }
-
 
   // PlanTrajectory's and StreamSamples' field violations for a request both must refuse.
   std::vector<Violation> refused(const v1::PlanRequest& request) {
@@ -549,78 +549,6 @@ TEST_F(RobotTest, LinearMoveOnTheUr5) {
 
 // ---------------------------------------------------------------------------------------
 // Robot model files served by geotrajd
-
-// A geotrajd child process with `args`, its standard output and error on pipes.
-class Daemon {
- public:
-  explicit Daemon(const std::vector<std::string>& args) {
-    int out[2], err[2];
-    if (::pipe(out) != 0 || ::pipe(err) != 0) return;
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      ::dup2(out[1], STDOUT_FILENO);
-      ::dup2(err[1], STDERR_FILENO);
-      for (int fd : {out[0], out[1], err[0], err[1]}) ::close(fd);
-      std::vector<char*> argv{const_cast<char*>(GEOTRAJD)};
-      for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-      argv.push_back(nullptr);
-      ::execv(GEOTRAJD, argv.data());
-      std::_Exit(127);
-    }
-    ::close(out[1]);
-    ::close(err[1]);
-    out_ = ::fdopen(out[0], "r");
-    err_ = ::fdopen(err[0], "r");
-  }
-  ~Daemon() {
-    if (pid_ > 0 && !reaped_) {
-      ::kill(pid_, SIGKILL);
-      ::waitpid(pid_, nullptr, 0);
-    }
-    if (out_ != nullptr) std::fclose(out_);
-    if (err_ != nullptr) std::fclose(err_);
-  }
-  Daemon(const Daemon&) = delete;
-  Daemon& operator=(const Daemon&) = delete;
-
-  /// The next line of its standard output ("" at end of file).
-  std::string line() {
-    char buf[512];
-    if (out_ == nullptr || std::fgets(buf, sizeof buf, out_) == nullptr) return "";
-    return buf;
-  }
-  /// Its whole standard error (to end of file).
-  std::string errors() {
-    std::string text;
-    char buf[512];
-    std::size_t n = 0;
-    while (err_ != nullptr && (n = std::fread(buf, 1, sizeof buf, err_)) > 0) text.append(buf, n);
-    return text;
-  }
-  void signal(int sig) { ::kill(pid_, sig); }
-  /// Its exit code, or -1 when a signal ended it.
-  int wait() {
-    int status = 0;
-    ::waitpid(pid_, &status, 0);
-    reaped_ = true;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  }
-  bool started() const { return pid_ > 0 && out_ != nullptr && err_ != nullptr; }
-
- private:
-  pid_t pid_ = -1;
-  FILE* out_ = nullptr;
-  FILE* err_ = nullptr;
-  bool reaped_ = false;
-};
-
-// The port of the log line "geotrajd: serving ... on HOST:PORT (...)".
-int port_of(const std::string& line) {
-  const auto paren = line.find(" (");
-  const auto colon = line.rfind(':', paren);
-  if (paren == std::string::npos || colon == std::string::npos) return 0;
-  return std::atoi(line.substr(colon + 1, paren - colon - 1).c_str());
-}
 
 // A file in the test's temporary directory, removed at the end of the test.
 class TempFile {

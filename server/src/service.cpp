@@ -654,10 +654,18 @@ grpc::Status analyze_path(const Abandon& abandon, const Services& services, cons
 // any call, rather than gRPC's own answer (UNIMPLEMENTED with no message, in 1.51).
 using RawService = v1::TrajectoryService::WithRawCallbackMethod_ConvertConstraints<
     v1::TrajectoryService::WithRawCallbackMethod_PlanTrajectory<v1::TrajectoryService::WithRawCallbackMethod_StreamSamples<
-        v1::TrajectoryService::WithRawCallbackMethod_AnalyzePath<v1::TrajectoryService::CallbackService>>>>;
+        v1::TrajectoryService::WithRawCallbackMethod_AnalyzePath<
+            v1::TrajectoryService::WithCallbackMethod_ListRobots<v1::TrajectoryService::Service>>>>>;
 
 class TrajectoryService final : public RawService {
  public:
+  // The synchronous overloads stay declared (the bases make them abort; never called).
+  using RawService::AnalyzePath;
+  using RawService::ConvertConstraints;
+  using RawService::ListRobots;
+  using RawService::PlanTrajectory;
+  using RawService::StreamSamples;
+
   TrajectoryService(RobotCatalog robots, std::shared_ptr<Runtime> runtime)
       : robots_(std::move(robots)), runtime_(std::move(runtime)) {}
 
@@ -748,8 +756,8 @@ class TrajectoryService final : public RawService {
 
 }  // namespace
 
-std::unique_ptr<v1::TrajectoryService::CallbackService> make_trajectory_service(RobotCatalog robots,
-                                                                                 std::shared_ptr<Runtime> runtime) {
+std::unique_ptr<grpc::Service> make_trajectory_service(RobotCatalog robots,
+                                                      std::shared_ptr<Runtime> runtime) {
   return std::make_unique<TrajectoryService>(std::move(robots), std::move(runtime));
 }
 

@@ -15,8 +15,8 @@ class Runtime;
 /// Creates the service with the robot models it knows by name and the runtime its calls
 /// share (limits, tokens, admission, metrics, log). Every call stands alone, so any replica
 /// (with the same models) serves any call.
-std::unique_ptr<v1::TrajectoryService::CallbackService> make_trajectory_service(RobotCatalog robots,
-                                                                                 std::shared_ptr<Runtime> runtime);
+std::unique_ptr<grpc::Service> make_trajectory_service(RobotCatalog robots,
+                                                      std::shared_ptr<Runtime> runtime);
 
 /// Runs one small plan and analysis through a service made by make_trajectory_service, as
 /// a call would (no admission, no metrics of calls); not OK when it fails.

@@ -100,12 +100,15 @@ void Metrics::count_call(std::string_view method, int grpc_code) {
 }
 
 void Metrics::call_finished(std::string_view method, bool streaming, int grpc_code, double seconds) {
-  (streaming ? active_streams_ : active_unary_).fetch_sub(1, std::memory_order_relaxed);
-  const std::lock_guard lock(mutex_);
-  count_call(method, grpc_code);
-  auto durations = call_durations_.find(method);
-  if (durations == call_durations_.end()) durations = call_durations_.emplace(std::string(method), Histogram{}).first;
-  observe(durations->second, kRpcBounds, seconds);
+  {
+    const std::lock_guard lock(mutex_);
+    count_call(method, grpc_code);
+    auto durations = call_durations_.find(method);
+    if (durations == call_durations_.end()) durations = call_durations_.emplace(std::string(method), Histogram{}).first;
+    observe(durations->second, kRpcBounds, seconds);
+  }
+  // Last: a scrape that sees the gauge back at 0 also sees the call counted.
+  (streaming ? active_streams_ : active_unary_).fetch_sub(1, std::memory_order_release);
 }
 
 void Metrics::call_refused(std::string_view method, int grpc_code) {
@@ -202,9 +205,9 @@ std::string Metrics::exposition() const {
   }
 
   append_header(out, "geotraj_active_streams", "gauge", "Server-streaming RPCs in progress.");
-  append_sample(out, "geotraj_active_streams", {}, active_streams_.load(std::memory_order_relaxed));
+  append_sample(out, "geotraj_active_streams", {}, active_streams_.load(std::memory_order_acquire));
   append_header(out, "geotraj_active_unary_calls", "gauge", "Unary RPCs in progress.");
-  append_sample(out, "geotraj_active_unary_calls", {}, active_unary_.load(std::memory_order_relaxed));
+  append_sample(out, "geotraj_active_unary_calls", {}, active_unary_.load(std::memory_order_acquire));
   append_header(out, "geotraj_samples_streamed_total", "counter", "Trajectory samples written to StreamSamples streams.");
   append_sample(out, "geotraj_samples_streamed_total", {}, samples_streamed_.load(std::memory_order_relaxed));
   append_header(out, "geotraj_build_info", "gauge", "Always 1; the version of geotrajd is a label.");

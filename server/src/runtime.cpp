@@ -182,26 +182,29 @@ void Call::finish(const grpc::Status& status, std::uint64_t samples) {
   const bool streaming = method_ == Method::kStreamSamples;
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   const auto name = method_name(method_);
-  if (admitted_) {
-    (streaming ? runtime_->active_streams_ : runtime_->active_unary_).fetch_sub(1);
-    runtime_->metrics().call_finished(name, streaming, static_cast<int>(status.error_code()), seconds);
-  } else {
-    runtime_->metrics().call_refused(name, static_cast<int>(status.error_code()));
-  }
+  // The log line first: a drain waits for the count of calls in flight, so the call must be
+  // written down before it stops counting.
   const auto& logger = runtime_->logger();
   const bool server_fault = status.error_code() == grpc::StatusCode::INTERNAL ||
                             status.error_code() == grpc::StatusCode::UNKNOWN ||
                             status.error_code() == grpc::StatusCode::DATA_LOSS;
   const LogLevel level = server_fault ? LogLevel::kError : LogLevel::kInfo;
-  if (!logger.enabled(level)) return;
-  std::vector<LogField> fields{{"request_id", request_id_},
-                               {"method", std::string(name)},
-                               {"peer", peer_},
-                               {"code", std::string(status_code_name(status.error_code()))},
-                               {"duration_ms", std::round(seconds * 1e6) / 1e3}};  // to the microsecond
-  if (streaming) fields.push_back({"samples", static_cast<std::int64_t>(samples)});
-  if (!status.ok()) fields.push_back({"error", status.error_message()});
-  logger.log(level, "call", std::move(fields));
+  if (logger.enabled(level)) {
+    std::vector<LogField> fields{{"request_id", request_id_},
+                                 {"method", std::string(name)},
+                                 {"peer", peer_},
+                                 {"code", std::string(status_code_name(status.error_code()))},
+                                 {"duration_ms", std::round(seconds * 1e6) / 1e3}};  // to the microsecond
+    if (streaming) fields.push_back({"samples", static_cast<std::int64_t>(samples)});
+    if (!status.ok()) fields.push_back({"error", status.error_message()});
+    logger.log(level, "call", std::move(fields));
+  }
+  if (admitted_) {
+    runtime_->metrics().call_finished(name, streaming, static_cast<int>(status.error_code()), seconds);
+    (streaming ? runtime_->active_streams_ : runtime_->active_unary_).fetch_sub(1);
+  } else {
+    runtime_->metrics().call_refused(name, static_cast<int>(status.error_code()));
+  }
 }
 
 }  // namespace geotraj::server

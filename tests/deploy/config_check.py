@@ -8,7 +8,6 @@
    free loopback ports on the command line, which wins, and a tokens file), reports
    SERVING on its health-only port for "" and geotraj.readiness, and exits 0 on SIGTERM.
 
-Skipped (exit 77) with a geotrajd older than --drain-seconds, which knows few of the names.
 usage: config_check.py SOURCE_DIR GEOTRAJD
 """
 import os
@@ -81,9 +80,6 @@ def health(port, service):
 def main():
     src, server = sys.argv[1], sys.argv[2]
     help_text = subprocess.run([server, "--help"], capture_output=True, text=True).stdout
-    if "--drain-seconds" not in help_text:
-        print("SKIP: this geotrajd predates --drain-seconds and the deployment flags")
-        return 77
     known = set(re.findall(r"\bGEOTRAJ_[A-Z0-9_]+", help_text))
     failures = []
     names = configured_names(src)

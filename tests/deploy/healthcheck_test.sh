@@ -1,8 +1,7 @@
 #!/usr/bin/env bash
 # deploy/healthcheck.sh (the image's HEALTHCHECK) against a real geotrajd, configured as
 # the image configures it: exit 0 while it serves, non-zero once it has stopped; through
-# the health-only port, with a token required on the main port, where geotrajd has
-# --health-address; else through the main port.
+# the health-only port (--health-address), with a token required on the main port.
 #   usage: healthcheck_test.sh SOURCE_DIR GEOTRAJD GEOTRAJ_CLI
 set -euo pipefail
 src="$1" server="$2" cli="$3"
@@ -10,16 +9,9 @@ check="$src/deploy/healthcheck.sh"
 free_port() { /usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }
 port="$(free_port)" health_port="$(free_port)"
 export GEOTRAJ_ADDRESS="127.0.0.1:$port" GEOTRAJ_PLAINTEXT=true GEOTRAJ_HEALTHCHECK_CLI="$cli"
-help_text="$("$server" --help)"
-if grep -q -- '--health-address' <<< "$help_text"; then
-  export GEOTRAJ_HEALTH_ADDRESS="127.0.0.1:$health_port"
-  # Tokens guard the main port; the health-only port must answer without one.
-  export GEOTRAJ_AUTH_TOKEN="healthcheck-test-token"
-else
-  # TODO(health-address): drop once every build has --health-address.
-  echo "geotrajd has no --health-address: checking through the main port"
-  unset GEOTRAJ_HEALTH_ADDRESS
-fi
+export GEOTRAJ_HEALTH_ADDRESS="127.0.0.1:$health_port"
+# Tokens guard the main port; the health-only port must answer without one.
+export GEOTRAJ_AUTH_TOKEN="healthcheck-test-token"
 log="$(mktemp)"
 "$server" > "$log" 2>&1 &
 pid=$!

@@ -7,18 +7,17 @@ which backend served the call. Then, per --mode:
 
   client  gRPC client-side load balancing, as a headless Kubernetes Service gives it: target
           ipv4:127.0.0.1:P0,127.0.0.1:P1,127.0.0.1:P2, policy round_robin, client-side health
-          checking of geotraj.readiness (of "" where the server does not know that name),
-          retry of UNAVAILABLE.
+          checking of geotraj.readiness, retry of UNAVAILABLE.
           300 ListRobots spread over all three; 300 PlanTrajectory (8 at a time) all OK, and
-          where geotrajd has --metrics-address, each backend's
-          geotraj_rpc_calls_total{method="PlanTrajectory",code="OK"} grew and they add up to
-          300. Backend 0 gets SIGTERM in the middle of 300 more calls: all OK (it drains).
+          each backend's geotraj_rpc_calls_total{method="PlanTrajectory",code="OK"} grew and
+          they add up to 300. Backend 0 gets SIGTERM in the middle of 300 more calls: all OK
+          (it drains; its refusals are UNAVAILABLE, which the client retries elsewhere).
           Backend 1 gets SIGKILL in the middle of 300 more: only calls in flight on it may
           fail, with UNAVAILABLE; every later call is OK, served by backend 2.
   nginx   nginx (grpc_pass, deploy/nginx/geotraj.conf with the upstream servers and listen
           port replaced) on an ephemeral port, its pid, logs and temp files in --work:
           300 ListRobots spread over all three, 300 PlanTrajectory all OK (per-backend
-          metrics as above where available), a StreamSamples (path C, 10 s at 100 Hz: 1001
+          metrics as above), a StreamSamples (path C, 10 s at 100 Hz: 1001
           samples) through the proxy; then SIGKILL of backend 0 in the middle of 300 calls:
           only calls in flight may fail (UNAVAILABLE), later ones all OK.
           Exit 77 (skipped) when nginx is not installed.
@@ -76,22 +75,20 @@ def health_check(channel, service, timeout=5.0):
 
 
 class Backend:
-    def __init__(self, index, args, model_file, with_metrics):
+    def __init__(self, index, args, model_file):
         self.index = index
         self.name = f"lb-backend-{index}"
         self.port = free_port()
-        self.metrics_port = free_port() if with_metrics else None
+        self.metrics_port = free_port()
         env = dict(os.environ)
         env.update({
             "GEOTRAJ_ADDRESS": f"127.0.0.1:{self.port}",
             "GEOTRAJ_PLAINTEXT": "true",
             # A short drain keeps the test short; calls here last milliseconds.
             "GEOTRAJ_DRAIN_SECONDS": "5",
-            "GEOTRAJ_SHUTDOWN_GRACE": "5",  # the same, under its name before --drain-seconds
         })
-        argv = [args.server, "--robot-model", model_file]
-        if with_metrics:
-            argv += ["--metrics-address", f"127.0.0.1:{self.metrics_port}"]
+        argv = [args.server, "--robot-model", model_file,
+                "--metrics-address", f"127.0.0.1:{self.metrics_port}"]
         self.log_path = os.path.join(args.work, f"{self.name}.log")
         self.log_file = open(self.log_path, "w")
         self.proc = subprocess.Popen(argv, env=env, stdout=self.log_file, stderr=subprocess.STDOUT)
@@ -104,10 +101,13 @@ class Backend:
         channel = grpc.insecure_channel(self.address)
         try:
             grpc.channel_ready_future(channel).result(timeout=60)
-            status = health_check(channel, "")
-            if status != 1:
-                raise RuntimeError(f"{self.name}: health {status}, expected SERVING")
-            return health_check(channel, "geotraj.readiness")
+            for service in ("", "geotraj.readiness"):
+                # readiness turns SERVING once the warm-up plan has run
+                deadline = time.monotonic() + 60
+                while (status := health_check(channel, service)) != 1 and time.monotonic() < deadline:
+                    time.sleep(0.1)
+                if status != 1:
+                    raise RuntimeError(f"{self.name}: health {service!r} is {status}, expected SERVING")
         finally:
             channel.close()
 
@@ -220,11 +220,6 @@ def check_all_ok(results, label):
 
 
 def check_metrics(backends, before, label):
-    if before is None:
-        # TODO(metrics): geotrajd without --metrics-address; once every build has it, drop
-        # this branch (ListRobots above already shows the spread).
-        log(f"{label}: geotrajd has no --metrics-address: per-backend PlanTrajectory counts not checked")
-        return
     after = {b.name: b.calls_ok("PlanTrajectory") for b in backends}
     delta = {n: after[n] - before[n] for n in after}
     log(f"{label}: geotraj_rpc_calls_total{{method=PlanTrajectory,code=OK}} grew by {delta}")
@@ -254,43 +249,33 @@ def check_kill_results(results, killed_at, label):
 # name resolves to, client-side health checking (a draining pod leaves the rotation when
 # its readiness turns NOT_SERVING), and a retry of UNAVAILABLE (every geotraj call is a
 # pure function of its request, so a call refused by a draining pod may go to another).
-def service_config(health_service):
-    return json.dumps({
-        "loadBalancingConfig": [{"round_robin": {}}],
-        "healthCheckConfig": {"serviceName": health_service},
-        "methodConfig": [{
-            "name": [{"service": "geotraj.v1.TrajectoryService"}],
-            "retryPolicy": {"maxAttempts": 3, "initialBackoff": "0.05s", "maxBackoff": "1s",
-                            "backoffMultiplier": 2, "retryableStatusCodes": ["UNAVAILABLE"]},
-        }],
-    })
+SERVICE_CONFIG = json.dumps({
+    "loadBalancingConfig": [{"round_robin": {}}],
+    "healthCheckConfig": {"serviceName": "geotraj.readiness"},
+    "methodConfig": [{
+        "name": [{"service": "geotraj.v1.TrajectoryService"}],
+        "retryPolicy": {"maxAttempts": 3, "initialBackoff": "0.05s", "maxBackoff": "1s",
+                        "backoffMultiplier": 2, "retryableStatusCodes": ["UNAVAILABLE"]},
+    }],
+})
 
 
-def check_drain_results(results, drains, allowed, label):
-    """Across a SIGTERM: all OK, the contract of --drain-seconds with the client above.
-    `allowed` (--drain-failures-allowed) lets that many calls fail with CANCELLED or
-    UNAVAILABLE meanwhile; an older geotrajd (no --drain-seconds) cancels calls that arrive
-    as it shuts down, so there up to 2 * WORKERS may."""
-    if not drains:
-        # TODO(drain): drop this branch once every build has --drain-seconds.
-        allowed = 2 * WORKERS
-    if allowed == 0:
-        check_all_ok(results, label)
-        return
+def check_drain_results(results, label):
+    """Across a SIGTERM: all OK, the contract of --drain-seconds and --lame-duck-seconds with
+    the client above. Calls in flight finish; calls that reach the draining backend get
+    UNAVAILABLE (trailers only), which the client retries on another backend."""
     bad = [(i, c) for i, c in results if c != "OK"]
-    log(f"{label}: {len(results) - len(bad)} of {len(results)} OK; failed {bad} (up to {allowed} tolerated)")
-    if len(bad) > allowed or any(c not in ("CANCELLED", "UNAVAILABLE") for _, c in bad):
-        fail(f"{label}: {bad}")
+    log(f"{label}: {len(results) - len(bad)} of {len(results)} OK"
+        + "".join(f"; {c}: {DETAILS.get(c)!r}" for c in sorted({c for _, c in bad})))
+    if bad:
+        fail(f"{label}: {len(bad)} calls failed: {bad[:10]}")
 
 
-def client_mode(args, backends, readiness_known, drains, req):
-    health_service = "geotraj.readiness" if readiness_known else ""
-    if not readiness_known:
-        log("geotrajd does not know geotraj.readiness (older build): client health checks use \"\"")
+def client_mode(args, backends, req):
     target = "ipv4:" + ",".join(b.address for b in backends)
     log(f"client-side round_robin over {target}")
     channel = grpc.insecure_channel(target, options=[
-        ("grpc.service_config", service_config(health_service)),
+        ("grpc.service_config", SERVICE_CONFIG),
         ("grpc.enable_retries", 1),
     ])
     grpc.channel_ready_future(channel).result(timeout=60)
@@ -303,7 +288,7 @@ def client_mode(args, backends, readiness_known, drains, req):
             break
     spread(stub, backends, "round_robin")
 
-    before = {b.name: b.calls_ok("PlanTrajectory") for b in backends} if backends[0].metrics_port else None
+    before = {b.name: b.calls_ok("PlanTrajectory") for b in backends}
     check_all_ok(run_calls(stub, req, CALLS), "round_robin PlanTrajectory")
     check_metrics(backends, before, "round_robin")
 
@@ -312,8 +297,7 @@ def client_mode(args, backends, readiness_known, drains, req):
     def term():
         log("SIGTERM to lb-backend-0")
         backends[0].proc.send_signal(signal.SIGTERM)
-    check_drain_results(run_calls(stub, req, CALLS, during=term, at=CALLS // 3), drains,
-                        args.drain_failures_allowed, "round_robin across a SIGTERM")
+    check_drain_results(run_calls(stub, req, CALLS, during=term, at=CALLS // 3), "round_robin across a SIGTERM")
     backends[0].stop()
     names = {served_by(stub) for _ in range(20)}
     if names != {"lb-backend-1", "lb-backend-2"}:
@@ -388,7 +372,7 @@ def nginx_mode(args, backends, req):
         stub = rpc.TrajectoryServiceStub(channel)
         spread(stub, backends, "nginx")
 
-        before = {b.name: b.calls_ok("PlanTrajectory") for b in backends} if backends[0].metrics_port else None
+        before = {b.name: b.calls_ok("PlanTrajectory") for b in backends}
         check_all_ok(run_calls(stub, req, CALLS), "nginx PlanTrajectory")
         check_metrics(backends, before, "nginx")
 
@@ -430,8 +414,6 @@ def main():
     parser.add_argument("--source", required=True)
     parser.add_argument("--work", required=True)
     parser.add_argument("--nginx", default=None)
-    parser.add_argument("--drain-failures-allowed", type=int, default=0,
-                        help="calls that may fail across the SIGTERM (default 0: a clean drain)")
     args = parser.parse_args()
 
     if args.mode == "nginx":
@@ -450,16 +432,15 @@ def main():
     args.work = os.path.abspath(args.work)
     shutil.rmtree(args.work, ignore_errors=True)
     os.makedirs(args.work)
-    helptext = subprocess.run([args.server, "--help"], capture_output=True, text=True).stdout
-    with_metrics = "--metrics-address" in helptext
     models = robot_model_files(args)
-    backends = [Backend(i, args, models[i], with_metrics) for i in range(3)]
+    backends = [Backend(i, args, models[i]) for i in range(3)]
     try:
-        readiness = [b.wait_serving() for b in backends]
+        for b in backends:
+            b.wait_serving()
         log("backends: " + ", ".join(f"{b.name} on {b.address}" for b in backends))
         req = plan_request(args.source, "a")
         if args.mode == "client":
-            client_mode(args, backends, all(r == 1 for r in readiness), "--drain-seconds" in helptext, req)
+            client_mode(args, backends, req)
         else:
             nginx_mode(args, backends, req)
     finally:

@@ -534,6 +534,8 @@ TEST(Observability, RequestIdsLogsAndMetrics) {
   auto ctx = short_context();
   ASSERT_TRUE(read_stream(*stub, stream, samples, *ctx).ok());
 
+  // The server records a stream when it is done with it, which may follow the client's end.
+  ASSERT_TRUE(eventually([&] { return series(server::metrics_exposition(running), "geotraj_active_streams") == 0; }));
   const std::string response = http_get(running.metrics_port, "/metrics");
   EXPECT_THAT(response, HasSubstr("200 OK"));
   EXPECT_EQ(series(response, R"(geotraj_rpc_calls_total{method="PlanTrajectory",code="OK"})"), 1);

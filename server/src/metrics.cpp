@@ -192,7 +192,7 @@ std::string Metrics::exposition() const {
     histogram_family("geotraj_rpc_duration_seconds", "method", call_durations_, kRpcBounds);
 
     append_header(out, "geotraj_rpc_rejected_total", "counter",
-                  "RPCs refused before any work (capacity, draining, authentication, permission, limits).");
+                  "RPCs refused before any work (reason: capacity, draining, unauthenticated, permission_denied).");
     for (const auto& [method, reasons] : rejected_) {
       for (const auto& [reason, count] : reasons) {
         append_sample(out, "geotraj_rpc_rejected_total", label("method", method) + "," + label("reason", reason),

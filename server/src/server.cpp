@@ -34,7 +34,10 @@ bool local_only(const std::string& address) {
   const auto colon = address.rfind(':');
   std::string host = colon == std::string::npos ? address : address.substr(0, colon);
   if (host.size() >= 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
-  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+  if (host == "localhost" || host == "::1") return true;
+  // 127.0.0.0/8 written as numbers only: a host name such as 127.0.0.1.example.com is not.
+  const bool numeric = !host.empty() && host.find_first_not_of("0123456789.") == std::string::npos;
+  return numeric && host.rfind("127.", 0) == 0;
 }
 
 tl::expected<std::shared_ptr<grpc::ServerCredentials>, std::string> credentials(const ServerOptions& options) {

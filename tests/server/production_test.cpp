@@ -315,6 +315,12 @@ TEST(Plaintext, OnlyLoopbackWithoutTheFlag) {
   auto refused = server::start_server(options);
   ASSERT_FALSE(refused);
   EXPECT_THAT(refused.error(), HasSubstr("--plaintext"));
+  // A host name that merely starts like a loopback address is not one.
+  options.address = "127.0.0.1.example.invalid:0";
+  refused = server::start_server(options);
+  ASSERT_FALSE(refused);
+  EXPECT_THAT(refused.error(), HasSubstr("--plaintext"));
+  options.address = "0.0.0.0:0";
   options.plaintext = true;
   auto running = server::start_server(options);
   ASSERT_TRUE(running) << running.error();

@@ -14,7 +14,7 @@ packages=(
   liborocos-kdl-dev                   # Orocos KDL: the kinematics cross-check (tests only)
   coinor-libipopt-dev libceres-dev libnlopt-cxx-dev   # the optimisers (optim/)
   python3 python3-grpcio python3-protobuf   # the cross-language client test
-  openssl                             # test certificates for TLS and mutual TLS
+  openssl libssl-dev                  # test certificates for TLS and mutual TLS; the certificate checks
   prometheus                          # promtool checks the metrics exposition and alert rules
   yamllint python3-yaml nginx         # deploy/ checks, and the nginx grpc_pass load-balancing test
   clang libclang-rt-14-dev            # the libFuzzer targets (make fuzz)

@@ -40,7 +40,9 @@ def parse_args(argv):
     p.add_argument("--csv", default="samples.csv",
                    help="where StreamSamples' samples go, one row each; '-' for stdout (default: samples.csv)")
     p.add_argument("--no-stream", action="store_true", help="plan only")
-    p.add_argument("--timeout", type=float, default=60.0, help="deadline of each call [s] (default: 60)")
+    p.add_argument("--timeout", type=float, default=60.0, help="deadline of the plan [s] (default: 60)")
+    p.add_argument("--stream-timeout", type=float, default=None,
+                   help="deadline of the stream [s] (default: none, so that a motion of any length streams whole)")
     p.add_argument("--stubs", default=os.environ.get("GEOTRAJ_PY_STUBS", os.path.join(HERE, "gen")),
                    help="directory of the generated stubs (default: $GEOTRAJ_PY_STUBS or gen/ beside this file)")
     return p.parse_args(argv)
@@ -147,7 +149,7 @@ def main(argv=None):
             if not request.HasField("motion"):
                 print("no motion in the request: nothing to stream (give `motion` to get samples)", file=info)
                 return 0
-            call = stub.StreamSamples(request, timeout=args.timeout, metadata=metadata)
+            call = stub.StreamSamples(request, timeout=args.stream_timeout, metadata=metadata)
             if args.csv == "-":
                 try:
                     write_samples(call, sys.stdout)

@@ -132,7 +132,7 @@ int run(const CallOptions& options, Call call) {
     if (!apply(options.optimize, request)) return 2;
   }
   grpc::ClientContext context;
-  set_deadline(context, options.timeout_s);
+  set_deadline(context, options.unary_timeout_s());
   Response response;
   return answer(options, call(context, request, response), response);
 }
@@ -169,12 +169,12 @@ int run_stream(const Connection& connection, const CallOptions& options) {
   const bool progress = ::isatty(STDERR_FILENO) != 0;
   if (progress) {
     grpc::ClientContext context;
-    set_deadline(context, options.timeout_s);
+    set_deadline(context, options.unary_timeout_s());
     v1::PlanResponse plan;
     if (stub->PlanTrajectory(&context, request, &plan).ok()) expected = plan.motion().sample_count();
   }
   grpc::ClientContext context;
-  set_deadline(context, options.timeout_s);
+  if (options.timeout_s > 0.0) set_deadline(context, options.timeout_s);  // else none: see CallOptions
   auto reader = stub->StreamSamples(&context, request);
   bool header_written = options.json;
   google::protobuf::util::JsonPrintOptions print;
@@ -241,7 +241,7 @@ int run_stream(const Connection& connection, const CallOptions& options) {
 int run_robots(const Connection& connection, const CallOptions& options) {
   auto stub = v1::TrajectoryService::NewStub(connection.channel);
   grpc::ClientContext context;
-  set_deadline(context, options.timeout_s);
+  set_deadline(context, options.unary_timeout_s());
   v1::ListRobotsResponse response;
   return answer(options, stub->ListRobots(&context, v1::ListRobotsRequest{}, &response), response);
 }

@@ -19,7 +19,10 @@ struct OptimizeFlags {
 struct CallOptions {
   std::string input = "-";  ///< request file in the proto JSON mapping; "-" reads stdin
   bool json = false;        ///< print the response as proto JSON instead of a table
-  double timeout_s = 60.0;  ///< deadline of the call [s]
+  double timeout_s = 0.0;   ///< deadline of the call [s]; 0: not given
+  /// The deadline of a unary call: the one given, else 60 s. A stream has the one given
+  /// only (else none: a real-time stream lasts as long as its motion).
+  double unary_timeout_s() const { return timeout_s > 0.0 ? timeout_s : 60.0; }
   OptimizeFlags optimize;   ///< applied to PlanRequests
 };
 

@@ -26,18 +26,14 @@ int main(int argc, char** argv) {
   app.add_option("--tls-cert", server.cert_file, "client certificate (PEM) for mutual TLS; implies --tls")
       ->envname("GEOTRAJ_TLS_CLIENT_CERT");
   app.add_option("--tls-key", server.key_file, "client private key (PEM) for mutual TLS")->envname("GEOTRAJ_TLS_CLIENT_KEY");
-  app.add_option("--token-file", server.token, "file holding a bearer token, sent on every call")
-      ->envname("GEOTRAJ_TOKEN_FILE")
-      ->each([&server](const std::string& path) {
-        std::ifstream in(path);
-        if (!in) throw CLI::ValidationError("--token-file", "cannot read \"" + path + "\"");
-        std::getline(in, server.token);
-        while (!server.token.empty() && std::isspace(static_cast<unsigned char>(server.token.back()))) server.token.pop_back();
-      });
-  app.add_option("--timeout", options.timeout_s, "deadline of the call [s]")
+  std::string token_file;
+  app.add_option("--token-file", token_file, "file holding a bearer token (its first line), sent on every call")
+      ->envname("GEOTRAJ_TOKEN_FILE");
+  app.add_option("--timeout", options.timeout_s,
+                 "deadline of the call [s]; default: 60 for every call but `stream`, which has none (a motion may "
+                 "last longer than any fixed deadline)")
       ->envname("GEOTRAJ_TIMEOUT")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
+      ->check(CLI::PositiveNumber);
   app.add_flag("--json", options.json, "print the response in the proto JSON mapping instead of a table");
   const auto request_arg = [&](CLI::App* sub, const char* type) {
     sub->add_option("request", options.input, std::string(type) + " in the proto JSON mapping: a file, or - for stdin")
@@ -71,6 +67,19 @@ int main(int argc, char** argv) {
   app.footer("Environment only: GEOTRAJ_TOKEN, a bearer token sent on every call (secrets do not belong on a "
              "command line).");
   CLI11_PARSE(app, argc, argv);
+  if (!token_file.empty()) {
+    std::ifstream in(token_file);
+    if (!in) {
+      std::cerr << "geotraj: --token-file: cannot read \"" << token_file << "\"\n";
+      return 2;
+    }
+    std::getline(in, server.token);
+    while (!server.token.empty() && std::isspace(static_cast<unsigned char>(server.token.back()))) server.token.pop_back();
+    if (server.token.empty()) {
+      std::cerr << "geotraj: --token-file: \"" << token_file << "\" holds no token on its first line\n";
+      return 2;
+    }
+  }
   if (server.token.empty()) {
     if (const char* token = std::getenv("GEOTRAJ_TOKEN")) server.token = token;
   }
@@ -85,5 +94,5 @@ int main(int argc, char** argv) {
   if (analyze->parsed()) return geotraj::cli::run_analyze(*connection, options);
   if (stream->parsed()) return geotraj::cli::run_stream(*connection, options);
   if (robots->parsed()) return geotraj::cli::run_robots(*connection, options);
-  return geotraj::cli::run_health(*connection, health_service, options.timeout_s);
+  return geotraj::cli::run_health(*connection, health_service, options.unary_timeout_s());
 }

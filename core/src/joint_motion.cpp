@@ -227,6 +227,7 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
            ik_position_tolerance_ - s.position_error);
     return;  // q, q_dot, q_ddot of a failed sample are not a motion
   }
+  ++r.converged_samples;
   if (s.midpoint_deviation > r.max_midpoint_deviation) {
     r.max_midpoint_deviation = s.midpoint_deviation;
     r.max_midpoint_deviation_t = t;

@@ -180,6 +180,13 @@ void validate_breakpoints(Collector& c, const PathSpec& spec, std::size_t segmen
     c.add("breakpoints", "are only used by the TRAPEZOIDAL blend; the request blends with POLYNOMIAL");
     return;
   }
+  // One entry per segment at most: more is one mistake, not one per entry (a request of
+  // many empty entries must not buy an answer listing each).
+  if (spec.breakpoints.size() > segments) {
+    c.add("breakpoints", "has " + std::to_string(spec.breakpoints.size()) + " entries; the path has " +
+                             std::to_string(segments) + " segments, and each takes one entry at most");
+    return;
+  }
   std::vector<bool> seen(segments, false);
   for (std::size_t i = 0; i < spec.breakpoints.size(); ++i) {
     const auto& bp = spec.breakpoints[i];

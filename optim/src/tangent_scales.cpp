@@ -19,6 +19,7 @@
 #include "geotraj/core/constraints.hpp"
 #include "geotraj/core/differential_geometry.hpp"
 #include "geotraj/core/validate.hpp"
+#include "ipopt_lock.hpp"
 
 namespace geotraj::optim {
 namespace {
@@ -1019,6 +1020,13 @@ core::Expected<TangentScaleResult> optimize_from(const core::PathSpec& spec, con
     return finish(pb.start, report.objective_before);
   }
 
+  // Declared before the application, so released after it is destroyed (ipopt_lock.hpp).
+  const auto ipopt = detail::lock_ipopt(stop_at, options.stop);
+  if (!ipopt.owns_lock()) {
+    report.status = OptimizerStatus::kTimeLimit;
+    report.message = "the time ran out while another optimisation held the solver";
+    return finish(pb.start, report.objective_before);
+  }
   Ipopt::SmartPtr<ScaleNlp> nlp = new ScaleNlp(pb, stop_at, options.stop);
   Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
   auto& opts = *app->Options();

@@ -13,6 +13,7 @@
 #include <IpTNLP.hpp>
 
 #include "banded_ipm.hpp"
+#include "ipopt_lock.hpp"
 
 namespace geotraj::optim {
 
@@ -596,6 +597,17 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
       prefix = out.report.message + "; then ";
     }
   }
+  // Held until the application is destroyed, at the end of this block (ipopt_lock.hpp).
+  std::unique_lock<std::timed_mutex> ipopt;
+  if (run_ipopt) {
+    ipopt = detail::lock_ipopt(deadline);
+    if (!ipopt.owns_lock()) {
+      run_ipopt = false;
+      nlp->x_.clear();
+      out.report.status = OptimizerStatus::kTimeLimit;
+      out.report.message = prefix + "the time ran out while another optimisation held Ipopt";
+    }
+  }
   if (run_ipopt) {
     nlp->x_.clear();
     Ipopt::SmartPtr<Ipopt::IpoptApplication> app = IpoptApplicationFactory();
@@ -640,6 +652,7 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
     }
     out.report.message = prefix + "Ipopt return status " + std::to_string(static_cast<int>(status));
   }
+  if (ipopt.owns_lock()) ipopt.unlock();  // the application is gone with its block
   out.report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const bool have_point = nlp->x_.size() == x0.size() && out.report.status != OptimizerStatus::kFailed &&
                           std::all_of(nlp->x_.begin(), nlp->x_.end(), [](double b) { return b > 0.0; });

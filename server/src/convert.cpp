@@ -247,8 +247,10 @@ core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request)
                                       " (both ends of the path are points), got " +
                                       std::to_string(request.analysis_points()));
     }
-    if (request.has_samples_per_batch() && request.samples_per_batch() == 0) {
-      check.add("samplesPerBatch", "must be at least 1 when given, got 0");
+    if (request.has_samples_per_batch() &&
+        (request.samples_per_batch() == 0 || request.samples_per_batch() > kMaxSamplesPerBatch)) {
+      check.add("samplesPerBatch", "must be between 1 and " + std::to_string(kMaxSamplesPerBatch) + " when given, got " +
+                                       std::to_string(request.samples_per_batch()));
     }
   });
 }
@@ -591,6 +593,17 @@ std::string describe(const core::LimitEvent& e) {
 
 void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out) {
   out.set_name(robot_name);
+  out.set_samples(report.samples);
+  out.set_converged_samples(report.converged_samples);
+  out.set_max_ik_position_error(report.max_position_error);
+  out.set_max_ik_orientation_error(report.max_orientation_error);
+  out.set_feasible(report.feasible());
+  for (const auto& v : report.violations) to_proto(v, *out.add_violations());
+  if (report.converged_samples == 0) {
+    // No joint value was measured: the figures below would be their +-infinity starts.
+    for (std::size_t j = 0; j < report.joints.size(); ++j) out.add_joints()->set_joint(static_cast<std::uint32_t>(j));
+    return;
+  }
   for (std::size_t j = 0; j < report.joints.size(); ++j) {
     const auto& u = report.joints[j];
     auto* r = out.add_joints();
@@ -603,18 +616,13 @@ void to_proto(const std::string& robot_name, const core::JointMotionReport& repo
     r->set_acceleration_usage(u.acceleration_usage);
     r->set_position_margin(u.position_margin);
   }
-  out.set_samples(report.samples);
   to_proto(report.tightest_position, *out.mutable_tightest_position());
   to_proto(report.tightest_velocity, *out.mutable_tightest_velocity());
   to_proto(report.tightest_acceleration, *out.mutable_tightest_acceleration());
-  out.set_max_ik_position_error(report.max_position_error);
-  out.set_max_ik_orientation_error(report.max_orientation_error);
   out.set_max_midpoint_deviation(report.max_midpoint_deviation);
   out.set_max_midpoint_deviation_t(report.max_midpoint_deviation_t);
   out.set_min_manipulability(report.min_manipulability);
   out.set_min_manipulability_t(report.min_manipulability_t);
-  out.set_feasible(report.feasible());
-  for (const auto& v : report.violations) to_proto(v, *out.add_violations());
   for (const auto& b : report.binding) {
     auto* stretch = out.add_binding();
     stretch->set_kind(b.kind == core::LimitKind::kAcceleration ? v1::BINDING_KIND_JOINT_ACCELERATION

@@ -1,5 +1,7 @@
 #include "http_exporter.hpp"
 
+#include "socket.hpp"
+
 #include <algorithm>
 #include <cerrno>
 #include <string_view>
@@ -121,72 +123,12 @@ tl::expected<std::unique_ptr<HttpExporter>, std::string> HttpExporter::start(con
                                                                              std::function<std::string()> metrics_body,
                                                                              HttpExporterOptions options) {
   const std::string quoted = "metrics address \"" + address + "\"";
-  // HOST:PORT, [V6]:PORT; a bare IPv6 address needs the brackets to tell host from port.
-  std::string host, port;
-  if (!address.empty() && address.front() == '[') {
-    const std::size_t close = address.find(']');
-    if (close == std::string::npos || close + 1 >= address.size() || address[close + 1] != ':') {
-      return tl::make_unexpected(quoted + " is not [IPV6]:PORT");
-    }
-    host = address.substr(1, close - 1);
-    port = address.substr(close + 2);
-  } else {
-    const std::size_t colon = address.rfind(':');
-    if (colon == std::string::npos) return tl::make_unexpected(quoted + " is not HOST:PORT");
-    host = address.substr(0, colon);
-    port = address.substr(colon + 1);
-    if (host.find(':') != std::string::npos) {
-      return tl::make_unexpected(quoted + " is not HOST:PORT (write an IPv6 address as [ADDRESS]:PORT)");
-    }
-  }
-  if (port.empty() || port.size() > 5 || !std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; }) ||
-      std::stoi(port) > 65535) {
-    return tl::make_unexpected(quoted + " has no port number from 0 to 65535");
-  }
   if (!metrics_body) return tl::make_unexpected("no metrics source for " + quoted);
-
-  addrinfo hints{};
-  hints.ai_family = AF_UNSPEC;
-  hints.ai_socktype = SOCK_STREAM;
-  hints.ai_flags = AI_PASSIVE | AI_NUMERICSERV;
-  addrinfo* found = nullptr;
-  if (const int rc = ::getaddrinfo(host.empty() ? nullptr : host.c_str(), port.c_str(), &hints, &found); rc != 0) {
-    const std::string why = rc == EAI_SYSTEM ? errno_text(errno) : ::gai_strerror(rc);
-    return tl::make_unexpected("cannot resolve " + quoted + ": " + why);
-  }
-  std::vector<const addrinfo*> candidates;
-  for (const addrinfo* a = found; a != nullptr; a = a->ai_next) candidates.push_back(a);
-  // For "every address" try IPv6 first: on Linux a [::] socket also accepts IPv4.
-  if (host.empty()) {
-    std::stable_partition(candidates.begin(), candidates.end(), [](const addrinfo* a) { return a->ai_family == AF_INET6; });
-  }
-  int listen_fd = -1;
+  auto listening = listen_tcp(address, "metrics address", 128);
+  if (!listening) return tl::make_unexpected(listening.error());
+  const int listen_fd = listening->fd;
+  const int bound_port = listening->port;
   int error = 0;
-  for (const addrinfo* a : candidates) {
-    const int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, a->ai_protocol);
-    if (fd < 0) {
-      error = errno;
-      continue;
-    }
-    const int on = 1;
-    ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &on, sizeof on);  // restart while old sockets sit in TIME_WAIT
-    if (::bind(fd, a->ai_addr, a->ai_addrlen) == 0 && ::listen(fd, 128) == 0) {
-      listen_fd = fd;
-      break;
-    }
-    error = errno;
-    ::close(fd);
-  }
-  ::freeaddrinfo(found);
-  if (listen_fd < 0) return tl::make_unexpected("cannot listen on " + quoted + ": " + errno_text(error));
-
-  sockaddr_storage bound{};
-  socklen_t length = sizeof bound;
-  int bound_port = 0;
-  if (::getsockname(listen_fd, reinterpret_cast<sockaddr*>(&bound), &length) == 0) {
-    if (bound.ss_family == AF_INET) bound_port = ntohs(reinterpret_cast<const sockaddr_in*>(&bound)->sin_port);
-    if (bound.ss_family == AF_INET6) bound_port = ntohs(reinterpret_cast<const sockaddr_in6*>(&bound)->sin6_port);
-  }
 
   // stop() wakes the thread's poll() through this pipe.
   int wake[2];
@@ -268,7 +210,7 @@ void HttpExporter::run() {
     const auto now = Clock::now();
     fds.clear();
     fds.push_back({wake_read_fd_, POLLIN, 0});
-    const bool accepting = connections.size() < max_connections && now >= accept_paused_until;
+    const bool accepting = now >= accept_paused_until;
     fds.push_back({accepting ? listen_fd_ : -1, POLLIN, 0});  // a negative fd is skipped by poll()
     Clock::time_point wake_at = accepting ? Clock::time_point::max() : accept_paused_until;
     for (const Connection& c : connections) {
@@ -319,12 +261,18 @@ void HttpExporter::run() {
 
     // New connections.
     if (fds[1].revents != 0) {
-      while (connections.size() < max_connections) {
+      for (;;) {
         const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0) {
           if (errno == EINTR || errno == ECONNABORTED) continue;
           if (errno != EAGAIN && errno != EWOULDBLOCK) accept_paused_until = Clock::now() + std::chrono::milliseconds(100);
           break;
+        }
+        std::erase_if(connections, [](const Connection& c) { return c.fd < 0; });
+        if (connections.size() >= max_connections) {
+          // Full: the oldest connection makes room (connections are kept in arrival order).
+          close_connection(connections.front());
+          connections.erase(connections.begin());
         }
         Connection c;
         c.fd = fd;

@@ -16,10 +16,12 @@ namespace geotraj::server {
 
 /// Limits of the exporter; the defaults suit production.
 struct HttpExporterOptions {
-  /// A connection must deliver its request and take its response within this time.
-  std::chrono::milliseconds timeout{5000};
-  /// Connections served at once; more wait in the listen backlog.
-  std::size_t max_connections = 64;
+  /// A connection must deliver its request and take its response within this time: well
+  /// below Prometheus's 10 s scrape timeout, so that clients that trickle bytes go first.
+  std::chrono::milliseconds timeout{2000};
+  /// Connections served at once. A new one beyond them closes the oldest: a scrape is never
+  /// kept waiting in the backlog behind clients that hold connections and send nothing.
+  std::size_t max_connections = 512;
 };
 
 /// Serves, one request per connection (Connection: close):
@@ -28,7 +30,8 @@ struct HttpExporterOptions {
 ///   other paths -> 404, other methods -> 405, a malformed or oversized (> 8 KiB) request
 ///   line or header block -> 400; then the connection is closed.
 /// One thread multiplexes all connections with poll() on non-blocking sockets, so a slow
-/// or silent client holds only its own slot, and only until the timeout.
+/// or silent client holds only its own slot, and only until the timeout or until a newer
+/// connection needs the slot.
 class HttpExporter {
  public:
   /// Listens on `address` (HOST:PORT; [IPv6]:PORT; a host name is resolved; an empty host

@@ -1,11 +1,16 @@
 #include "log.hpp"
 
+#include <grpc/support/log.h>
+
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <ctime>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <type_traits>
 
@@ -206,6 +211,11 @@ bool Logger::enabled(LogLevel level) const { return level >= level_; }
 
 void Logger::log(LogLevel level, std::string_view message, std::vector<LogField> fields) const {
   if (!enabled(level) || out_ == nullptr) return;
+  for (auto& field : fields) {
+    if (auto* text = std::get_if<std::string>(&field.value); text != nullptr && text->size() > kMaxLogValueBytes) {
+      *text = truncated(*text, kMaxLogValueBytes);
+    }
+  }
   const std::string line =
       format_ == LogFormat::kJson ? format_json(level, message, fields) : format_text(level, message, fields);
   // One mutex for every logger: they may share a stream (stderr).
@@ -213,6 +223,62 @@ void Logger::log(LogLevel level, std::string_view message, std::vector<LogField>
   const std::lock_guard lock(mutex);
   std::fwrite(line.data(), 1, line.size(), out_);
   std::fflush(out_);
+}
+
+std::string truncated(std::string_view text, std::size_t max_bytes) {
+  if (text.size() <= max_bytes) return std::string(text);
+  std::size_t cut = 0;
+  while (cut < max_bytes) {  // whole characters only (an invalid byte counts as one)
+    const std::size_t n = std::max<std::size_t>(utf8_sequence(text, cut), 1);
+    if (cut + n > max_bytes) break;
+    cut += n;
+  }
+  return std::string(text.substr(0, cut)) + "... (" + std::to_string(text.size() - cut) + " more bytes)";
+}
+
+namespace {
+
+std::mutex grpc_log_mutex;
+std::optional<Logger> grpc_logger;  // guarded by grpc_log_mutex
+const Logger* grpc_logger_owner = nullptr;  // the logger grpc_logger copies
+
+void grpc_log_line(gpr_log_func_args* args) {
+  const std::lock_guard lock(grpc_log_mutex);
+  if (!grpc_logger) {  // no server routes them: as gRPC itself writes them
+    std::fprintf(stderr, "%s %s:%d] %s\n", gpr_log_severity_string(args->severity), args->file ? args->file : "?",
+                 args->line, args->message ? args->message : "");
+    return;
+  }
+  const LogLevel level = args->severity == GPR_LOG_SEVERITY_ERROR  ? LogLevel::kError
+                         : args->severity == GPR_LOG_SEVERITY_INFO ? LogLevel::kInfo
+                                                                   : LogLevel::kDebug;
+  std::vector<LogField> fields{{"source", std::string("grpc")}};
+  if (args->file != nullptr) fields.push_back({"at", std::string(args->file) + ":" + std::to_string(args->line)});
+  grpc_logger->log(level, truncated(args->message != nullptr ? args->message : "", 4 * kMaxLogValueBytes),
+                   std::move(fields));
+}
+
+}  // namespace
+
+void route_grpc_logs(const Logger* logger) {
+  {
+    const std::lock_guard lock(grpc_log_mutex);
+    if (logger != nullptr) {
+      grpc_logger = *logger;
+    } else {
+      grpc_logger.reset();
+    }
+    grpc_logger_owner = logger;
+  }
+  gpr_set_log_function(grpc_log_line);  // stays: it writes to stderr when nothing is routed
+}
+
+void unroute_grpc_logs(const Logger& logger) {
+  {
+    const std::lock_guard lock(grpc_log_mutex);
+    if (grpc_logger_owner != &logger) return;
+  }
+  route_grpc_logs(nullptr);
 }
 
 std::string new_request_id() {

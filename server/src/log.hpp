@@ -58,6 +58,22 @@ std::string new_request_id();
 /// Whether a client's x-request-id can be logged as is: 1 to 64 characters of [A-Za-z0-9._-].
 bool valid_request_id(std::string_view id);
 
+/// `text` cut to at most `max_bytes` (at a UTF-8 character boundary) followed by
+/// "... (N more bytes)" when it is longer; `text` itself otherwise.
+std::string truncated(std::string_view text, std::size_t max_bytes);
+
+/// Longest value of a string field in a log line [bytes]: a client's 1 MB robot name stays
+/// a short line (log.cpp).
+inline constexpr std::size_t kMaxLogValueBytes = 512;
+
+/// Sends gRPC core's own log lines (gpr_log) through `logger`, in its format, so that a JSON
+/// log holds JSON lines only; their severity maps to debug, info and error. Process-wide: the
+/// last logger given wins; nullptr writes them to stderr as gRPC does.
+void route_grpc_logs(const Logger* logger);
+/// Restores gRPC's default when `logger` is the one routed to (a server that stops: its
+/// stream may be closed after it).
+void unroute_grpc_logs(const Logger& logger);
+
 /// Length of the valid UTF-8 sequence that starts at s[i] (1 to 4), or 0 if none does
 /// (overlong forms, surrogates and code points above U+10FFFF are not valid).
 std::size_t utf8_sequence(std::string_view s, std::size_t i);

@@ -5,7 +5,9 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <stop_token>
 #include <string>
+#include <thread>
 
 #include <CLI/CLI.hpp>
 
@@ -20,11 +22,16 @@ Health (grpc.health.v1.Health): "" and "geotraj.v1.TrajectoryService" are SERVIN
 the process serves (liveness); "geotraj.readiness" once the warm-up plan has run, and
 NOT_SERVING from the first moment of a shutdown. On SIGTERM or SIGINT: health turns
 NOT_SERVING, new calls get UNAVAILABLE (for --lame-duck-seconds at least), calls in flight
-may finish for --drain-seconds, then the rest are cancelled and the process exits 0.
+may finish for --drain-seconds, then the rest are cancelled and the process exits 0; a
+second signal during the drain cancels them at once.
 
 Refusals name their limit: RESOURCE_EXHAUSTED beyond --max-streams / --max-unary-calls,
 INVALID_ARGUMENT beyond --max-frames, --max-stream-samples, --max-optimize-seconds,
-RESOURCE_EXHAUSTED beyond --max-request-bytes (from gRPC itself).
+RESOURCE_EXHAUSTED beyond --max-request-bytes (from gRPC itself) and --max-response-bytes,
+INVALID_ARGUMENT beyond --max-analysis-points; DEADLINE_EXCEEDED after
+--default-deadline-seconds for a call that gives no deadline. Connections beyond
+--max-connections are closed on arrival.
+A process ended by a library (not by a signal or a shutdown) exits with status 70.
 Documentation: docs/deploy.md, docs/reliability.md.)";
 
 }  // namespace
@@ -108,6 +115,31 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.001, 3600.0))
       ->capture_default_str()
       ->group("Limits");
+  app.add_option("--max-analysis-points", limits.max_analysis_points,
+                 "points of one AnalyzePath answer (analysisPoints); beyond: INVALID_ARGUMENT")
+      ->envname("GEOTRAJ_MAX_ANALYSIS_POINTS")
+      ->check(CLI::Range(std::uint64_t{2}, std::uint64_t{1'000'000}))
+      ->capture_default_str()
+      ->group("Limits");
+  app.add_option("--max-response-bytes", limits.max_response_bytes,
+                 "largest answer of a unary call [bytes]; beyond: RESOURCE_EXHAUSTED")
+      ->envname("GEOTRAJ_MAX_RESPONSE_BYTES")
+      ->check(CLI::Range(std::uint64_t{1024}, std::uint64_t{1} << 31))
+      ->capture_default_str()
+      ->group("Limits");
+  app.add_option("--default-deadline-seconds", limits.default_deadline_s,
+                 "deadline of a call that carries none (and of a stream's planning) [s]; a client's earlier one wins")
+      ->envname("GEOTRAJ_DEFAULT_DEADLINE_SECONDS")
+      ->check(CLI::Range(0.001, 86400.0))
+      ->capture_default_str()
+      ->group("Limits");
+  app.add_option("--workers", limits.workers,
+                 "threads that run plans, optimisations, analyses and stream planning, off gRPC's threads (0: one "
+                 "per core); calls beyond them queue, up to --max-unary-calls")
+      ->envname("GEOTRAJ_WORKERS")
+      ->check(CLI::Range(0, 1024))
+      ->capture_default_str()
+      ->group("Limits");
 
   // Connections and shutdown.
   auto& connections = options.connections;
@@ -132,6 +164,25 @@ int main(int argc, char** argv) {
                  "calls in flight on an aged connection may finish within this [s]; keep it longer than the longest "
                  "real-time stream")
       ->envname("GEOTRAJ_MAX_CONNECTION_AGE_GRACE_SECONDS")
+      ->check(CLI::Range(0.0, 1e7))
+      ->capture_default_str()
+      ->group("Connections");
+  app.add_option("--max-connections", connections.max_connections,
+                 "TCP connections open at once on the gRPC port; beyond, new ones are closed on arrival (lowered "
+                 "to fit the descriptor limit, whose soft value is raised to the hard one)")
+      ->envname("GEOTRAJ_MAX_CONNECTIONS")
+      ->check(CLI::Range(1, 1'000'000))
+      ->capture_default_str()
+      ->group("Connections");
+  app.add_option("--handshake-timeout-seconds", connections.handshake_timeout_s,
+                 "close a connection that has not sent the HTTP/2 preface (or finished TLS) within this [s]")
+      ->envname("GEOTRAJ_HANDSHAKE_TIMEOUT_SECONDS")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str()
+      ->group("Connections");
+  app.add_option("--max-connection-idle-seconds", connections.max_connection_idle_s,
+                 "close a connection with no call for this long (GOAWAY; clients reconnect when needed) [s]; 0: never")
+      ->envname("GEOTRAJ_MAX_CONNECTION_IDLE_SECONDS")
       ->check(CLI::Range(0.0, 1e7))
       ->capture_default_str()
       ->group("Connections");
@@ -179,9 +230,12 @@ int main(int argc, char** argv) {
   sigaddset(&stop_signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
 
+  // From here, an exit that main() does not make (a library's exit(0)) is a failure.
+  geotraj::server::guard_exit();
   auto running = geotraj::server::start_server(options);
   if (!running) {
     std::fprintf(stderr, "geotrajd: %s\n", running.error().c_str());
+    geotraj::server::allow_exit();
     return 1;
   }
   const auto host = options.address.substr(0, options.address.rfind(':'));
@@ -201,11 +255,27 @@ int main(int argc, char** argv) {
   int signal = 0;
   sigwait(&stop_signals, &signal);
   const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
-  std::printf("geotrajd: %s received, draining (up to %.3g s)\n", name, drain_s);
+  std::printf("geotrajd: %s received, draining (up to %.3g s); a second signal stops at once\n", name, drain_s);
   std::fflush(stdout);
   geotraj::server::log_info(*running, "draining", {{"signal", name}, {"drain_seconds", std::to_string(drain_s)}});
+  // A second SIGTERM or SIGINT during the drain ends it: the calls left are cancelled.
+  std::stop_source now;
+  std::jthread second([&stop_signals, &now, &running](std::stop_token done) {
+    while (!done.stop_requested()) {
+      const timespec poll_every{0, 100'000'000};
+      if (sigtimedwait(&stop_signals, nullptr, &poll_every) > 0) {
+        geotraj::server::log_info(*running, "second stop signal: stopping now");
+        now.request_stop();
+        return;
+      }
+    }
+  });
   geotraj::server::stop_server(*running, std::chrono::milliseconds(static_cast<long long>(drain_s * 1000.0)),
-                               std::chrono::milliseconds(static_cast<long long>(lame_duck_s * 1000.0)));
+                               std::chrono::milliseconds(static_cast<long long>(lame_duck_s * 1000.0)),
+                               now.get_token());
+  second.request_stop();
+  second.join();
   geotraj::server::log_info(*running, "stopped");
+  geotraj::server::allow_exit();
   return 0;
 }

@@ -148,6 +148,27 @@ void Metrics::observe(Histogram& histogram, const std::vector<double>& bounds, d
   histogram.sum += value;
 }
 
+void Metrics::connections_open(std::string_view listener, std::int64_t open) {
+  const std::lock_guard lock(mutex_);
+  auto it = connections_open_.find(listener);
+  if (it == connections_open_.end()) it = connections_open_.emplace(std::string(listener), 0).first;
+  it->second = open;
+}
+
+void Metrics::connection_refused(std::string_view listener, std::string_view reason) {
+  const std::lock_guard lock(mutex_);
+  auto it = connections_refused_.find(listener);
+  if (it == connections_refused_.end()) it = connections_refused_.emplace(std::string(listener), decltype(it->second){}).first;
+  auto r = it->second.find(reason);
+  if (r == it->second.end()) r = it->second.emplace(std::string(reason), 0).first;
+  ++r->second;
+}
+
+void Metrics::set_worker_source(std::function<std::pair<std::int64_t, std::int64_t>()> source) {
+  const std::lock_guard lock(mutex_);
+  worker_source_ = std::move(source);
+}
+
 std::string Metrics::exposition() const {
   std::string out;
   out.reserve(8192);
@@ -202,6 +223,26 @@ std::string Metrics::exposition() const {
 
     append_header(out, "geotraj_optimization_duration_seconds", "histogram", "Time spent in one optimisation, by kind.");
     histogram_family("geotraj_optimization_duration_seconds", "kind", optimization_durations_, kOptimizationBounds);
+
+    append_header(out, "geotraj_connections", "gauge", "TCP connections open, by listening port (grpc, health).");
+    for (const auto& [listener, open] : connections_open_) {
+      append_sample(out, "geotraj_connections", label("listener", listener), open);
+    }
+    append_header(out, "geotraj_connections_refused_total", "counter",
+                  "TCP connections closed on arrival (reason: max_connections, descriptors).");
+    for (const auto& [listener, reasons] : connections_refused_) {
+      for (const auto& [reason, count] : reasons) {
+        append_sample(out, "geotraj_connections_refused_total", label("listener", listener) + "," + label("reason", reason),
+                      count);
+      }
+    }
+    if (worker_source_) {
+      const auto [queued, busy] = worker_source_();
+      append_header(out, "geotraj_queued_calls", "gauge", "Calls admitted and waiting for a worker thread.");
+      append_sample(out, "geotraj_queued_calls", {}, queued);
+      append_header(out, "geotraj_busy_workers", "gauge", "Worker threads running a call now.");
+      append_sample(out, "geotraj_busy_workers", {}, busy);
+    }
   }
 
   append_header(out, "geotraj_active_streams", "gauge", "Server-streaming RPCs in progress.");

@@ -47,6 +47,14 @@ class Metrics {
   /// "time_optimal_jerk") took `seconds`.
   void optimization(std::string_view kind, double seconds);
 
+  /// The TCP connections open on `listener` ("grpc", "health") now.
+  void connections_open(std::string_view listener, std::int64_t open);
+  /// A connection on `listener` was closed at once ("max_connections": the cap;
+  /// "descriptors": the process has no descriptor left for it).
+  void connection_refused(std::string_view listener, std::string_view reason);
+  /// Where exposition() reads the calls waiting for a worker and the workers busy now.
+  void set_worker_source(std::function<std::pair<std::int64_t, std::int64_t>()> source);
+
   /// Every family with # HELP and # TYPE. Labelled series appear once observed; the
   /// unlabelled counters and the gauges always appear. Deterministic order.
   std::string exposition() const;
@@ -75,6 +83,9 @@ class Metrics {
   std::map<std::string, Histogram, std::less<>> call_durations_;
   std::map<std::string, std::map<std::string, std::uint64_t, std::less<>>, std::less<>> rejected_;
   std::map<std::string, Histogram, std::less<>> optimization_durations_;
+  std::map<std::string, std::int64_t, std::less<>> connections_open_;
+  std::map<std::string, std::map<std::string, std::uint64_t, std::less<>>, std::less<>> connections_refused_;
+  std::function<std::pair<std::int64_t, std::int64_t>()> worker_source_;
 };
 
 }  // namespace geotraj::server

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 namespace geotraj::server {
 namespace {
@@ -108,6 +109,30 @@ std::optional<grpc::Status> TokenTable::check(const grpc::CallbackServerContext&
                             (needs_stream_scope(method) ? "stream" : "plan") + "`");
   }
   return std::nullopt;
+}
+
+Runtime::Runtime(ServiceLimits limits, TokenTable tokens, Logger logger)
+    : limits_(limits),
+      tokens_(std::move(tokens)),
+      logger_(std::move(logger)),
+      workers_(limits.workers > 0 ? limits.workers : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))) {}
+
+std::optional<grpc::Status> Runtime::begin_watch() {
+  if (draining()) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
+  if (active_streams_.fetch_add(1) >= limits_.max_streams) {
+    active_streams_.fetch_sub(1);
+    metrics_.rejected("Health.Watch", "capacity");
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                        "the server has " + std::to_string(limits_.max_streams) +
+                            " streams in flight, health watches included, its limit (geotrajd --max-streams): retry later");
+  }
+  active_watches_.fetch_add(1);
+  return std::nullopt;
+}
+
+void Runtime::end_watch() {
+  active_watches_.fetch_sub(1);
+  active_streams_.fetch_sub(1);
 }
 
 Call::Call(Runtime& runtime, grpc::CallbackServerContext& context, Method method)

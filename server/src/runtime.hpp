@@ -18,6 +18,7 @@
 #include "geotraj/server/server.hpp"
 #include "log.hpp"
 #include "metrics.hpp"
+#include "worker_pool.hpp"
 
 namespace geotraj::server {
 
@@ -62,10 +63,11 @@ class TokenTable {
 /// State shared by the calls of one server.
 class Runtime {
  public:
-  Runtime(ServiceLimits limits, TokenTable tokens, Logger logger)
-      : limits_(limits), tokens_(std::move(tokens)), logger_(std::move(logger)) {}
+  Runtime(ServiceLimits limits, TokenTable tokens, Logger logger);
 
   const ServiceLimits& limits() const { return limits_; }
+  /// Where long work runs (worker_pool.hpp).
+  WorkerPool& workers() { return workers_; }
   Metrics& metrics() { return metrics_; }
   const Logger& logger() const { return logger_; }
   const TokenTable& tokens() const { return tokens_; }
@@ -73,8 +75,13 @@ class Runtime {
   /// From now on, new calls are refused with UNAVAILABLE (the server is going away).
   void start_draining() { draining_.store(true); }
   bool draining() const { return draining_.load(); }
-  /// Calls admitted and not yet finished (streams and unary calls).
-  int calls_in_flight() const { return active_streams_.load() + active_unary_.load(); }
+  /// Calls admitted and not yet finished (streams and unary calls; health watches aside).
+  int calls_in_flight() const { return active_streams_.load() + active_unary_.load() - active_watches_.load(); }
+
+  /// Admits one grpc.health.v1.Health/Watch against --max-streams: nullopt when admitted
+  /// (release it with end_watch()), else RESOURCE_EXHAUSTED naming the flag.
+  std::optional<grpc::Status> begin_watch();
+  void end_watch();
 
  private:
   friend class Call;
@@ -85,6 +92,8 @@ class Runtime {
   std::atomic<bool> draining_{false};
   std::atomic<int> active_streams_{0};
   std::atomic<int> active_unary_{0};
+  std::atomic<int> active_watches_{0};  // counted in active_streams_ too
+  WorkerPool workers_;  // last: its threads stop before the rest goes
 };
 
 /// One RPC from its admission to its end: takes a request id (the client's `x-request-id`

@@ -9,11 +9,19 @@
 #include <fstream>
 #include <sstream>
 #include <thread>
+#include <optional>
 
+#include <openssl/bio.h>
+#include <openssl/pem.h>
+#include <openssl/x509.h>
+
+#include "acceptor.hpp"
 #include "grpc/health/v1/health.pb.h"
+#include "health.hpp"
 #include "http_exporter.hpp"
 #include "runtime.hpp"
 #include "service.hpp"
+#include "socket.hpp"
 
 namespace geotraj::server {
 namespace {
@@ -40,7 +48,50 @@ bool local_only(const std::string& address) {
   return numeric && host.rfind("127.", 0) == 0;
 }
 
-tl::expected<std::shared_ptr<grpc::ServerCredentials>, std::string> credentials(const ServerOptions& options) {
+// The certificate's validity period as a warning (expired, or not valid yet), and a key
+// that does not belong to the certificate as an error: gRPC would only fail to start.
+tl::expected<std::vector<std::string>, std::string> check_certificate(const std::string& cert_pem,
+                                                                       const std::string& key_pem,
+                                                                       const TlsOptions& tls) {
+  const auto bio = [](const std::string& pem) {
+    return std::unique_ptr<BIO, decltype(&BIO_free)>(BIO_new_mem_buf(pem.data(), static_cast<int>(pem.size())), BIO_free);
+  };
+  auto cert_bio = bio(cert_pem);
+  std::unique_ptr<X509, decltype(&X509_free)> cert(PEM_read_bio_X509(cert_bio.get(), nullptr, nullptr, nullptr),
+                                                    X509_free);
+  if (!cert) return tl::unexpected("the TLS certificate file (--tls-cert) \"" + tls.cert_file + "\" holds no PEM certificate");
+  auto key_bio = bio(key_pem);
+  std::unique_ptr<EVP_PKEY, decltype(&EVP_PKEY_free)> key(
+      PEM_read_bio_PrivateKey(key_bio.get(), nullptr, nullptr, nullptr), EVP_PKEY_free);
+  if (!key) {
+    return tl::unexpected("the TLS private key file (--tls-key) \"" + tls.key_file +
+                          "\" holds no PEM private key (or it is encrypted: geotrajd takes unencrypted keys)");
+  }
+  if (X509_check_private_key(cert.get(), key.get()) != 1) {
+    return tl::unexpected("the TLS private key (--tls-key \"" + tls.key_file +
+                          "\") does not belong to the certificate (--tls-cert \"" + tls.cert_file + "\")");
+  }
+  std::vector<std::string> warnings;
+  const auto when = [](const ASN1_TIME* t) {
+    std::unique_ptr<BIO, decltype(&BIO_free)> out(BIO_new(BIO_s_mem()), BIO_free);
+    ASN1_TIME_print(out.get(), t);
+    char* data = nullptr;
+    const long n = BIO_get_mem_data(out.get(), &data);
+    return std::string(data, static_cast<std::size_t>(std::max(0L, n)));
+  };
+  if (X509_cmp_current_time(X509_get0_notAfter(cert.get())) < 0) {
+    warnings.push_back("the TLS certificate (--tls-cert \"" + tls.cert_file + "\") expired on " +
+                       when(X509_get0_notAfter(cert.get())) + ": clients will refuse the handshake");
+  }
+  if (X509_cmp_current_time(X509_get0_notBefore(cert.get())) > 0) {
+    warnings.push_back("the TLS certificate (--tls-cert \"" + tls.cert_file + "\") is not valid before " +
+                       when(X509_get0_notBefore(cert.get())) + ": clients will refuse the handshake until then");
+  }
+  return warnings;
+}
+
+tl::expected<std::shared_ptr<grpc::ServerCredentials>, std::string> credentials(const ServerOptions& options,
+                                                                                std::vector<std::string>& warnings) {
   const auto& tls = options.tls;
   if (!tls.enabled()) {
     if (!tls.client_ca_file.empty()) {
@@ -61,6 +112,9 @@ tl::expected<std::shared_ptr<grpc::ServerCredentials>, std::string> credentials(
   if (!cert) return tl::unexpected(cert.error());
   auto key = read_file(tls.key_file, "TLS private key file (--tls-key)");
   if (!key) return tl::unexpected(key.error());
+  auto checked = check_certificate(*cert, *key, tls);
+  if (!checked) return tl::unexpected(checked.error());
+  warnings = std::move(*checked);
   grpc::SslServerCredentialsOptions ssl;
   ssl.pem_key_cert_pairs.push_back({std::move(*key), std::move(*cert)});
   if (!tls.client_ca_file.empty()) {
@@ -112,6 +166,10 @@ tl::expected<std::string, std::string> check_limits(const ServerOptions& options
   if (l.max_frames < 2) return tl::unexpected(std::string("--max-frames must be at least 2 (a path has two frames)"));
   if (l.max_stream_samples < 2) return tl::unexpected(std::string("--max-stream-samples must be at least 2"));
   if (!(l.max_optimize_seconds > 0.0)) return tl::unexpected(std::string("--max-optimize-seconds must be > 0"));
+  if (l.max_analysis_points < 2) return tl::unexpected(std::string("--max-analysis-points must be at least 2"));
+  if (l.max_response_bytes < 1024) return tl::unexpected(std::string("--max-response-bytes must be at least 1024"));
+  if (!(l.default_deadline_s > 0.0)) return tl::unexpected(std::string("--default-deadline-seconds must be > 0"));
+  if (l.workers < 0) return tl::unexpected(std::string("--workers must be >= 0 (0: one per core)"));
   if (options.max_receive_message_bytes < 1024) {
     return tl::unexpected(std::string("--max-request-bytes must be at least 1024"));
   }
@@ -122,6 +180,9 @@ tl::expected<std::string, std::string> check_limits(const ServerOptions& options
   if (!(c.max_connection_age_s >= 0.0) || !(c.max_connection_age_grace_s >= 0.0)) {
     return tl::unexpected(std::string("--max-connection-age-seconds and its grace must be >= 0"));
   }
+  if (!(c.handshake_timeout_s > 0.0)) return tl::unexpected(std::string("--handshake-timeout-seconds must be > 0"));
+  if (!(c.max_connection_idle_s >= 0.0)) return tl::unexpected(std::string("--max-connection-idle-seconds must be >= 0"));
+  if (c.max_connections < 1) return tl::unexpected(std::string("--max-connections must be at least 1"));
   return std::string();
 }
 
@@ -139,17 +200,70 @@ void apply_connection_options(grpc::ServerBuilder& builder, const ConnectionOpti
     builder.AddChannelArgument(GRPC_ARG_MAX_CONNECTION_AGE_MS, milliseconds(c.max_connection_age_s));
     builder.AddChannelArgument(GRPC_ARG_MAX_CONNECTION_AGE_GRACE_MS, milliseconds(c.max_connection_age_grace_s));
   }
+  // A connection that never sends the HTTP/2 preface and settings (or never finishes the TLS
+  // handshake) is closed after this, so that idle sockets do not hold descriptors.
+  builder.AddChannelArgument(GRPC_ARG_SERVER_HANDSHAKE_TIMEOUT_MS, milliseconds(c.handshake_timeout_s));
+  if (c.max_connection_idle_s > 0.0) {
+    builder.AddChannelArgument(GRPC_ARG_MAX_CONNECTION_IDLE_MS, milliseconds(c.max_connection_idle_s));
+  }
+  // Ports that gRPC binds itself (unix sockets) are never shared with another process.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
 }
 
-void set_health(RunningServer& running, const char* name, bool serving) {
-  for (auto* server : {running.server.get(), running.health_server.get()}) {
-    if (server == nullptr) continue;
-    if (name == nullptr) {
-      server->GetHealthCheckService()->SetServingStatus(serving);
-    } else {
-      server->GetHealthCheckService()->SetServingStatus(name, serving);
-    }
+// Server reflection on one builder (the gRPC port) and not on another (the health-only
+// port, which serves health and nothing else): linking gRPC's reflection library adds its
+// plugin to every builder of the process, so the plugin list is set here either way.
+class Reflection final : public grpc::ServerBuilderOption {
+ public:
+  explicit Reflection(bool on) : on_(on) {}
+  void UpdateArguments(grpc::ChannelArguments* /*args*/) override {}
+  void UpdatePlugins(std::vector<std::unique_ptr<grpc::ServerBuilderPlugin>>* plugins) override {
+    std::erase_if(*plugins, [](const auto& plugin) { return plugin->name() == kPluginName; });
+    if (on_) plugins->push_back(std::make_unique<grpc::reflection::ProtoServerReflectionPlugin>());
   }
+
+ private:
+  static constexpr const char* kPluginName = "proto_server_reflection";
+  bool on_;
+};
+
+// TCP addresses are accepted by geotrajd's own acceptor (acceptor.hpp); unix sockets, and
+// no address, by gRPC.
+bool tcp_address(const std::string& address) {
+  return !address.empty() && address.rfind("unix:", 0) != 0 && address.rfind("unix-abstract:", 0) != 0;
+}
+
+// Descriptors kept free of connections (files, pipes, gRPC's own, the metrics port's): an
+// eighth of the limit, at least 64; the health-only port (kubelet's probes need a few) takes
+// another eighth, at most 256.
+long reserved_descriptors(long limit) { return std::max(64L, limit / 8); }
+long health_connections(long limit) { return std::clamp(limit / 8, 4L, 256L); }
+
+// A builder's listening port: the acceptor's sink for TCP, gRPC's own listener otherwise.
+struct Listening {
+  std::unique_ptr<Acceptor> acceptor;
+  std::unique_ptr<grpc::experimental::ExternalConnectionAcceptor> sink;
+  int port = 0;  // gRPC's own listener writes the bound port here at BuildAndStart
+};
+
+tl::expected<Listening, std::string> add_listening(grpc::ServerBuilder& builder, const std::string& address,
+                                                   const std::shared_ptr<grpc::ServerCredentials>& creds,
+                                                   const std::string& what, std::unique_ptr<Listening>& own) {
+  Listening out;
+  if (!tcp_address(address)) {
+    if (!address.empty()) {
+      own = std::make_unique<Listening>();
+      builder.AddListeningPort(address, creds, &own->port);
+    }
+    return out;
+  }
+  auto acceptor = Acceptor::listen(address, what);
+  if (!acceptor) return tl::unexpected(acceptor.error());
+  out.acceptor = std::move(*acceptor);
+  out.port = out.acceptor->port();
+  out.sink = builder.experimental().AddExternalConnectionAcceptor(
+      grpc::ServerBuilder::experimental_type::ExternalConnectionType::FROM_FD, creds);
+  return out;
 }
 
 }  // namespace
@@ -159,17 +273,19 @@ RunningServer::RunningServer(RunningServer&&) noexcept = default;
 RunningServer& RunningServer::operator=(RunningServer&&) noexcept = default;
 RunningServer::~RunningServer() {
   if (metrics) metrics->stop();
-  // The servers refer to the service: shut them down first.
+  // No connection may reach a server being destroyed; the servers refer to the services.
+  acceptor.reset();
+  health_acceptor.reset();
   health_server.reset();
   server.reset();
+  if (runtime) unroute_grpc_logs(runtime->logger());
 }
 
 tl::expected<RunningServer, std::string> start_server(const ServerOptions& options) {
-  // Both are process-wide switches that must be set before a ServerBuilder exists.
-  grpc::EnableDefaultHealthCheckService(true);
-  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  // geotrajd serves grpc.health.v1.Health itself (health.hpp): gRPC's default service off.
+  grpc::EnableDefaultHealthCheckService(false);
   // Links the health protocol's descriptors into the process, so that reflection can
-  // describe grpc.health.v1.Health too (its messages are otherwise unused by the server).
+  // describe grpc.health.v1.Health too.
   (void)grpc::health::v1::HealthCheckRequest::descriptor();
 
   if (auto bad = check_limits(options); !bad) return tl::unexpected(bad.error());
@@ -177,7 +293,8 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
   if (!format) return tl::unexpected(format.error());
   auto level = parse_log_level(options.log_level);
   if (!level) return tl::unexpected(level.error());
-  auto creds = credentials(options);
+  std::vector<std::string> warnings;
+  auto creds = credentials(options, warnings);
   if (!creds) return tl::unexpected(creds.error());
   auto table = tokens(options);
   if (!table) return tl::unexpected(table.error());
@@ -187,29 +304,67 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
   RunningServer running;
   running.runtime = std::make_shared<Runtime>(options.limits, std::move(*table),
                                               Logger(*format, *level, options.log_output ? options.log_output : stderr));
+  const Logger& logger = running.runtime->logger();
+  route_grpc_logs(&logger);
+  for (const auto& w : warnings) logger.log(LogLevel::kWarning, w);
+  {
+    Runtime* runtime = running.runtime.get();
+    runtime->metrics().set_worker_source([runtime] {
+      return std::pair<std::int64_t, std::int64_t>(static_cast<std::int64_t>(runtime->workers().queued()),
+                                                   runtime->workers().busy());
+    });
+  }
+
+  // Connections fit the descriptors: the soft limit raised to the hard one, and the cap
+  // lowered below it when it would not fit.
+  const long descriptors = raise_descriptor_limit();
+  int max_connections = options.connections.max_connections;
+  const long health_cap = health_connections(descriptors);
+  const long room = std::max(16L, descriptors - reserved_descriptors(descriptors) - health_cap);
+  if (max_connections > room) {
+    logger.log(LogLevel::kWarning, "--max-connections lowered to fit the descriptor limit",
+               {{"max_connections", static_cast<std::int64_t>(room)}, {"asked", static_cast<std::int64_t>(max_connections)},
+                {"descriptor_limit", static_cast<std::int64_t>(descriptors)}});
+    max_connections = static_cast<int>(room);
+  }
+
+  running.health = std::make_shared<HealthState>();
+  running.health->set_readiness_name(kReadinessService);
   running.service = make_trajectory_service(std::move(*robots), running.runtime);
+  running.health_service = make_health_service(running.health, running.runtime);
   grpc::ServerBuilder builder;
-  if (!options.address.empty()) builder.AddListeningPort(options.address, *creds, &running.port);
+  std::unique_ptr<Listening> own_port;  // gRPC's listener (unix sockets)
+  auto main_port = add_listening(builder, options.address, *creds, "gRPC address", own_port);
+  if (!main_port) return tl::unexpected(main_port.error());
   builder.SetMaxReceiveMessageSize(options.max_receive_message_bytes);
   apply_connection_options(builder, options.connections);
+  builder.SetOption(std::make_unique<Reflection>(true));
   builder.RegisterService(running.service.get());
+  builder.RegisterService(running.health_service.get());
   running.server = builder.BuildAndStart();
-  if (!running.server) {
-    return tl::unexpected("cannot start the gRPC server on \"" + options.address +
-                          "\" (is the address valid, and the port free?)");
+  if (!running.server || (own_port && own_port->port == 0)) {
+    return tl::unexpected("cannot start the gRPC server on \"" + options.address + "\"");
   }
-  if (!options.address.empty() && running.port == 0) {
-    running.server->Shutdown();
-    return tl::unexpected("cannot listen on \"" + options.address + "\" (is the address valid, and the port free?)");
-  }
+  running.port = main_port->port;
+  running.acceptor = std::move(main_port->acceptor);
+
+  std::optional<Listening> health_port;
   if (!options.health_address.empty()) {
+    running.health_only_service = make_health_service(running.health, running.runtime);
     grpc::ServerBuilder health;
-    health.AddListeningPort(options.health_address, grpc::InsecureServerCredentials(), &running.health_port);
+    std::unique_ptr<Listening> unused;
+    auto port = add_listening(health, options.health_address, grpc::InsecureServerCredentials(), "health address", unused);
+    if (!port) return tl::unexpected(port.error());
+    apply_connection_options(health, options.connections);
+    health.SetOption(std::make_unique<Reflection>(false));
+    health.RegisterService(running.health_only_service.get());
     running.health_server = health.BuildAndStart();
-    if (!running.health_server || running.health_port == 0) {
-      return tl::unexpected("cannot listen on the health address \"" + options.health_address +
-                            "\" (is the address valid, and the port free?)");
+    if (!running.health_server) {
+      return tl::unexpected("cannot start the health server on \"" + options.health_address + "\"");
     }
+    running.health_port = port->port;
+    running.health_acceptor = std::move(port->acceptor);
+    health_port = std::move(*port);
   }
   if (!options.metrics_address.empty()) {
     auto runtime = running.runtime;
@@ -218,24 +373,34 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
     running.metrics = std::move(*exporter);
     running.metrics_port = running.metrics->port();
   }
-  // Liveness: the process serves. Readiness waits for the warm-up.
-  set_health(running, nullptr, true);
-  set_health(running, kServiceName, true);
-  set_health(running, kReadinessService, false);
+  // Liveness: the process serves. Readiness waits for the warm-up, and for the ports to
+  // accept connections.
+  running.health->set("", true);
+  running.health->set(kServiceName, true);
+  running.health->set(kReadinessService, false);
+  auto accepting = [health = running.health](bool ok) { health->set_accepting(ok); };
+  if (running.acceptor) {
+    running.acceptor->start(std::move(main_port->sink), {"grpc", static_cast<std::size_t>(max_connections), accepting},
+                            running.runtime->metrics(), logger);
+  }
+  if (running.health_acceptor) {
+    running.health_acceptor->start(std::move(health_port->sink),
+                                   {"health", static_cast<std::size_t>(health_cap), accepting},
+                                   running.runtime->metrics(), logger);
+  }
   if (auto warm = warm_up(*running.service); !warm.ok()) {
     return tl::unexpected("the warm-up plan failed (" + warm.error_message() + ")");
   }
-  set_health(running, kReadinessService, true);
+  running.health->set(kReadinessService, true);
   return running;
 }
 
-void stop_server(RunningServer& running, std::chrono::milliseconds drain, std::chrono::milliseconds lame_duck) {
+void stop_server(RunningServer& running, std::chrono::milliseconds drain, std::chrono::milliseconds lame_duck,
+                 std::stop_token now) {
   if (!running.server) return;
   const auto began = std::chrono::steady_clock::now();
   running.runtime->start_draining();
-  set_health(running, nullptr, false);
-  set_health(running, kServiceName, false);
-  set_health(running, kReadinessService, false);
+  running.health->set_all(false);
   // New calls are refused (UNAVAILABLE) from now on; those in flight may finish.
   // The lame duck: even with no call in flight, keep refusing (UNAVAILABLE, which clients
   // retry elsewhere) while clients and load balancers see NOT_SERVING; calls that reach a
@@ -243,12 +408,14 @@ void stop_server(RunningServer& running, std::chrono::milliseconds drain, std::c
   const auto until = began + drain;
   const auto refuse_until = began + std::min(lame_duck, drain);
   while ((running.runtime->calls_in_flight() > 0 || std::chrono::steady_clock::now() < refuse_until) &&
-         std::chrono::steady_clock::now() < until) {
+         std::chrono::steady_clock::now() < until && !now.stop_requested()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   const int left = running.runtime->calls_in_flight();
   if (left > 0) {
-    running.runtime->logger().log(LogLevel::kWarning, "drain time over: cancelling the calls in flight",
+    running.runtime->logger().log(LogLevel::kWarning,
+                                  now.stop_requested() ? "stopping now: cancelling the calls in flight"
+                                                       : "drain time over: cancelling the calls in flight",
                                   {{"calls", static_cast<std::int64_t>(left)}});
   }
   // Whatever is left is cancelled; a short deadline lets cancelled reactors finish.
@@ -258,6 +425,8 @@ void stop_server(RunningServer& running, std::chrono::milliseconds drain, std::c
     running.health_server->Shutdown(std::chrono::system_clock::now());
     running.health_server->Wait();
   }
+  if (running.acceptor) running.acceptor->stop();
+  if (running.health_acceptor) running.health_acceptor->stop();
   if (running.metrics) running.metrics->stop();
 }
 

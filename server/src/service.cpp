@@ -5,8 +5,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 
 #include <grpcpp/alarm.h>
@@ -31,6 +33,12 @@
 namespace geotraj::server {
 namespace {
 
+std::string format_seconds(double s) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.6g", s);
+  return buffer;
+}
+
 // Whether the caller still wants the answer: checked before each stage of work, so that a
 // cancelled call or a passed deadline stops it at the next stage.
 class Abandon {
@@ -38,6 +46,16 @@ class Abandon {
 
  public:
   explicit Abandon(grpc::CallbackServerContext& context) : context_(&context), deadline_(context.deadline()) {}
+  /// The client's deadline, or the server's default for calls that carry none (or a later
+  /// one): `default_s` from now (geotrajd --default-deadline-seconds).
+  Abandon(grpc::CallbackServerContext& context, double default_s) : Abandon(context) {
+    const auto server = std::chrono::system_clock::now() +
+                        std::chrono::duration_cast<std::chrono::system_clock::duration>(std::chrono::duration<double>(default_s));
+    if (server < deadline_) {
+      deadline_ = server;
+      default_s_ = default_s;
+    }
+  }
   /// Work that no client waits for (the warm-up): only the deadline ends it.
   explicit Abandon(std::chrono::system_clock::time_point deadline) : deadline_(deadline) {}
   /// The status to finish with when the call is no longer wanted.
@@ -48,6 +66,11 @@ class Abandon {
     const auto now = std::chrono::system_clock::now();
     const bool cancelled = context_ != nullptr && context_->IsCancelled();
     if (deadline_ <= now || (cancelled && deadline_ - now <= kDeadlineSlack)) {
+      if (default_s_ > 0.0) {
+        return grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED,
+                            "the call gave no deadline, and the server's default of " + format_seconds(default_s_) +
+                                " s (geotrajd --default-deadline-seconds) passed before the work was done");
+      }
       return grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, "the deadline passed before the work was done");
     }
     if (cancelled) return grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled");
@@ -64,6 +87,7 @@ class Abandon {
  private:
   grpc::CallbackServerContext* context_ = nullptr;
   std::chrono::system_clock::time_point deadline_;
+  double default_s_ = 0.0;  // > 0 when deadline_ is the server's default
 };
 
 // What the work of one call needs from the service: its robots, its limits, its metrics.
@@ -72,6 +96,15 @@ struct Services {
   const ServiceLimits& limits;
   Metrics& metrics;
 };
+
+// INVALID_ARGUMENT when an analysis asks for more points than the server answers.
+std::optional<grpc::Status> analysis_limit(const v1::PlanRequest& request, const ServiceLimits& limits) {
+  if (!request.has_analysis_points() || request.analysis_points() <= limits.max_analysis_points) return std::nullopt;
+  return invalid_argument(core::Violations{
+      {"analysisPoints", "asks for " + std::to_string(request.analysis_points()) +
+                             " points; this server answers at most " + std::to_string(limits.max_analysis_points) +
+                             " (geotrajd --max-analysis-points)"}});
+}
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -174,29 +207,37 @@ void serialize(const Message& message, grpc::ByteBuffer& bytes) {
   (void)grpc::SerializationTraits<Message>::Serialize(message, &bytes, &own_buffer);
 }
 
+// A call whose client reset it before (or just after) its request arrived: gRPC may hand
+// the method an empty or invalid buffer then, which is no bad request of the client's.
+std::optional<grpc::Status> gone(grpc::CallbackServerContext& context, const grpc::ByteBuffer& in) {
+  if (context.IsCancelled()) return grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled");
+  if (!in.Valid()) return grpc::Status(grpc::StatusCode::CANCELLED, "the request did not arrive");
+  return std::nullopt;
+}
+
+// RESOURCE_EXHAUSTED when an answer is larger than the server sends.
+std::optional<grpc::Status> response_limit(std::size_t bytes, std::uint64_t limit) {
+  if (bytes <= limit) return std::nullopt;
+  return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                      "the answer would have " + std::to_string(bytes) + " bytes; this server sends at most " +
+                          std::to_string(limit) +
+                          " (geotrajd --max-response-bytes): ask for less (fewer analysisPoints)");
+}
+
 // Parses the request, runs `work` on it and serializes its response when it succeeds.
 template <class Request, class Response, typename Work>
-grpc::Status raw(const grpc::ByteBuffer& in, grpc::ByteBuffer& out, Work&& work) {
+grpc::Status raw(grpc::CallbackServerContext& context, const grpc::ByteBuffer& in, grpc::ByteBuffer& out,
+                 std::uint64_t max_response_bytes, Work&& work) {
+  if (auto stop = gone(context, in)) return *stop;
   Request request;
   if (auto bad = parse(in, request)) return *bad;
   Response response;
   const grpc::Status status = work(request, response);
-  if (status.ok()) serialize(response, out);
+  if (!status.ok()) return status;
+  if (auto refused = response_limit(response.ByteSizeLong(), max_response_bytes)) return *refused;
+  serialize(response, out);
   return status;
 }
-
-// A server-streaming call that ends at once with `status`.
-class FinishedWriter final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
- public:
-  FinishedWriter(Call call, const grpc::Status& status) : call_(std::move(call)) {
-    call_.finish(status);
-    Finish(status);
-  }
-  void OnDone() override { delete this; }
-
- private:
-  Call call_;
-};
 
 // Everything a request plans: the trajectory (along the path, or a move) and, with a
 // robot, the resolved robot. Used by PlanTrajectory (with `motion`) and StreamSamples.
@@ -494,32 +535,38 @@ grpc::Status plan_trajectory(const Abandon& abandon, const Services& services, c
   return grpc::Status::OK;
 }
 
-// StreamSamples: samples are produced batch by batch while the previous batch is being
-// written (one write in flight), so memory is bounded by one batch whatever the motion's
-// length. Cancellation or a passed deadline ends the stream at the next batch. With a
-// robot, the whole motion has been checked (robot_pass) before the first sample is sent, so
-// a controller never receives the beginning of a motion the robot cannot finish.
+// StreamSamples: the motion is planned on a worker (with a robot, the whole motion is
+// checked by robot_pass before the first sample is sent, so that a controller never receives
+// the beginning of a motion the robot cannot finish); then samples are produced batch by
+// batch while the previous batch is being written (one write in flight), so memory is
+// bounded by one batch whatever the motion's length. Cancellation or a passed deadline ends
+// the stream at the next batch.
 //
 // Real-time pacing: a sample is sent when due (t seconds after the stream started); while
 // the next one is not due, an alarm wakes the reactor, and cancellation cancels the alarm.
 class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
  public:
-  SampleStreamer(Call call, grpc::CallbackServerContext& context, Planned planned, std::size_t batch_size,
-                 bool real_time)
-      : call_(std::move(call)),
-        abandon_(context),
-        planned_(std::make_unique<Planned>(std::move(planned))),
-        sampler_(planned_->trajectory, planned_->robot ? &planned_->robot->model : nullptr,
-                 planned_->robot ? planned_->robot->seed : core::JointVector()),
-        batch_size_(batch_size),
-        real_time_(real_time),
-        start_(std::chrono::system_clock::now()) {
+  SampleStreamer(Call call, grpc::CallbackServerContext& context) : call_(std::move(call)), abandon_(context) {}
+
+  /// Ends the call with `status` before any sample (refusals, bad requests, planning errors).
+  void fail(const grpc::Status& status) { End(status); }
+
+  /// Streams `planned` (from the worker that planned it).
+  void start(Planned planned, std::size_t batch_size, bool real_time) {
+    planned_ = std::make_unique<Planned>(std::move(planned));
+    sampler_.emplace(planned_->trajectory, planned_->robot ? &planned_->robot->model : nullptr,
+                     planned_->robot ? planned_->robot->seed : core::JointVector());
+    batch_size_ = batch_size;
+    real_time_ = real_time;
+    start_ = std::chrono::system_clock::now();
     batch_.mutable_samples()->Reserve(static_cast<int>(batch_size_));
     NextWrite();
   }
 
   void OnCancel() override {
-    if (real_time_) alarm_.Cancel();  // a pending wait ends at once (its callback sees !ok)
+    const std::lock_guard lock(alarm_mutex_);
+    cancelled_ = true;
+    if (alarm_set_) alarm_.Cancel();  // a pending wait ends at once (its callback sees !ok)
   }
 
   void OnWriteDone(bool ok) override {
@@ -532,15 +579,36 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
     NextWrite();
   }
 
-  void OnDone() override {
-    call_.finish(status_, sent_);
-    delete this;
-  }
+  void OnDone() override { delete this; }
 
  private:
+  // No write is in flight here, so sent_ is final. The call is counted and logged before its
+  // client can see its end (a scrape that sees the stream done sees it counted).
   void End(const grpc::Status& status) {
-    status_ = status;
-    Finish(status);
+    const grpc::Status bounded_status = bounded(status);
+    call_.finish(bounded_status, sent_);
+    Finish(bounded_status);
+  }
+
+  // Waits for `due` on the alarm, unless the call was cancelled (then it ends now): the
+  // flag and the alarm under one lock, so that a cancel between the check and the wait
+  // still cancels the wait.
+  void WaitUntil(std::chrono::system_clock::time_point due) {
+    {
+      const std::lock_guard lock(alarm_mutex_);
+      if (!cancelled_) {
+        alarm_set_ = true;
+        alarm_.Set(due, [this](bool ok) {
+          if (ok) {
+            NextWrite();
+          } else {
+            End(abandon_.check().value_or(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled")));
+          }
+        });
+        return;
+      }
+    }
+    End(abandon_.check().value_or(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled")));
   }
 
   void NextWrite() {
@@ -551,20 +619,14 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
     batch_.clear_samples();
     const auto now = std::chrono::system_clock::now();
     while (static_cast<std::size_t>(batch_.samples_size()) < batch_size_) {
-      if (!has_pending_ && !sampler_.next(pending_)) break;
+      if (!has_pending_ && !sampler_->next(pending_)) break;
       has_pending_ = true;
       if (real_time_) {
         const auto due = start_ + std::chrono::duration_cast<std::chrono::system_clock::duration>(
                                       std::chrono::duration<double>(pending_.t));
         if (due > now) {
           if (batch_.samples_size() > 0) break;  // send what is due; the rest waits
-          alarm_.Set(due, [this](bool ok) {
-            if (ok) {
-              NextWrite();
-            } else {
-              End(abandon_.check().value_or(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled")));
-            }
-          });
+          WaitUntil(due);
           return;
         }
       }
@@ -580,14 +642,16 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
   }
 
   Call call_;
-  grpc::Status status_;     // the status the stream finished with
   std::uint64_t sent_ = 0;  // samples written
-  Abandon abandon_;
+  Abandon abandon_;         // the client's deadline: a stream may last as long as its motion
   std::unique_ptr<Planned> planned_;  // stable address: the sampler refers to it
-  core::TrajectorySampler sampler_;
-  std::size_t batch_size_;
-  bool real_time_;
+  std::optional<core::TrajectorySampler> sampler_;
+  std::size_t batch_size_ = 0;
+  bool real_time_ = false;
   std::chrono::system_clock::time_point start_;
+  std::mutex alarm_mutex_;
+  bool cancelled_ = false;  // OnCancel ran
+  bool alarm_set_ = false;
   grpc::Alarm alarm_;
   core::TrajectorySample pending_;  // taken from the sampler, not yet sent
   bool has_pending_ = false;
@@ -595,32 +659,26 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
   grpc::ByteBuffer bytes_;  // batch_ serialized: the one write in flight
 };
 
-grpc::ServerWriteReactor<grpc::ByteBuffer>* stream_samples(grpc::CallbackServerContext& context, Call call,
-                                                          const Services& services,
-                                                          const v1::PlanRequest& request) {
-  if (call.refusal()) {
-    const grpc::Status refusal = *call.refusal();
-    return new FinishedWriter(std::move(call), refusal);
-  }
-  const Abandon abandon(context);
-  auto finished = [&call](const grpc::Status& status) { return new FinishedWriter(std::move(call), status); };
-  if (auto stop = abandon.check()) return finished(*stop);
-  if (auto refused = frame_limit(request.path(), services.limits)) return finished(*refused);
+// The planning of a stream (on a worker): the planned motion, or the status to end with.
+tl::expected<Planned, grpc::Status> plan_stream(const Abandon& abandon, const Services& services,
+                                                const v1::PlanRequest& request) {
+  if (auto stop = abandon.check()) return tl::unexpected(*stop);
+  if (auto refused = frame_limit(request.path(), services.limits)) return tl::unexpected(*refused);
   if (!request.has_motion()) {
-    return finished(invalid_argument(core::Violations{
+    return tl::unexpected(invalid_argument(core::Violations{
         {"motion", "is required to stream samples: give durationS (s), or maxSpeed and maxAcceleration"}}));
   }
   if (!v1::StreamPacing_IsValid(request.pacing())) {
-    return finished(invalid_argument(
+    return tl::unexpected(invalid_argument(
         core::Violations{{"pacing", "unknown value " + std::to_string(request.pacing()) +
                                         "; use STREAM_PACING_AS_FAST_AS_POSSIBLE or STREAM_PACING_REAL_TIME"}}));
   }
   auto planned = plan_request(abandon, services, request, nullptr);
-  if (!planned) return finished(planned.error());
-  if (auto refused = sample_limit(*planned, services.limits)) return finished(*refused);
+  if (!planned) return tl::unexpected(planned.error());
+  if (auto refused = sample_limit(*planned, services.limits)) return tl::unexpected(*refused);
   if (planned->robot) {
     auto pass = robot_pass(abandon, *planned);
-    if (!pass) return finished(pass.error());
+    if (!pass) return tl::unexpected(pass.error());
     // reportOnly streams a motion that breaks joint limits (for simulation and analysis),
     // never one whose IK failed or jumped branches: those joints would be meaningless.
     const auto& violations = pass->report.violations;
@@ -628,11 +686,11 @@ grpc::ServerWriteReactor<grpc::ByteBuffer>* stream_samples(grpc::CallbackServerC
       return e.kind != core::LimitKind::kIk && e.kind != core::LimitKind::kBranch;
     });
     if (!pass->report.feasible() && !(planned->robot->report_only && only_limits)) {
-      return finished(robot_cannot_follow(planned->robot->model.name, pass->report));
+      return tl::unexpected(robot_cannot_follow(planned->robot->model.name, pass->report));
     }
   }
-  return new SampleStreamer(std::move(call), context, std::move(*planned), samples_per_batch(request),
-                            request.pacing() == v1::STREAM_PACING_REAL_TIME);
+  if (auto stop = abandon.check()) return tl::unexpected(*stop);
+  return planned;
 }
 
 // The analysis is the path's geometry: a robot, when given, does not change it.
@@ -640,6 +698,7 @@ grpc::Status analyze_path(const Abandon& abandon, const Services& services, cons
                           v1::PathProfile& profile) {
   if (auto stop = abandon.check()) return *stop;
   if (auto refused = frame_limit(request.path(), services.limits)) return *refused;
+  if (auto refused = analysis_limit(request, services.limits)) return *refused;
   const auto spec = optimized_path(abandon, services, request, nullptr);
   if (!spec) return spec.error();
   const auto path = core::build_path(*spec);
@@ -669,46 +728,77 @@ class TrajectoryService final : public RawService {
   TrajectoryService(RobotCatalog robots, std::shared_ptr<Runtime> runtime)
       : robots_(std::move(robots)), runtime_(std::move(runtime)) {}
 
+  // The unary methods run on a worker (unary() below): everything the work refers to
+  // (context, request and response buffers, the service) lives until the reactor finishes.
   grpc::ServerUnaryReactor* ConvertConstraints(grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
                                                grpc::ByteBuffer* out) override {
-    return unary(*context, Method::kConvertConstraints, [&] {
-      return raw<v1::ConvertRequest, v1::ConvertResponse>(*in, *out, [&](const auto& request, auto& response) {
-        return convert_constraints(Abandon(*context), services(), request, response);
-      });
+    return unary(*context, Method::kConvertConstraints, [this, context, in, out] {
+      return raw<v1::ConvertRequest, v1::ConvertResponse>(
+          *context, *in, *out, limits().max_response_bytes, [&](const auto& request, auto& response) {
+            return convert_constraints(abandon(*context), services(), request, response);
+          });
     });
   }
 
   grpc::ServerUnaryReactor* PlanTrajectory(grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
                                            grpc::ByteBuffer* out) override {
-    return unary(*context, Method::kPlanTrajectory, [&] {
-      return raw<v1::PlanRequest, v1::PlanResponse>(*in, *out, [&](const auto& request, auto& response) {
-        return plan_trajectory(Abandon(*context), services(), request, response);
-      });
+    return unary(*context, Method::kPlanTrajectory, [this, context, in, out] {
+      return raw<v1::PlanRequest, v1::PlanResponse>(*context, *in, *out, limits().max_response_bytes,
+                                                    [&](const auto& request, auto& response) {
+                                                      return plan_trajectory(abandon(*context), services(), request,
+                                                                             response);
+                                                    });
     });
   }
 
+  // The reactor is returned at once; the planning runs on a worker (before the unary
+  // calls queued there), then the samples are written from gRPC's threads.
   grpc::ServerWriteReactor<grpc::ByteBuffer>* StreamSamples(grpc::CallbackServerContext* context,
                                                             const grpc::ByteBuffer* in) override {
     Call call(*runtime_, *context, Method::kStreamSamples);
-    v1::PlanRequest request;
-    if (!call.refusal()) {
-      if (auto bad = parse(*in, request)) return new FinishedWriter(std::move(call), *bad);
+    const std::optional<grpc::Status> refusal = call.refusal();
+    auto* stream = new SampleStreamer(std::move(call), *context);
+    if (refusal) {
+      stream->fail(*refusal);
+      return stream;
     }
-    return stream_samples(*context, std::move(call), services(), request);
+    if (auto stop = gone(*context, *in)) {
+      stream->fail(*stop);
+      return stream;
+    }
+    auto request = std::make_shared<v1::PlanRequest>();
+    if (auto bad = parse(*in, *request)) {
+      stream->fail(*bad);
+      return stream;
+    }
+    runtime_->workers().submit(
+        [this, context, stream, request] {
+          auto planned = plan_stream(abandon(*context), services(), *request);
+          if (!planned) {
+            stream->fail(planned.error());
+            return;
+          }
+          stream->start(std::move(*planned), samples_per_batch(*request),
+                        request->pacing() == v1::STREAM_PACING_REAL_TIME);
+        },
+        WorkerPool::Priority::kUrgent);
+    return stream;
   }
 
   grpc::ServerUnaryReactor* AnalyzePath(grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
                                         grpc::ByteBuffer* out) override {
-    return unary(*context, Method::kAnalyzePath, [&] {
-      return raw<v1::PlanRequest, v1::PathProfile>(*in, *out, [&](const auto& request, auto& profile) {
-        return analyze_path(Abandon(*context), services(), request, profile);
-      });
+    return unary(*context, Method::kAnalyzePath, [this, context, in, out] {
+      return raw<v1::PlanRequest, v1::PathProfile>(*context, *in, *out, limits().max_response_bytes,
+                                                   [&](const auto& request, auto& profile) {
+                                                     return analyze_path(abandon(*context), services(), request,
+                                                                         profile);
+                                                   });
     });
   }
 
   grpc::ServerUnaryReactor* ListRobots(grpc::CallbackServerContext* context, const v1::ListRobotsRequest* /*request*/,
                                        v1::ListRobotsResponse* response) override {
-    return unary(*context, Method::kListRobots, [&] {
+    return unary(*context, Method::kListRobots, [this, response] {
       for (const auto& model : robots_.models) to_proto(model, *response->add_robots());
       return grpc::Status::OK;
     });
@@ -738,15 +828,28 @@ class TrajectoryService final : public RawService {
 
  private:
   Services services() const { return Services{robots_, runtime_->limits(), runtime_->metrics()}; }
+  const ServiceLimits& limits() const { return runtime_->limits(); }
+  // The client's deadline, or the server's default when the client gives none.
+  Abandon abandon(grpc::CallbackServerContext& context) const { return Abandon(context, limits().default_deadline_s); }
 
-  // Admits the call, runs `work` when admitted, records and finishes it.
+  // Admits the call; runs `work` on a worker when admitted (a refusal is answered at once,
+  // on gRPC's thread), then records and finishes it. Calls admitted wait in the workers'
+  // queue: --max-unary-calls bounds how many, and the one beyond is RESOURCE_EXHAUSTED.
   template <typename Work>
   grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext& context, Method method, Work&& work) {
     auto* reactor = context.DefaultReactor();
-    Call call(*runtime_, context, method);
-    const grpc::Status status = call.refusal() ? *call.refusal() : work();
-    call.finish(status);
-    reactor->Finish(status);
+    auto call = std::make_shared<Call>(*runtime_, context, method);
+    if (call->refusal()) {
+      const grpc::Status status = *call->refusal();
+      call->finish(status);
+      reactor->Finish(status);
+      return reactor;
+    }
+    runtime_->workers().submit([call, reactor, work = std::forward<Work>(work)]() mutable {
+      const grpc::Status status = bounded(work());
+      call->finish(status);
+      reactor->Finish(status);
+    });
     return reactor;
   }
 

@@ -2,6 +2,7 @@
 // With convert.hpp, the only place where proto and core types meet.
 #pragma once
 
+#include <cstddef>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -29,6 +30,15 @@ struct PreconditionViolation {
 /// cannot follow the plan). The message is `message`; the details hold a
 /// google.rpc.PreconditionFailure with `violations`.
 grpc::Status failed_precondition(const std::string& message, const std::vector<PreconditionViolation>& violations);
+
+/// `status` within what every client takes: its message cut to kMaxStatusMessageBytes and
+/// its details dropped beyond kMaxStatusDetailsBytes (invalid_argument and
+/// failed_precondition keep theirs below it by leaving violations out, with a count).
+/// gRPC clients refuse trailers beyond 8 KiB by default.
+grpc::Status bounded(const grpc::Status& status);
+
+inline constexpr std::size_t kMaxStatusMessageBytes = 1024;
+inline constexpr std::size_t kMaxStatusDetailsBytes = 4096;
 
 /// The canonical name of a status code ("OK", "INVALID_ARGUMENT", ...), as gRPC documents it.
 std::string_view status_code_name(grpc::StatusCode code);

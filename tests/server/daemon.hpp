@@ -5,6 +5,7 @@
 
 #include <poll.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -22,8 +23,9 @@ namespace geotraj::testing {
 class Daemon {
  public:
   /// Starts GEOTRAJD with `args`, after setting `env` (name, value) in the child.
+  /// With `open_files` > 0, the child's descriptor limit (soft and hard) is set to it.
   explicit Daemon(const std::vector<std::string>& args,
-                  const std::vector<std::pair<std::string, std::string>>& env = {}) {
+                  const std::vector<std::pair<std::string, std::string>>& env = {}, long open_files = 0) {
     int out[2], err[2];
     if (::pipe(out) != 0 || ::pipe(err) != 0) return;
     pid_ = ::fork();
@@ -32,6 +34,10 @@ class Daemon {
       ::dup2(err[1], STDERR_FILENO);
       for (int fd : {out[0], out[1], err[0], err[1]}) ::close(fd);
       for (const auto& [name, value] : env) ::setenv(name.c_str(), value.c_str(), 1);
+      if (open_files > 0) {
+        const rlimit limit{static_cast<rlim_t>(open_files), static_cast<rlim_t>(open_files)};
+        if (::setrlimit(RLIMIT_NOFILE, &limit) != 0) std::_Exit(126);
+      }
       std::vector<char*> argv{const_cast<char*>(GEOTRAJD)};
       for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
       argv.push_back(nullptr);

@@ -11,6 +11,7 @@
 #include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/support/byte_buffer.h>
 
+#include "../../server/src/health.hpp"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "test_server.hpp"
 
@@ -110,7 +111,7 @@ TEST_F(InfraTest, HealthIsServing) {
 TEST_F(InfraTest, HealthIsNotServingAfterStop) {
   HealthCheckResponse response;
   ASSERT_TRUE(check_health("", response).ok());
-  running_.server->GetHealthCheckService()->SetServingStatus(false);  // what stop_server does first
+  running_.health->set_all(false);  // what stop_server does first
   ASSERT_TRUE(check_health("geotraj.v1.TrajectoryService", response).ok());
   EXPECT_EQ(response.status(), HealthCheckResponse::NOT_SERVING);
 }

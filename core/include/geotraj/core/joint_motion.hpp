@@ -183,6 +183,9 @@ inline constexpr double kLimitTolerance = 1e-9;
 /// The joint-space report of a whole motion (what PlanTrajectory returns with a robot).
 struct JointMotionReport {
   std::size_t samples = 0;
+  /// Samples whose IK converged: the joint figures, the tightest margins and the lowest
+  /// manipulability are taken over these only (none: they keep their +-infinity starts).
+  std::size_t converged_samples = 0;
   std::vector<JointUsage> joints;
   LimitEvent tightest_position;      ///< smallest position margin, its joint and time
   LimitEvent tightest_velocity;      ///< smallest velocity margin

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <stop_token>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -32,6 +33,18 @@ struct ServiceLimits {
   /// Time one call may spend optimising [s]: the default optimize.timeBudgetS and its
   /// largest accepted value.
   double max_optimize_seconds = 30.0;
+  /// Points of one AnalyzePath answer (analysisPoints); beyond, INVALID_ARGUMENT.
+  std::uint64_t max_analysis_points = 100'001;
+  /// Largest answer of a unary call [bytes]; beyond, RESOURCE_EXHAUSTED naming the flag.
+  std::uint64_t max_response_bytes = 32ull * 1024 * 1024;
+  /// The deadline of a call whose client gives none (and the longest planning of a stream)
+  /// [s]; a client's earlier deadline wins. A stream's samples are not bounded by it.
+  double default_deadline_s = 120.0;
+  /// Threads that run plans, optimisations, analyses and the planning of streams, off
+  /// gRPC's threads; 0: one per CPU core. One more thread plans streams only, so a stream
+  /// never waits behind unary plans. Calls beyond them wait in the admission queue, whose
+  /// length max_unary_calls (and max_streams) bound.
+  int workers = 0;
 };
 
 /// Server certificates for TLS (PEM files); with a client CA, clients must present a
@@ -51,6 +64,15 @@ struct ConnectionOptions {
   double keepalive_timeout_s = 20.0;  ///< close it when the ping is not answered in this [s]
   double max_connection_age_s = 0.0;  ///< 0: connections live as long as they are used [s]
   double max_connection_age_grace_s = 7200.0;  ///< calls in flight may finish within this [s]
+  /// A connection that has not sent the HTTP/2 preface and settings (and, with TLS, finished
+  /// its handshake) within this is closed [s].
+  double handshake_timeout_s = 10.0;
+  /// A connection with no call for this long is closed (GOAWAY) [s]; 0: never.
+  double max_connection_idle_s = 600.0;
+  /// TCP connections open at once on the gRPC port (and on the health port); beyond, a new
+  /// connection is closed at once. Lowered at start-up to fit the descriptor limit (which is
+  /// raised to its hard limit first).
+  int max_connections = 4096;
 };
 
 /// What the server listens on and accepts.
@@ -87,6 +109,8 @@ struct ServerOptions {
 
 class Runtime;
 class HttpExporter;
+class Acceptor;
+class HealthState;
 
 /// A started server. Destroying it shuts the server down (immediately, cancelling calls in
 /// flight); use stop_server() for a graceful shutdown.
@@ -101,6 +125,11 @@ struct RunningServer {
   std::unique_ptr<grpc::Server> server;
   std::unique_ptr<grpc::Server> health_server;  ///< on ServerOptions::health_address
   std::unique_ptr<HttpExporter> metrics;       ///< on ServerOptions::metrics_address
+  std::shared_ptr<HealthState> health;         ///< what both health services answer
+  std::unique_ptr<grpc::Service> health_service;         ///< grpc.health.v1.Health on `server`
+  std::unique_ptr<grpc::Service> health_only_service;    ///< the same on `health_server`
+  std::unique_ptr<Acceptor> acceptor;          ///< accepts the gRPC port's TCP connections
+  std::unique_ptr<Acceptor> health_acceptor;   ///< the same for the health port
   int port = 0;          ///< the bound TCP port; 0 without a listening address
   int health_port = 0;   ///< the health-only port; 0 without one
   int metrics_port = 0;  ///< the metrics HTTP port; 0 without one
@@ -119,8 +148,11 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
 /// finish until `drain` has passed; new calls are refused for `lame_duck` at least (at most
 /// `drain`), so that clients and load balancers move away before the server closes its
 /// connections. Then the server shuts down, cancelling what is left.
+///
+/// `now`: when requested (a second SIGTERM), the drain ends at once and what is left is
+/// cancelled.
 void stop_server(RunningServer& running, std::chrono::milliseconds drain,
-                 std::chrono::milliseconds lame_duck = std::chrono::milliseconds(0));
+                 std::chrono::milliseconds lame_duck = std::chrono::milliseconds(0), std::stop_token now = {});
 
 /// The Prometheus text exposition of the server's metrics.
 std::string metrics_exposition(const RunningServer& running);
@@ -128,6 +160,17 @@ std::string metrics_exposition(const RunningServer& running);
 /// Logs one line through the server's logger (start-up and shutdown messages of geotrajd).
 void log_info(const RunningServer& running, std::string_view message,
               const std::vector<std::pair<std::string, std::string>>& fields = {});
+
+/// The exit status of a process that a library ended with exit() (MUMPS's stand-in for
+/// MPI_ABORT calls exit(0)): EX_SOFTWARE, so that a supervisor restarts it.
+inline constexpr int kAbnormalExitStatus = 70;
+
+/// From now on, an exit() of the process that main() did not allow (allow_exit) ends it
+/// with kAbnormalExitStatus instead of the status given: a server that a library stops is
+/// a failure, whatever status the library chose. Idempotent.
+void guard_exit();
+/// main() is about to return (or exit) on purpose: exits keep their status again.
+void allow_exit();
 
 /// Health service name that reports readiness: SERVING once warm, NOT_SERVING while draining.
 inline constexpr const char* kReadinessService = "geotraj.readiness";

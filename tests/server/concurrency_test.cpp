@@ -1,0 +1,199 @@
+// Every RPC at once, many at a time, from many clients, some cancelled midway: the server
+// stays up and answers every call with the code it should. Optimisations of every kind run
+// concurrently (Ipopt's MUMPS is not thread-safe: optim serialises it). Run under ASan and
+// UBSan (make sanitize) and ThreadSanitizer (make tsan) in CI.
+#include <atomic>
+#include <future>
+#include <map>
+#include <mutex>
+#include <random>
+#include <thread>
+
+#include <gmock/gmock.h>
+
+#include "production_support.hpp"
+
+namespace geotraj::testing {
+namespace {
+
+// The time-optimal PA-10 plan along path C (durationS 0: the sweep; jerkLimited: the NLP).
+v1::PlanRequest pa10_fastest(bool jerk_limited) {
+  auto request = example<v1::PlanRequest>("plan_pa10_path_c.json");
+  request.mutable_motion()->set_duration_s(0.0);
+  request.mutable_robot()->set_report_only(false);
+  if (jerk_limited) request.mutable_optimize()->mutable_timing()->set_jerk_limited(true);
+  if (jerk_limited) request.mutable_optimize()->set_time_budget_s(1.0);
+  return request;
+}
+
+v1::PlanRequest tangent_scales() {
+  auto request = demo_request('a');
+  request.mutable_optimize()->mutable_tangent_scales()->set_objective(v1::TANGENT_SCALE_OBJECTIVE_BENDING_ENERGY);
+  return request;
+}
+
+v1::PlanRequest breakpoints() {
+  auto request = example<v1::PlanRequest>("appendix_b_optimized.json");
+  request.mutable_optimize()->set_time_budget_s(0.3);
+  return request;
+}
+
+class Concurrency : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    server::ServerOptions options;
+    options.limits.max_unary_calls = 1000;
+    running_ = start(options);
+    ASSERT_GT(running_.port, 0);
+  }
+  void TearDown() override { server::stop_server(running_, std::chrono::seconds(5)); }
+
+  // One call of kind `k`; `cancel_after` > 0 cancels it after that long. Returns its code.
+  grpc::StatusCode call(v1::TrajectoryService::Stub& stub, int k, std::chrono::milliseconds cancel_after) {
+    auto ctx = short_context(120);
+    std::optional<std::jthread> canceller;
+    if (cancel_after.count() > 0) {
+      canceller.emplace([&ctx, cancel_after](std::stop_token stop) {
+        const auto until = std::chrono::steady_clock::now() + cancel_after;
+        while (!stop.stop_requested() && std::chrono::steady_clock::now() < until) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        }
+        ctx->TryCancel();
+      });
+    }
+    grpc::Status status;
+    v1::PlanResponse plan;
+    switch (k) {
+      case 0: status = stub.PlanTrajectory(ctx.get(), demo_request('b'), &plan); break;
+      case 1: status = stub.PlanTrajectory(ctx.get(), tangent_scales(), &plan); break;
+      case 2: status = stub.PlanTrajectory(ctx.get(), breakpoints(), &plan); break;
+      case 3: status = stub.PlanTrajectory(ctx.get(), pa10_fastest(false), &plan); break;
+      case 4: status = stub.PlanTrajectory(ctx.get(), pa10_fastest(true), &plan); break;
+      case 5: {
+        v1::PathProfile profile;
+        auto request = demo_request('c');
+        request.set_analysis_points(2001);
+        status = stub.AnalyzePath(ctx.get(), request, &profile);
+        break;
+      }
+      case 6: {
+        v1::ConvertResponse response;
+        status = stub.ConvertConstraints(ctx.get(), example<v1::ConvertRequest>("convert_table_5_10.json"), &response);
+        break;
+      }
+      case 7: {
+        v1::ListRobotsResponse response;
+        status = stub.ListRobots(ctx.get(), {}, &response);
+        break;
+      }
+      case 8: {  // a stream, as fast as possible
+        std::size_t samples = 0;
+        status = read_stream(stub, demo_request('a'), samples, *ctx);
+        if (status.ok()) {
+          EXPECT_EQ(samples, 1001u);
+        }
+        break;
+      }
+      case 9: {  // a real-time stream
+        std::size_t samples = 0;
+        status = read_stream(stub, real_time_request(0.3), samples, *ctx);
+        break;
+      }
+      case 10: {  // a joint-space stream on the PA-10
+        std::size_t samples = 0;
+        status = read_stream(stub, example<v1::PlanRequest>("joint_move_pa10.json"), samples, *ctx);
+        break;
+      }
+      default: {  // a health watch, read until cancelled or its deadline
+        auto health_stub = grpc::health::v1::Health::NewStub(channel_for(stub));
+        grpc::health::v1::HealthCheckRequest request;
+        auto reader = health_stub->Watch(ctx.get(), request);
+        HealthStatus s;
+        while (reader->Read(&s)) {
+          if (cancel_after.count() == 0) ctx->TryCancel();
+        }
+        status = reader->Finish();
+        if (cancel_after.count() == 0 && status.error_code() == grpc::StatusCode::CANCELLED) status = grpc::Status::OK;
+      }
+    }
+    if (canceller) canceller->request_stop();
+    if (!status.ok() && cancel_after.count() == 0) {
+      ADD_FAILURE() << "call kind " << k << ": " << status.error_code() << " " << status.error_message();
+    }
+    return status.error_code();
+  }
+
+  std::shared_ptr<grpc::Channel> channel_for(v1::TrajectoryService::Stub&) {
+    return grpc::CreateChannel("127.0.0.1:" + std::to_string(running_.port), grpc::InsecureChannelCredentials());
+  }
+
+  server::RunningServer running_;
+};
+
+constexpr int kKinds = 12;
+
+TEST_F(Concurrency, EveryRpcManyAtOnceSomeCancelledMidway) {
+  constexpr int kClients = 6;
+  constexpr int kRounds = 3;
+  std::mutex mutex;
+  std::map<grpc::StatusCode, int> codes;
+  std::vector<std::thread> clients;
+  for (int c = 0; c < kClients; ++c) {
+    clients.emplace_back([&, c] {
+      auto stub = v1::TrajectoryService::NewStub(grpc::CreateChannel(
+          "127.0.0.1:" + std::to_string(running_.port), grpc::InsecureChannelCredentials()));
+      std::mt19937 random(static_cast<unsigned>(c));
+      for (int r = 0; r < kRounds; ++r) {
+        for (int k = 0; k < kKinds; ++k) {
+          const int kind = (k + c) % kKinds;
+          // Every third call is cancelled after 1-30 ms: before, during or after its work.
+          const bool cancel = (k + r + c) % 3 == 0;
+          const auto after = std::chrono::milliseconds(cancel ? 1 + static_cast<int>(random() % 30) : 0);
+          const auto code = call(*stub, kind, after);
+          const std::lock_guard lock(mutex);
+          ++codes[code];
+          if (cancel) {
+            EXPECT_THAT(code, ::testing::AnyOf(grpc::StatusCode::OK, grpc::StatusCode::CANCELLED))
+                << "kind " << kind << " cancelled midway";
+          }
+        }
+      }
+    });
+  }
+  for (auto& t : clients) t.join();
+  for (const auto& [code, n] : codes) std::printf("[ measured ] code %d: %d calls\n", static_cast<int>(code), n);
+  // The server is whole: health, and a plan.
+  EXPECT_EQ(health(running_.port, ""), HealthStatus::SERVING);
+  EXPECT_TRUE(list_robots(*stub_to(running_.port)).ok());
+  // Cancelled work stops at its next check of the call (within a stage or 16 IK samples).
+  EXPECT_TRUE(eventually([&] {
+    const auto m = server::metrics_exposition(running_);
+    return series(m, "geotraj_active_unary_calls") == 0.0 && series(m, "geotraj_active_streams") == 0.0;
+  }));
+}
+
+// The defect that took the server down: four clients optimising tangent scales at once
+// (each Ipopt solve factors with MUMPS, whose state is global).
+TEST_F(Concurrency, TangentScaleOptimisationsAtOnce) {
+  std::vector<std::future<grpc::Status>> calls;
+  for (int c = 0; c < 4; ++c) {
+    calls.push_back(std::async(std::launch::async, [this] {
+      auto stub = stub_to(running_.port);
+      grpc::Status last;
+      for (int i = 0; i < 3; ++i) {
+        v1::PlanResponse response;
+        last = stub->PlanTrajectory(short_context(120).get(), tangent_scales(), &response);
+        if (!last.ok()) return last;
+        EXPECT_TRUE(response.optimization().has_tangent_scales());
+      }
+      return last;
+    }));
+  }
+  for (auto& c : calls) {
+    const auto status = c.get();
+    EXPECT_TRUE(status.ok()) << status.error_message();
+  }
+}
+
+}  // namespace
+}  // namespace geotraj::testing

@@ -2,11 +2,12 @@
 BUILD_DIR ?= build
 ASAN_DIR  ?= build-asan
 FUZZ_DIR  ?= build-fuzz
+TSAN_DIR  ?= build-tsan
 FUZZ_SECONDS ?= 45
 JOBS      ?= $(shell nproc)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build test demo sanitize fuzz bench image clean
+.PHONY: all deps build test demo sanitize tsan fuzz bench image clean
 
 all: build
 
@@ -30,6 +31,17 @@ sanitize: deps
 	cd $(ASAN_DIR) && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
 	  ctest --output-on-failure -j $(JOBS) -LE slow
 
+# The server's concurrency tests under ThreadSanitizer: every RPC at once, cancelled midway,
+# the worker pool, health watches, the acceptor, streams (docs/reliability.md). gRPC and
+# protobuf come from Debian uninstrumented; tests/tsan.supp names what is theirs.
+TSAN_TARGETS = server_concurrency_test server_hostile_test server_acceptor_test server_stream_test geotrajd
+TSAN_TESTS = ^server\.(Concurrency|Workers|HealthWatch|AcceptorTest|HealthState|Cancel|Connections|Deadlines|StreamTest)\.
+tsan: deps
+	cmake -S . -B $(TSAN_DIR) -DCMAKE_BUILD_TYPE=Debug -DGEOTRAJ_TSAN=ON -DGEOTRAJ_BUILD_BENCH=OFF -DGEOTRAJ_NPM_TESTS=OFF $(CMAKE_FLAGS)
+	cmake --build $(TSAN_DIR) -j $(JOBS) --target $(TSAN_TARGETS)
+	cd $(TSAN_DIR) && TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 ignore_noninstrumented_modules=1 suppressions=$(CURDIR)/tests/tsan.supp" \
+	  ctest --output-on-failure -j $(JOBS) -R '$(TSAN_TESTS)'
+
 # libFuzzer targets (clang, ASan+UBSan) on the service's request parsing, validation and
 # planning: the regression inputs, then FUZZ_SECONDS per target (docs/reliability.md).
 fuzz: deps
@@ -43,4 +55,4 @@ image:
 	docker build -f deploy/Dockerfile -t geotraj:dev .
 
 clean:
-	rm -rf $(BUILD_DIR) $(ASAN_DIR) $(FUZZ_DIR) out
+	rm -rf $(BUILD_DIR) $(ASAN_DIR) $(TSAN_DIR) $(FUZZ_DIR) out

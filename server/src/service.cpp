@@ -29,6 +29,7 @@
 #include "geotraj/core/time_optimal.hpp"
 #include "runtime.hpp"
 #include "status.hpp"
+#include "tsan.hpp"
 
 namespace geotraj::server {
 namespace {
@@ -564,12 +565,14 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
   }
 
   void OnCancel() override {
+    handoff_acquire(this);
     const std::lock_guard lock(alarm_mutex_);
     cancelled_ = true;
     if (alarm_set_) alarm_.Cancel();  // a pending wait ends at once (its callback sees !ok)
   }
 
   void OnWriteDone(bool ok) override {
+    handoff_acquire(this);
     if (!ok) {  // the client went away (cancelled, deadline, connection lost)
       End(abandon_.check().value_or(grpc::Status(grpc::StatusCode::CANCELLED, "the stream was cancelled")));
       return;
@@ -579,7 +582,10 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
     NextWrite();
   }
 
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    handoff_acquire(this);
+    delete this;
+  }
 
  private:
   // No write is in flight here, so sent_ is final. The call is counted and logged before its
@@ -587,6 +593,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
   void End(const grpc::Status& status) {
     const grpc::Status bounded_status = bounded(status);
     call_.finish(bounded_status, sent_);
+    handoff_release(this);
     Finish(bounded_status);
   }
 
@@ -598,7 +605,9 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
       const std::lock_guard lock(alarm_mutex_);
       if (!cancelled_) {
         alarm_set_ = true;
+        handoff_release(this);
         alarm_.Set(due, [this](bool ok) {
+          handoff_acquire(this);
           if (ok) {
             NextWrite();
           } else {
@@ -638,6 +647,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
       return;
     }
     serialize(batch_, bytes_);
+    handoff_release(this);
     StartWrite(&bytes_);
   }
 
@@ -796,12 +806,22 @@ class TrajectoryService final : public RawService {
     });
   }
 
+  // Copies the catalog: no long work, answered on gRPC's thread.
   grpc::ServerUnaryReactor* ListRobots(grpc::CallbackServerContext* context, const v1::ListRobotsRequest* /*request*/,
                                        v1::ListRobotsResponse* response) override {
-    return unary(*context, Method::kListRobots, [this, response] {
+    auto* reactor = context->DefaultReactor();
+    Call call(*runtime_, *context, Method::kListRobots);
+    grpc::Status status = call.refusal() ? *call.refusal() : grpc::Status::OK;
+    if (status.ok()) {
       for (const auto& model : robots_.models) to_proto(model, *response->add_robots());
-      return grpc::Status::OK;
-    });
+      if (auto refused = response_limit(response->ByteSizeLong(), limits().max_response_bytes)) {
+        response->Clear();
+        status = *refused;
+      }
+    }
+    call.finish(status);
+    reactor->Finish(status);
+    return reactor;
   }
 
   /// One plan with a motion and one analysis of a small path: the code paths of a real call
@@ -848,6 +868,7 @@ class TrajectoryService final : public RawService {
     runtime_->workers().submit([call, reactor, work = std::forward<Work>(work)]() mutable {
       const grpc::Status status = bounded(work());
       call->finish(status);
+      handoff_release(reactor);
       reactor->Finish(status);
     });
     return reactor;

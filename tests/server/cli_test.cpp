@@ -3,6 +3,7 @@
 #include <sys/wait.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -209,6 +210,35 @@ TEST_F(CliRemote, TalksToTheServerAndChecksHealth) {
   const CliRun health = run_cli("--server " + address_ + " health");
   EXPECT_EQ(health.exit_code, 0);
   EXPECT_EQ(health.out, "SERVING\n");
+}
+
+// --token-file sends the token the file holds (its first line), not the file's name.
+TEST(Cli, TokenFileSendsItsToken) {
+  server::ServerOptions options;
+  options.address = "127.0.0.1:0";
+  options.log_level = "warning";
+  options.auth_token = "file-token-0123456789abcdef";
+  auto running = server::start_server(options);
+  ASSERT_TRUE(running) << running.error();
+  const std::string dir = ::testing::TempDir();
+  const std::string good = dir + "/geotraj_token_good", empty = dir + "/geotraj_token_empty";
+  std::FILE* f = std::fopen(good.c_str(), "w");
+  std::fputs("file-token-0123456789abcdef\n", f);
+  std::fclose(f);
+  std::fclose(std::fopen(empty.c_str(), "w"));
+  const std::string server = "--server 127.0.0.1:" + std::to_string(running->port);
+  CliRun run = run_cli(server + " --token-file " + good + " robots", true);
+  EXPECT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_THAT(run.out, HasSubstr("pa10"));
+  run = run_cli(server + " --token-file " + empty + " robots", true);
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.out, HasSubstr("holds no token"));
+  run = run_cli(server + " --token-file " + dir + "/no_such_file robots", true);
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.out, HasSubstr("cannot read"));
+  server::stop_server(*running, std::chrono::seconds(1));
+  std::remove(good.c_str());
+  std::remove(empty.c_str());
 }
 
 TEST(Cli, UnreachableServerFails) {

@@ -17,6 +17,9 @@
 #include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/security/credentials.h>
 #include <nlohmann/json.hpp>
+#include <openssl/evp.h>
+#include <openssl/pem.h>
+#include <openssl/x509.h>
 
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "production_support.hpp"
@@ -206,6 +209,58 @@ TEST_F(TlsTest, StartupErrorsNameTheFile) {
   started = server::start_server(options);
   ASSERT_FALSE(started);
   EXPECT_THAT(started.error(), HasSubstr("--tls-key"));
+}
+
+TEST_F(TlsTest, AKeyOfAnotherCertificateIsNamed) {
+  auto options = tls_options(false);
+  options.address = "127.0.0.1:0";
+  options.tls.key_file = (dir_ / "other.key").string();
+  const auto started = server::start_server(options);
+  ASSERT_FALSE(started);
+  EXPECT_THAT(started.error(), HasSubstr("does not belong to the certificate"));
+  EXPECT_THAT(started.error(), HasSubstr("other.key"));
+}
+
+// A self-signed certificate for localhost that expired a day ago, and its key (PEM files).
+void write_expired_certificate(const std::filesystem::path& cert_file, const std::filesystem::path& key_file) {
+  EVP_PKEY* key = EVP_EC_gen("P-256");
+  X509* cert = X509_new();
+  ASN1_INTEGER_set(X509_get_serialNumber(cert), 1);
+  X509_gmtime_adj(X509_getm_notBefore(cert), -2 * 86400L);
+  X509_gmtime_adj(X509_getm_notAfter(cert), -86400L);
+  X509_set_pubkey(cert, key);
+  X509_NAME* name = X509_get_subject_name(cert);
+  X509_NAME_add_entry_by_txt(name, "CN", MBSTRING_ASC, reinterpret_cast<const unsigned char*>("localhost"), -1, -1, 0);
+  X509_set_issuer_name(cert, name);
+  X509_sign(cert, key, EVP_sha256());
+  std::FILE* out = std::fopen(cert_file.c_str(), "w");
+  PEM_write_X509(out, cert);
+  std::fclose(out);
+  out = std::fopen(key_file.c_str(), "w");
+  PEM_write_PrivateKey(out, key, nullptr, nullptr, 0, nullptr, nullptr);
+  std::fclose(out);
+  X509_free(cert);
+  EVP_PKEY_free(key);
+}
+
+TEST_F(TlsTest, AnExpiredCertificateIsAWarning) {
+  write_expired_certificate(dir_ / "expired.pem", dir_ / "expired.key");
+  const auto log_path = dir_ / "expired.log";
+  std::FILE* log = std::fopen(log_path.c_str(), "w+");
+  server::ServerOptions options;
+  options.address = "127.0.0.1:0";
+  options.tls.cert_file = (dir_ / "expired.pem").string();
+  options.tls.key_file = (dir_ / "expired.key").string();
+  options.log_output = log;
+  options.log_level = "warning";
+  auto started = server::start_server(options);
+  ASSERT_TRUE(started) << started.error();  // it serves (an operator may be replacing it)
+  server::stop_server(*started, std::chrono::seconds(1));
+  *started = {};
+  std::fflush(log);
+  std::fclose(log);
+  EXPECT_THAT(file("expired.log"), HasSubstr("expired on"));
+  EXPECT_THAT(file("expired.log"), HasSubstr("expired.pem"));
 }
 
 // The CLI as an operator uses it: CA, client certificate and a token from the environment.

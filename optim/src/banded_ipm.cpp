@@ -211,9 +211,9 @@ BandedIpmResult solve_banded_ipm(Ipopt::TNLP& nlp, const BandedIpmOptions& opt) 
       out.message = "iteration limit";
       return out;
     }
-    if (std::chrono::steady_clock::now() >= opt.deadline) {
+    if (std::chrono::steady_clock::now() >= opt.deadline || opt.stop.stop_requested()) {
       out.status = BandedIpmResult::Status::kTimeLimit;
-      out.message = "time limit";
+      out.message = opt.stop.stop_requested() ? "stopped" : "time limit";
       return out;
     }
 

@@ -37,6 +37,7 @@
 #pragma once
 
 #include <chrono>
+#include <stop_token>
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -52,6 +53,7 @@ struct BandedIpmOptions {
   double mu_min = 0.0;            ///< 0: 1e-11 (Ipopt's mu_min)
   int max_iterations = 500;
   std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+  std::stop_token stop;  ///< requested: stop like at the deadline (checked every iteration)
   std::size_t max_bandwidth = 16;  ///< refuse problems with a wider band
   bool trace = false;              ///< one line per iteration on stdout
 };

@@ -271,6 +271,12 @@ class JerkTimingNlp : public Ipopt::TNLP {
     return true;
   }
 
+  // A cancelled call stops Ipopt at its next iteration (User_Requested_Stop).
+  bool intermediate_callback(Ipopt::AlgorithmMode, Index, Number, Number, Number, Number, Number, Number, Number,
+                             Number, Index, const Ipopt::IpoptData*, Ipopt::IpoptCalculatedQuantities*) override {
+    return !opt_.stop.stop_requested();
+  }
+
   void finalize_solution(Ipopt::SolverReturn, Index n, const Number* x, const Number*, const Number*, Index,
                          const Number*, const Number*, Number, const Ipopt::IpoptData*,
                          Ipopt::IpoptCalculatedQuantities*) override {
@@ -580,6 +586,7 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
     bo.constr_viol_tol = 1e-9;  // as Ipopt's below
     bo.max_iterations = options.max_iterations;
     bo.deadline = deadline;
+    bo.stop = options.stop;
     const detail::BandedIpmResult r = detail::solve_banded_ipm(*nlp, bo);
     out.report.iterations = r.iterations;
     switch (r.status) {
@@ -600,7 +607,7 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
   // Held until the application is destroyed, at the end of this block (ipopt_lock.hpp).
   std::unique_lock<std::timed_mutex> ipopt;
   if (run_ipopt) {
-    ipopt = detail::lock_ipopt(deadline);
+    ipopt = detail::lock_ipopt(deadline, options.stop);
     if (!ipopt.owns_lock()) {
       run_ipopt = false;
       nlp->x_.clear();
@@ -647,6 +654,7 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
       case Ipopt::Solve_Succeeded:
       case Ipopt::Solved_To_Acceptable_Level: out.report.status = OptimizerStatus::kConverged; break;
       case Ipopt::Maximum_Iterations_Exceeded: out.report.status = OptimizerStatus::kIterationLimit; break;
+      case Ipopt::User_Requested_Stop:  // cancelled
       case Ipopt::Maximum_CpuTime_Exceeded: out.report.status = OptimizerStatus::kTimeLimit; break;
       default: out.report.status = OptimizerStatus::kFailed; break;
     }

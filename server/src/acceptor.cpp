@@ -26,6 +26,8 @@ using Clock = std::chrono::steady_clock;
 constexpr auto kPause = std::chrono::milliseconds(100);
 // The open-connection gauge is refreshed this often.
 constexpr auto kCountEvery = std::chrono::seconds(1);
+// At the cap, the descriptors are counted again at most this often.
+constexpr auto kRescanEvery = std::chrono::milliseconds(20);
 // A connection that has sent nothing this long after its accept may be closed at the cap.
 constexpr auto kIdleGrace = std::chrono::milliseconds(250);
 // The HTTP/2 client preface ("PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n"); a TLS ClientHello is longer.
@@ -106,10 +108,23 @@ void Acceptor::stop() {
 
 std::size_t Acceptor::count_open() {
   const auto sockets = socket_descriptors();
-  if (!sockets.empty()) std::erase_if(live_, [&sockets](const auto& entry) { return !sockets.contains(entry.first); });
+  if (!sockets.empty()) {
+    std::erase_if(live_, [&sockets](const auto& entry) { return !sockets.contains(entry.first); });
+    std::erase_if(shut_down_, [this](ino_t inode) { return !live_.contains(inode); });
+  }
   open_.store(live_.size());
   metrics_->connections_open(options_.listener, static_cast<std::int64_t>(live_.size()));
   return live_.size();
+}
+
+bool Acceptor::make_room() {
+  // A flood at the cap scans /proc/self/fd (O(descriptors)) once per kRescanEvery at most.
+  const auto now = Clock::now();
+  if (now - last_scan_ < kRescanEvery) return false;
+  last_scan_ = now;
+  if (count_open() < options_.max_connections) return true;
+  // Full: silent connections make room (they leave once gRPC sees them shut down).
+  return close_idle() > 0;
 }
 
 std::size_t Acceptor::close_idle() {
@@ -117,7 +132,7 @@ std::size_t Acceptor::close_idle() {
   const auto now = Clock::now();
   std::size_t closed = 0;
   for (const auto& [inode, accepted] : live_) {
-    if (now - accepted < kIdleGrace) continue;
+    if (now - accepted < kIdleGrace || shut_down_.contains(inode)) continue;
     const auto found = sockets.find(inode);
     if (found == sockets.end()) continue;
     const int fd = found->second;
@@ -130,6 +145,7 @@ std::size_t Acceptor::close_idle() {
     struct stat st {};
     if (::fstat(fd, &st) != 0 || st.st_ino != inode) continue;
     if (::shutdown(fd, SHUT_RDWR) == 0) {
+      shut_down_.insert(inode);
       ++closed;
       metrics_->connection_refused(options_.listener, "idle");
     }
@@ -204,14 +220,10 @@ void Acceptor::run() {
         break;
       }
       if (!accepting_.load()) set_accepting(true);
-      if (live_.size() >= options_.max_connections && count_open() >= options_.max_connections) {
-        // Full: silent connections make room (they leave once gRPC sees them shut down);
-        // without any, the new one is closed, and its client retries with backoff.
-        if (close_idle() == 0) {
-          metrics_->connection_refused(options_.listener, "max_connections");  // counted before it is seen
-          ::close(fd);
-          continue;
-        }
+      if (live_.size() >= options_.max_connections && !make_room()) {
+        metrics_->connection_refused(options_.listener, "max_connections");  // counted before it is seen
+        ::close(fd);  // its client retries with backoff
+        continue;
       }
       const int on = 1;
       (void)::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);

@@ -22,6 +22,7 @@
 #include <thread>
 #include <chrono>
 #include <unordered_map>
+#include <unordered_set>
 
 #include <grpcpp/server_builder.h>
 #include <sys/types.h>
@@ -73,6 +74,9 @@ class Acceptor {
   // At the cap: shuts down the connections older than kIdleGrace that have received fewer
   // bytes than the HTTP/2 preface; returns how many.
   std::size_t close_idle();
+  // At the cap: whether a new connection may come in (gRPC closed some, or silent ones were
+  // shut down to make room).
+  bool make_room();
   void set_accepting(bool accepting);
 
   ListeningSocket socket_;
@@ -85,6 +89,8 @@ class Acceptor {
   const Logger* logger_ = nullptr;
   // Inodes of the sockets handed to gRPC, with when they were accepted (acceptor thread).
   std::unordered_map<ino_t, std::chrono::steady_clock::time_point> live_;
+  std::unordered_set<ino_t> shut_down_;  // shut down by close_idle, not yet closed by gRPC
+  std::chrono::steady_clock::time_point last_scan_{};
   std::atomic<std::size_t> open_{0};
   std::atomic<bool> accepting_{true};
   std::mutex stop_mutex_;

@@ -47,9 +47,10 @@ std::size_t analysis_points(const v1::PlanRequest& request);
 
 /// Samples per SampleBatch when PlanRequest.samples_per_batch is absent.
 inline constexpr std::size_t kDefaultSamplesPerBatch = 256;
-/// The most samples in one SampleBatch: about 2 MB with a 7-joint robot, within a gRPC
-/// client's default 4 MB receive limit.
-inline constexpr std::size_t kMaxSamplesPerBatch = 4096;
+/// The most samples in one SampleBatch: about 0.5 MB on the wire with a 7-joint robot
+/// (within a gRPC client's default 4 MB receive limit), about 1.3 MB as the message the
+/// server fills, so that --max-streams streams at most stay within a few hundred MB.
+inline constexpr std::size_t kMaxSamplesPerBatch = 1024;
 
 /// PlanRequest.motion as a core MotionSpec, or every violation (`motion.rampFraction`, ...):
 /// absent optional fields take their documented defaults. Precondition: request.has_motion().

@@ -24,9 +24,13 @@ void HealthState::set_all(bool serving) {
   notify();
 }
 
-void HealthState::set_accepting(bool accepting) {
+void HealthState::set_accepting(const std::string& listener, bool accepting) {
   const std::lock_guard lock(mutex_);
-  accepting_ = accepting;
+  if (accepting) {
+    not_accepting_.erase(listener);
+  } else {
+    not_accepting_.insert(listener);
+  }
   notify();
 }
 
@@ -38,12 +42,13 @@ std::optional<bool> HealthState::get(const std::string& name) const {
 std::optional<bool> HealthState::get_locked(const std::string& name) const {
   const auto it = status_.find(name);
   if (it == status_.end()) return std::nullopt;
-  return it->second && (accepting_ || name != readiness_);
+  return it->second && (not_accepting_.empty() || name != readiness_);
 }
 
 void HealthState::subscribe(Watcher* watcher) {
   const std::lock_guard lock(mutex_);
   watchers_.push_back(watcher);
+  watcher->health_changed(get_locked(watcher->watched()));
 }
 
 void HealthState::unsubscribe(Watcher* watcher) {
@@ -75,8 +80,7 @@ class HealthWatch final : public grpc::ServerWriteReactor<HealthCheckResponse>, 
       return;
     }
     admitted_ = true;
-    state_->subscribe(this);  // first, so that no change between the two is missed
-    health_changed(state_->get(name_));
+    state_->subscribe(this);  // sends the status now
   }
 
   const std::string& watched() const override { return name_; }

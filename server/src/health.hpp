@@ -7,6 +7,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -37,14 +38,16 @@ class HealthState {
   void set(const std::string& name, bool serving);
   /// Sets every known name's status.
   void set_all(bool serving);
-  /// Readiness also needs the ports to accept connections (acceptor.hpp): while one cannot,
-  /// `readiness` reads NOT_SERVING whatever was set.
-  void set_accepting(bool accepting);
+  /// Readiness also needs the ports to accept connections (acceptor.hpp): while one of them
+  /// (`listener`) cannot, `readiness` reads NOT_SERVING whatever was set.
+  void set_accepting(const std::string& listener, bool accepting);
   void set_readiness_name(std::string readiness) { readiness_ = std::move(readiness); }
 
   /// SERVING (true), NOT_SERVING (false), or nullopt for a name not known.
   std::optional<bool> get(const std::string& name) const;
 
+  /// Tells `watcher` the status now, then at every change (the first under the same lock
+  /// as the changes, so it is never older than one that follows).
   void subscribe(Watcher* watcher);
   /// After it returns, `watcher` is not called again.
   void unsubscribe(Watcher* watcher);
@@ -56,7 +59,7 @@ class HealthState {
   mutable std::mutex mutex_;
   std::map<std::string, bool, std::less<>> status_;
   std::vector<Watcher*> watchers_;
-  bool accepting_ = true;
+  std::set<std::string, std::less<>> not_accepting_;  // listeners that cannot accept now
   std::string readiness_;
 };
 

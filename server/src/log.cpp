@@ -227,10 +227,12 @@ void Logger::log(LogLevel level, std::string_view message, std::vector<LogField>
 
 std::string truncated(std::string_view text, std::size_t max_bytes) {
   if (text.size() <= max_bytes) return std::string(text);
+  constexpr std::size_t kMarkerBytes = 32;  // "... (N more bytes)", N below 10^20
+  const std::size_t keep = max_bytes > kMarkerBytes ? max_bytes - kMarkerBytes : 0;
   std::size_t cut = 0;
-  while (cut < max_bytes) {  // whole characters only (an invalid byte counts as one)
+  while (cut < keep) {  // whole characters only (an invalid byte counts as one)
     const std::size_t n = std::max<std::size_t>(utf8_sequence(text, cut), 1);
-    if (cut + n > max_bytes) break;
+    if (cut + n > keep) break;
     cut += n;
   }
   return std::string(text.substr(0, cut)) + "... (" + std::to_string(text.size() - cut) + " more bytes)";

@@ -58,8 +58,9 @@ std::string new_request_id();
 /// Whether a client's x-request-id can be logged as is: 1 to 64 characters of [A-Za-z0-9._-].
 bool valid_request_id(std::string_view id);
 
-/// `text` cut to at most `max_bytes` (at a UTF-8 character boundary) followed by
-/// "... (N more bytes)" when it is longer; `text` itself otherwise.
+/// `text` itself when it has at most `max_bytes`; otherwise its start, cut at a UTF-8
+/// character boundary and followed by "... (N more bytes)", `max_bytes` in all at most
+/// (for `max_bytes` of 32 and more).
 std::string truncated(std::string_view text, std::size_t max_bytes);
 
 /// Longest value of a string field in a log line [bytes]: a client's 1 MB robot name stays

@@ -87,6 +87,13 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str()
       ->group("Limits");
+  app.add_option("--max-health-watches", limits.max_health_watches,
+                 "grpc.health.v1.Health/Watch streams in flight (no token needed; counted in --max-streams too); "
+                 "beyond: RESOURCE_EXHAUSTED")
+      ->envname("GEOTRAJ_MAX_HEALTH_WATCHES")
+      ->check(CLI::Range(0, 100000))
+      ->capture_default_str()
+      ->group("Limits");
   app.add_option("--max-unary-calls", limits.max_unary_calls,
                  "unary calls in flight (plans, analyses, conversions); beyond: RESOURCE_EXHAUSTED")
       ->envname("GEOTRAJ_MAX_UNARY_CALLS")

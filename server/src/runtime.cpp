@@ -119,14 +119,21 @@ Runtime::Runtime(ServiceLimits limits, TokenTable tokens, Logger logger)
 
 std::optional<grpc::Status> Runtime::begin_watch() {
   if (draining()) return grpc::Status(grpc::StatusCode::UNAVAILABLE, "the server is shutting down");
+  if (active_watches_.fetch_add(1) >= limits_.max_health_watches) {
+    active_watches_.fetch_sub(1);
+    metrics_.rejected("Health.Watch", "capacity");
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                        "the server has " + std::to_string(limits_.max_health_watches) +
+                            " health watches in flight, its limit (geotrajd --max-health-watches): retry later");
+  }
   if (active_streams_.fetch_add(1) >= limits_.max_streams) {
+    active_watches_.fetch_sub(1);
     active_streams_.fetch_sub(1);
     metrics_.rejected("Health.Watch", "capacity");
     return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
                         "the server has " + std::to_string(limits_.max_streams) +
                             " streams in flight, health watches included, its limit (geotrajd --max-streams): retry later");
   }
-  active_watches_.fetch_add(1);
   return std::nullopt;
 }
 

@@ -3,6 +3,7 @@
 // metrics and the log. One Runtime per server; the service and start/stop share it.
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -76,7 +77,9 @@ class Runtime {
   void start_draining() { draining_.store(true); }
   bool draining() const { return draining_.load(); }
   /// Calls admitted and not yet finished (streams and unary calls; health watches aside).
-  int calls_in_flight() const { return active_streams_.load() + active_unary_.load() - active_watches_.load(); }
+  int calls_in_flight() const {
+    return std::max(0, active_streams_.load() - active_watches_.load()) + active_unary_.load();
+  }
 
   /// Admits one grpc.health.v1.Health/Watch against --max-streams: nullopt when admitted
   /// (release it with end_watch()), else RESOURCE_EXHAUSTED naming the flag.
@@ -92,7 +95,7 @@ class Runtime {
   std::atomic<bool> draining_{false};
   std::atomic<int> active_streams_{0};
   std::atomic<int> active_unary_{0};
-  std::atomic<int> active_watches_{0};  // counted in active_streams_ too
+  std::atomic<int> active_watches_{0};  // admitted ones are counted in active_streams_ too
   WorkerPool workers_;  // last: its threads stop before the rest goes
 };
 

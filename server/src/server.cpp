@@ -163,6 +163,7 @@ tl::expected<std::string, std::string> check_limits(const ServerOptions& options
   const auto& l = options.limits;
   if (l.max_streams < 1) return tl::unexpected(std::string("--max-streams must be at least 1"));
   if (l.max_unary_calls < 1) return tl::unexpected(std::string("--max-unary-calls must be at least 1"));
+  if (l.max_health_watches < 0) return tl::unexpected(std::string("--max-health-watches must be >= 0"));
   if (l.max_frames < 2) return tl::unexpected(std::string("--max-frames must be at least 2 (a path has two frames)"));
   if (l.max_stream_samples < 2) return tl::unexpected(std::string("--max-stream-samples must be at least 2"));
   if (!(l.max_optimize_seconds > 0.0)) return tl::unexpected(std::string("--max-optimize-seconds must be > 0"));
@@ -273,9 +274,15 @@ RunningServer::RunningServer(RunningServer&&) noexcept = default;
 RunningServer& RunningServer::operator=(RunningServer&&) noexcept = default;
 RunningServer::~RunningServer() {
   if (metrics) metrics->stop();
-  // No connection may reach a server being destroyed; the servers refer to the services.
+  // No connection may reach a server being destroyed (the servers refer to the services);
+  // then every call is cancelled at once: a health watch or a real-time stream would
+  // otherwise keep ~Server's unbounded shutdown waiting.
+  if (runtime) runtime->start_draining();
   acceptor.reset();
   health_acceptor.reset();
+  for (auto* s : {health_server.get(), server.get()}) {
+    if (s != nullptr) s->Shutdown(std::chrono::system_clock::now());
+  }
   health_server.reset();
   server.reset();
   if (runtime) unroute_grpc_logs(runtime->logger());
@@ -378,14 +385,17 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
   running.health->set("", true);
   running.health->set(kServiceName, true);
   running.health->set(kReadinessService, false);
-  auto accepting = [health = running.health](bool ok) { health->set_accepting(ok); };
+  const auto accepting = [health = running.health](const char* listener) {
+    return [health, listener](bool ok) { health->set_accepting(listener, ok); };
+  };
   if (running.acceptor) {
-    running.acceptor->start(std::move(main_port->sink), {"grpc", static_cast<std::size_t>(max_connections), accepting},
+    running.acceptor->start(std::move(main_port->sink),
+                            {"grpc", static_cast<std::size_t>(max_connections), accepting("grpc")},
                             running.runtime->metrics(), logger);
   }
   if (running.health_acceptor) {
     running.health_acceptor->start(std::move(health_port->sink),
-                                   {"health", static_cast<std::size_t>(health_cap), accepting},
+                                   {"health", static_cast<std::size_t>(health_cap), accepting("health")},
                                    running.runtime->metrics(), logger);
   }
   if (auto warm = warm_up(*running.service); !warm.ok()) {
@@ -418,15 +428,18 @@ void stop_server(RunningServer& running, std::chrono::milliseconds drain, std::c
                                                        : "drain time over: cancelling the calls in flight",
                                   {{"calls", static_cast<std::int64_t>(left)}});
   }
-  // Whatever is left is cancelled; a short deadline lets cancelled reactors finish.
+  // No more connections (gRPC would leave one handed to a server that is shutting down
+  // open and silent); clients now get ECONNREFUSED and go elsewhere.
+  if (running.acceptor) running.acceptor->stop();
+  if (running.health_acceptor) running.health_acceptor->stop();
+  // Whatever is left is cancelled (its reactors' stop tokens trip, so optimisations end
+  // within an iteration); a short deadline lets cancelled reactors finish.
   running.server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(200));
   running.server->Wait();
   if (running.health_server) {
     running.health_server->Shutdown(std::chrono::system_clock::now());
     running.health_server->Wait();
   }
-  if (running.acceptor) running.acceptor->stop();
-  if (running.health_acceptor) running.health_acceptor->stop();
   if (running.metrics) running.metrics->stop();
 }
 

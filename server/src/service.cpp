@@ -10,6 +10,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <stop_token>
 
 #include <grpcpp/alarm.h>
 #include <grpcpp/support/byte_buffer.h>
@@ -49,6 +50,11 @@ class Abandon {
   explicit Abandon(grpc::CallbackServerContext& context) : context_(&context), deadline_(context.deadline()) {}
   /// The client's deadline, or the server's default for calls that carry none (or a later
   /// one): `default_s` from now (geotrajd --default-deadline-seconds).
+  /// With `stop`, requested when gRPC cancels the call (OnCancel of its reactor): the
+  /// optimisers stop on it within one iteration, not only at their next deadline check.
+  Abandon(grpc::CallbackServerContext& context, double default_s, std::stop_token stop) : Abandon(context, default_s) {
+    stop_ = std::move(stop);
+  }
   Abandon(grpc::CallbackServerContext& context, double default_s) : Abandon(context) {
     const auto server = std::chrono::system_clock::now() +
                         std::chrono::duration_cast<std::chrono::system_clock::duration>(std::chrono::duration<double>(default_s));
@@ -65,7 +71,7 @@ class Abandon {
   /// cancellation within kDeadlineSlack of it counts as the deadline.
   std::optional<grpc::Status> check() const {
     const auto now = std::chrono::system_clock::now();
-    const bool cancelled = context_ != nullptr && context_->IsCancelled();
+    const bool cancelled = (context_ != nullptr && context_->IsCancelled()) || stop_.stop_requested();
     if (deadline_ <= now || (cancelled && deadline_ - now <= kDeadlineSlack)) {
       if (default_s_ > 0.0) {
         return grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED,
@@ -78,6 +84,9 @@ class Abandon {
     return std::nullopt;
   }
 
+  /// Requested when the call is cancelled (empty for work no client waits for).
+  const std::stop_token& stop() const { return stop_; }
+
   /// When the caller stops waiting, on the steady clock (the RPC's deadline).
   std::chrono::steady_clock::time_point deadline() const {
     const auto left = deadline_ - std::chrono::system_clock::now();
@@ -89,6 +98,7 @@ class Abandon {
   grpc::CallbackServerContext* context_ = nullptr;
   std::chrono::system_clock::time_point deadline_;
   double default_s_ = 0.0;  // > 0 when deadline_ is the server's default
+  std::stop_token stop_;
 };
 
 // What the work of one call needs from the service: its robots, its limits, its metrics.
@@ -160,6 +170,7 @@ tl::expected<core::PathSpec, grpc::Status> optimized_path(const Abandon& abandon
   core::PathSpec path = std::move(*spec);
   if (scales) {
     scales->deadline = deadline;
+    scales->stop = abandon.stop();
     const auto started = std::chrono::steady_clock::now();
     auto result = optim::optimize_tangent_scales(path, *scales);
     services.metrics.optimization("tangent_scales", seconds_since(started));
@@ -169,6 +180,7 @@ tl::expected<core::PathSpec, grpc::Status> optimized_path(const Abandon& abandon
   }
   if (breakpoints) {
     breakpoints->deadline = deadline;
+    breakpoints->stop = abandon.stop();
     const auto started = std::chrono::steady_clock::now();
     auto result = optim::optimize_breakpoints(path, *breakpoints);
     services.metrics.optimization("breakpoints", seconds_since(started));
@@ -240,6 +252,22 @@ grpc::Status raw(grpc::CallbackServerContext& context, const grpc::ByteBuffer& i
   return status;
 }
 
+// The reactor of a unary call that a worker finishes: gRPC's cancellation (the client's, a
+// deadline, a shutdown) trips its stop source, which the work's Abandon and the optimisers
+// watch.
+class UnaryReactor final : public grpc::ServerUnaryReactor {
+ public:
+  void OnCancel() override { stop_.request_stop(); }
+  void OnDone() override {
+    handoff_acquire(this);
+    delete this;
+  }
+  std::stop_token stop() const { return stop_.get_token(); }
+
+ private:
+  std::stop_source stop_;
+};
+
 // Everything a request plans: the trajectory (along the path, or a move) and, with a
 // robot, the resolved robot. Used by PlanTrajectory (with `motion`) and StreamSamples.
 // The robot is shared so that its model keeps one address: a joint move's plan points to it.
@@ -296,6 +324,7 @@ tl::expected<core::MotionPlan, grpc::Status> time_optimal_timing(const Abandon& 
     optim::JerkTimingOptions options;
     const auto left = std::chrono::duration<double>(abandon.deadline() - started).count();
     options.time_budget_s = std::clamp(left, 0.0, std::min(kDefaultOptimizeBudgetS, services.limits.max_optimize_seconds));
+    options.stop = abandon.stop();
     auto result = optim::plan_time_optimal_jerk(path, orientation, motion, model, seed, {}, options);
     if (!result) return tl::unexpected(failed_precondition_or_invalid(result.error()));
     plan = std::move(result->motion);
@@ -564,8 +593,12 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
     NextWrite();
   }
 
+  /// Requested when gRPC cancels the stream: stops its planning (optimisers included).
+  std::stop_token stop() const { return stop_.get_token(); }
+
   void OnCancel() override {
     handoff_acquire(this);
+    stop_.request_stop();
     const std::lock_guard lock(alarm_mutex_);
     cancelled_ = true;
     if (alarm_set_) alarm_.Cancel();  // a pending wait ends at once (its callback sees !ok)
@@ -608,6 +641,10 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
         handoff_release(this);
         alarm_.Set(due, [this](bool ok) {
           handoff_acquire(this);
+          {  // WaitUntil has let go of the lock (the alarm may fire before it does)
+            const std::lock_guard wait(alarm_mutex_);
+            alarm_set_ = false;
+          }
           if (ok) {
             NextWrite();
           } else {
@@ -659,6 +696,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
   std::size_t batch_size_ = 0;
   bool real_time_ = false;
   std::chrono::system_clock::time_point start_;
+  std::stop_source stop_;
   std::mutex alarm_mutex_;
   bool cancelled_ = false;  // OnCancel ran
   bool alarm_set_ = false;
@@ -742,21 +780,21 @@ class TrajectoryService final : public RawService {
   // (context, request and response buffers, the service) lives until the reactor finishes.
   grpc::ServerUnaryReactor* ConvertConstraints(grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
                                                grpc::ByteBuffer* out) override {
-    return unary(*context, Method::kConvertConstraints, [this, context, in, out] {
+    return unary(*context, Method::kConvertConstraints, [this, context, in, out](std::stop_token stop) {
       return raw<v1::ConvertRequest, v1::ConvertResponse>(
           *context, *in, *out, limits().max_response_bytes, [&](const auto& request, auto& response) {
-            return convert_constraints(abandon(*context), services(), request, response);
+            return convert_constraints(abandon(*context, stop), services(), request, response);
           });
     });
   }
 
   grpc::ServerUnaryReactor* PlanTrajectory(grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
                                            grpc::ByteBuffer* out) override {
-    return unary(*context, Method::kPlanTrajectory, [this, context, in, out] {
+    return unary(*context, Method::kPlanTrajectory, [this, context, in, out](std::stop_token stop) {
       return raw<v1::PlanRequest, v1::PlanResponse>(*context, *in, *out, limits().max_response_bytes,
                                                     [&](const auto& request, auto& response) {
-                                                      return plan_trajectory(abandon(*context), services(), request,
-                                                                             response);
+                                                      return plan_trajectory(abandon(*context, stop), services(),
+                                                                             request, response);
                                                     });
     });
   }
@@ -783,7 +821,7 @@ class TrajectoryService final : public RawService {
     }
     runtime_->workers().submit(
         [this, context, stream, request] {
-          auto planned = plan_stream(abandon(*context), services(), *request);
+          auto planned = plan_stream(abandon(*context, stream->stop()), services(), *request);
           if (!planned) {
             stream->fail(planned.error());
             return;
@@ -797,11 +835,11 @@ class TrajectoryService final : public RawService {
 
   grpc::ServerUnaryReactor* AnalyzePath(grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
                                         grpc::ByteBuffer* out) override {
-    return unary(*context, Method::kAnalyzePath, [this, context, in, out] {
+    return unary(*context, Method::kAnalyzePath, [this, context, in, out](std::stop_token stop) {
       return raw<v1::PlanRequest, v1::PathProfile>(*context, *in, *out, limits().max_response_bytes,
                                                    [&](const auto& request, auto& profile) {
-                                                     return analyze_path(abandon(*context), services(), request,
-                                                                         profile);
+                                                     return analyze_path(abandon(*context, stop), services(),
+                                                                         request, profile);
                                                    });
     });
   }
@@ -850,14 +888,16 @@ class TrajectoryService final : public RawService {
   Services services() const { return Services{robots_, runtime_->limits(), runtime_->metrics()}; }
   const ServiceLimits& limits() const { return runtime_->limits(); }
   // The client's deadline, or the server's default when the client gives none.
-  Abandon abandon(grpc::CallbackServerContext& context) const { return Abandon(context, limits().default_deadline_s); }
+  Abandon abandon(grpc::CallbackServerContext& context, std::stop_token stop) const {
+    return Abandon(context, limits().default_deadline_s, std::move(stop));
+  }
 
   // Admits the call; runs `work` on a worker when admitted (a refusal is answered at once,
   // on gRPC's thread), then records and finishes it. Calls admitted wait in the workers'
   // queue: --max-unary-calls bounds how many, and the one beyond is RESOURCE_EXHAUSTED.
   template <typename Work>
   grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext& context, Method method, Work&& work) {
-    auto* reactor = context.DefaultReactor();
+    auto* reactor = new UnaryReactor();
     auto call = std::make_shared<Call>(*runtime_, context, method);
     if (call->refusal()) {
       const grpc::Status status = *call->refusal();
@@ -866,7 +906,7 @@ class TrajectoryService final : public RawService {
       return reactor;
     }
     runtime_->workers().submit([call, reactor, work = std::forward<Work>(work)]() mutable {
-      const grpc::Status status = bounded(work());
+      const grpc::Status status = bounded(work(reactor->stop()));
       call->finish(status);
       handoff_release(reactor);
       reactor->Finish(status);

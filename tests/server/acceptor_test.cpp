@@ -153,11 +153,14 @@ TEST(HealthState, ReadinessIsNotServingWhileAPortCannotAccept) {
   state.set_readiness_name("geotraj.readiness");
   state.set("", true);
   state.set("geotraj.readiness", true);
-  state.set_accepting(false);
+  state.set_accepting("grpc", false);
   EXPECT_EQ(state.get("geotraj.readiness"), false);
   EXPECT_EQ(state.get(""), true);  // liveness: the process serves
   EXPECT_EQ(state.get("no.such.service"), std::nullopt);
-  state.set_accepting(true);
+  state.set_accepting("health", false);
+  state.set_accepting("health", true);  // one port recovers, the other still cannot accept
+  EXPECT_EQ(state.get("geotraj.readiness"), false);
+  state.set_accepting("grpc", true);
   EXPECT_EQ(state.get("geotraj.readiness"), true);
 }
 

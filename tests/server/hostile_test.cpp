@@ -199,7 +199,7 @@ TEST_F(BoundedErrors, SamplesPerBatchIsBounded) {
   grpc::Status status;
   stream_all(request, status);
   ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
-  EXPECT_THAT(violation_of(bad_request_violations(status), "samplesPerBatch"), HasSubstr("between 1 and 4096"));
+  EXPECT_THAT(violation_of(bad_request_violations(status), "samplesPerBatch"), HasSubstr("between 1 and 1024"));
 }
 
 TEST(Bounds, LogLinesAreBounded) {
@@ -295,6 +295,34 @@ TEST(HealthWatch, WatchesCountAgainstTheStreamCapAndSeeTheDrain) {
   stopping.get();
 }
 
+TEST(HealthWatch, WatchesHaveACapOfTheirOwn) {
+  server::ServerOptions options;
+  options.limits.max_health_watches = 1;
+  auto running = start(options);
+  auto health_stub = grpc::health::v1::Health::NewStub(
+      grpc::CreateChannel("127.0.0.1:" + std::to_string(running.port), grpc::InsecureChannelCredentials()));
+  grpc::health::v1::HealthCheckRequest request;
+  auto first_context = short_context(30);
+  auto first = health_stub->Watch(first_context.get(), request);
+  HealthStatus status;
+  ASSERT_TRUE(first->Read(&status));
+  auto second_context = short_context(30);
+  auto second = health_stub->Watch(second_context.get(), request);
+  EXPECT_FALSE(second->Read(&status));
+  const auto refused = second->Finish();
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(refused.error_message(), HasSubstr("--max-health-watches"));
+  // Streams of the API still get their slots.
+  std::size_t samples = 0;
+  auto stream_context = short_context();
+  EXPECT_TRUE(read_stream(*stub_to(running.port), demo_request('a'), samples, *stream_context).ok());
+  first_context->TryCancel();
+  while (first->Read(&status)) {
+  }
+  first->Finish();
+  server::stop_server(running, std::chrono::seconds(1));
+}
+
 TEST(HealthPort, ServesHealthAndNothingElse) {
   server::ServerOptions options;
   options.health_address = "127.0.0.1:0";
@@ -352,6 +380,28 @@ TEST(Cancel, ACallResetRightAfterItsRequestIsNotABadRequest) {
   server::stop_server(running, std::chrono::seconds(2));
   const auto m = server::metrics_exposition(running);
   EXPECT_EQ(labelled(m, "geotraj_rpc_calls_total{method=\"PlanTrajectory\",code=\"INVALID_ARGUMENT\"}"), 0.0) << m;
+}
+
+// A cancelled optimisation stops its work at once (its reactor's stop token reaches the
+// optimiser), not at the end of its 20 s budget.
+TEST(Cancel, ACancelledOptimisationStopsItsWork) {
+  auto running = start({});
+  auto stub = stub_to(running.port);
+  grpc::ClientContext ctx;
+  auto call = std::async(std::launch::async, [&] {
+    v1::PlanResponse response;
+    return stub->PlanTrajectory(&ctx, slow_request(20.0), &response);
+  });
+  ASSERT_TRUE(eventually([&] { return series(server::metrics_exposition(running), "geotraj_busy_workers") == 1; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const auto cancelled = std::chrono::steady_clock::now();
+  ctx.TryCancel();
+  EXPECT_EQ(call.get().error_code(), grpc::StatusCode::CANCELLED);
+  ASSERT_TRUE(eventually([&] { return series(server::metrics_exposition(running), "geotraj_busy_workers") == 0; }));
+  const double stopped_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - cancelled).count();
+  std::printf("[ measured ] the optimisation's worker was free %.0f ms after the cancel\n", stopped_s * 1e3);
+  EXPECT_LT(stopped_s, 5.0);  // a quarter of the budget it would otherwise have used
+  server::stop_server(running, std::chrono::seconds(1));
 }
 
 // ---- Addresses -----------------------------------------------------------------------------

@@ -34,6 +34,7 @@
 
 #include <cstddef>
 #include <optional>
+#include <stop_token>
 #include <vector>
 
 #include "geotraj/core/error.hpp"
@@ -60,6 +61,8 @@ struct JerkTimingOptions {
   /// Time budget [s]: the banded method's wall-clock deadline, checked every iteration, and
   /// Ipopt's max_cpu_time (the budget left, after a banded attempt).
   double time_budget_s = 1.0;
+  /// Cancellation (the RPC was cancelled): both solvers stop as at the budget's end.
+  std::stop_token stop;
   /// Per solver (after a banded attempt that did not converge Ipopt gets as many).
   int max_iterations = 500;
   /// Per grid point, sigma in (0, 1]: that point's joint velocity limits are multiplied by

@@ -22,8 +22,12 @@ namespace geotraj::server {
 
 /// What one call may ask of the server. Each refusal names the limit and its flag.
 struct ServiceLimits {
-  /// Streams in flight; beyond, RESOURCE_EXHAUSTED (the callback API itself is unbounded).
+  /// Streams in flight, health watches included; beyond, RESOURCE_EXHAUSTED (the callback
+  /// API itself is unbounded).
   int max_streams = 256;
+  /// grpc.health.v1.Health/Watch streams in flight (they need no token, so they may take
+  /// only this many of max_streams); beyond, RESOURCE_EXHAUSTED.
+  int max_health_watches = 16;
   /// Unary calls in flight (plans, analyses, conversions); beyond, RESOURCE_EXHAUSTED.
   int max_unary_calls = 64;
   /// Key frames in one path (ConvertRequest, PlanRequest).

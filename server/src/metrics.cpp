@@ -1,5 +1,7 @@
 #include "metrics.hpp"
 
+#include <span>
+
 #include "log.hpp"
 #include "status.hpp"
 
@@ -11,12 +13,14 @@
 namespace geotraj::server {
 namespace {
 
+// Arrays, not vectors: nothing to destroy at exit, while a call in flight may still be
+// counted (a process that exits with its server running, as the fuzz targets do).
 // RPC latencies: 0.5 ms (ListRobots) to 60 s (long streams, deadline-bound optimisations).
-const std::vector<double> kRpcBounds = {0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1,
-                                        0.25,   0.5,   1,      2.5,   5,    10,    30,    60};
+constexpr std::array<double, 16> kRpcBounds = {0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1,
+                                               0.25,   0.5,   1,      2.5,   5,    10,    30,    60};
 // Optimisations: milliseconds (small time-optimal problems) to minutes (Ipopt, NLopt).
-const std::vector<double> kOptimizationBounds = {0.001, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5,
-                                                 1,     2.5,   5,    10,    30,    60,  120,  300};
+constexpr std::array<double, 16> kOptimizationBounds = {0.001, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5,
+                                                        1,     2.5,   5,    10,    30,    60,  120,  300};
 
 // A label value as the text format wants it: backslash, quote and newline escaped; invalid
 // UTF-8 (which scrapers reject) replaced by U+FFFD.
@@ -136,7 +140,7 @@ void Metrics::optimization(std::string_view kind, double seconds) {
   observe(durations->second, kOptimizationBounds, seconds);
 }
 
-void Metrics::observe(Histogram& histogram, const std::vector<double>& bounds, double value) {
+void Metrics::observe(Histogram& histogram, std::span<const double> bounds, double value) {
   if (histogram.buckets.empty()) histogram.buckets.assign(bounds.size() + 1, 0);
   // A NaN or infinite time is a caller's bug; it would poison _sum for the life of the process.
   if (!std::isfinite(value)) return;
@@ -175,7 +179,7 @@ std::string Metrics::exposition() const {
 
   const auto histogram_family = [&out](std::string_view name, std::string_view label_key,
                                        const std::map<std::string, Histogram, std::less<>>& series,
-                                       const std::vector<double>& bounds) {
+                                       std::span<const double> bounds) {
     const std::string bucket = std::string(name) + "_bucket";
     for (const auto& [key, histogram] : series) {
       if (histogram.buckets.empty()) continue;

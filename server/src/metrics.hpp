@@ -9,6 +9,7 @@
 #include <functional>
 #include <map>
 #include <mutex>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -70,7 +71,7 @@ class Metrics {
 
   // One more call of `method` ended with `grpc_code`; mutex_ is held.
   void count_call(std::string_view method, int grpc_code);
-  void observe(Histogram& histogram, const std::vector<double>& bounds, double value);
+  void observe(Histogram& histogram, std::span<const double> bounds, double value);
 
   const double start_time_seconds_;
   std::atomic<std::int64_t> active_streams_{0};

@@ -233,7 +233,7 @@ std::string Metrics::exposition() const {
       append_sample(out, "geotraj_connections", label("listener", listener), open);
     }
     append_header(out, "geotraj_connections_refused_total", "counter",
-                  "TCP connections closed on arrival (reason: max_connections, descriptors).");
+                  "TCP connections closed by the server (reason: max_connections and descriptors, on arrival; idle, silent ones shut down at the cap).");
     for (const auto& [listener, reasons] : connections_refused_) {
       for (const auto& [reason, count] : reasons) {
         append_sample(out, "geotraj_connections_refused_total", label("listener", listener) + "," + label("reason", reason),

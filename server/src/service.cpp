@@ -257,7 +257,10 @@ grpc::Status raw(grpc::CallbackServerContext& context, const grpc::ByteBuffer& i
 // watch.
 class UnaryReactor final : public grpc::ServerUnaryReactor {
  public:
-  void OnCancel() override { stop_.request_stop(); }
+  void OnCancel() override {
+    handoff_acquire(this);
+    stop_.request_stop();
+  }
   void OnDone() override {
     handoff_acquire(this);
     delete this;
@@ -898,6 +901,7 @@ class TrajectoryService final : public RawService {
   template <typename Work>
   grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext& context, Method method, Work&& work) {
     auto* reactor = new UnaryReactor();
+    handoff_release(reactor);  // OnCancel may run on another of gRPC's threads
     auto call = std::make_shared<Call>(*runtime_, context, method);
     if (call->refusal()) {
       const grpc::Status status = *call->refusal();

@@ -2,6 +2,7 @@
 // thesis's 4-frame demonstration path (validation, conversion, blending, arc lengths), arc
 // length alone, path evaluation, analysis, and paths of 10 to 10,000 frames (cost linear
 // in the number of frames). Run: build/bench/bench_core --benchmark_repetitions=5
+#include <string>
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -39,16 +40,22 @@ void BM_ConvertFrame(benchmark::State& state) {
 }
 BENCHMARK(BM_ConvertFrame);
 
+// Path C under each reading of unspecified constraints (arg 1: 0 smoothest, 1 thesis's
+// zeros, 2 lowest degree), polynomial (arg 0 = 0) or trapezoidal blend.
 void BM_BuildDemoPath(benchmark::State& state) {
   const auto blend = state.range(0) == 0 ? core::BlendMethod::kPolynomial : core::BlendMethod::kTrapezoidal;
-  const auto spec = testing::thesis_demo_path('C', blend);
+  const core::UnspecifiedConstraints readings[] = {core::UnspecifiedConstraints::kSmoothest,
+                                                   core::UnspecifiedConstraints::kThesisZeros,
+                                                   core::UnspecifiedConstraints::kLowestDegree};
+  const auto spec = testing::thesis_demo_path('C', blend, readings[state.range(1)]);
   for (auto _ : state) {
     auto path = core::build_path(spec);
     benchmark::DoNotOptimize(path);
   }
-  state.SetLabel(state.range(0) == 0 ? "polynomial" : "trapezoidal");
+  static const char* kNames[] = {"smoothest", "thesis zeros", "lowest degree"};
+  state.SetLabel(std::string(state.range(0) == 0 ? "polynomial, " : "trapezoidal, ") + kNames[state.range(1)]);
 }
-BENCHMARK(BM_BuildDemoPath)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_BuildDemoPath)->ArgsProduct({{0, 1}, {0, 1, 2}})->Unit(benchmark::kMicrosecond);
 
 void BM_ArcLengthDemoPath(benchmark::State& state) {
   const auto path = *core::build_path(testing::thesis_demo_path('C'));

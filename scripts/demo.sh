@@ -47,24 +47,45 @@ echo "Wrote $out/thesis_paths.svg (top and side views of paths A, B, C; key fram
 # residuals, manipulability, and SVG plots of the joints.
 /usr/bin/python3 scripts/robot_demo.py "$cli" "$out"
 
+# The three readings of unspecified constraints side by side (peak curvature between the
+# frames, length, peak speed, the PA-10's limit usage at 10 s, the time-optimal duration).
+/usr/bin/python3 scripts/readings_demo.py "$cli"
+for reading in smoothest thesis_zeros lowest_degree; do
+  /usr/bin/python3 - "$out/request_c.json" "$out/request_c_$reading.json" "$reading" <<'PY'
+import json, sys
+req = json.load(open(sys.argv[1]))
+req["path"]["unspecified"] = "UNSPECIFIED_CONSTRAINTS_" + sys.argv[3].upper()
+json.dump(req, open(sys.argv[2], "w"))
+PY
+  "$cli" --json analyze "$out/request_c_$reading.json" > "$out/profile_c_$reading.json"
+done
+/usr/bin/python3 scripts/plot_paths.py "$out/readings_path_c.svg" \
+  "path C, SMOOTHEST (the default)=$out/request_c_smoothest.json:$out/profile_c_smoothest.json" \
+  "path C, THESIS_ZEROS=$out/request_c_thesis_zeros.json:$out/profile_c_thesis_zeros.json" \
+  "path C, LOWEST_DEGREE=$out/request_c_lowest_degree.json:$out/profile_c_lowest_degree.json"
+echo "Wrote $out/readings_path_c.svg (path C under the three readings of unspecified constraints)"
+
 # Optimisation (issue "optimisation"): the tangent scales of path A chosen for the least
 # bending energy (the thesis's 0.25 against the optimised ones, SVG), and Appendix B.3's
 # breakpoint table (uniform, the thesis's hand-tuned B.11 and B.13, optimised).
 echo
-echo "=== Tangent scales of path A: the thesis's 0.25 at every frame against the optimised ones"
+echo "=== Tangent scales of path A (lowest-degree segments, the optimiser's model): the thesis's 0.25 at every frame against the optimised ones"
 # Bending energy plus 100 1/m^2 times the length: without the length term the least bent
 # curve through these frames is a long loop.
-/usr/bin/python3 - "$out/request_a.json" "$out/request_a_optimised.json" <<'PY'
+/usr/bin/python3 - "$out/request_a.json" "$out/request_a_lowest.json" "$out/request_a_optimised.json" <<'PY'
 import json, sys
 req = json.load(open(sys.argv[1]))
-req["optimize"] = {"tangentScales": {"objective": "TANGENT_SCALE_OBJECTIVE_BENDING_ENERGY", "lengthWeight": 100}}
+req["path"]["unspecified"] = "UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE"
 json.dump(req, open(sys.argv[2], "w"))
+req["optimize"] = {"tangentScales": {"objective": "TANGENT_SCALE_OBJECTIVE_BENDING_ENERGY", "lengthWeight": 100}}
+json.dump(req, open(sys.argv[3], "w"))
 PY
 "$cli" plan "$out/request_a_optimised.json" | sed -n '/^optimisation/,$p'
+"$cli" --json analyze "$out/request_a_lowest.json" > "$out/profile_a_lowest.json"
 "$cli" --json analyze "$out/request_a_optimised.json" > "$out/profile_a_optimised.json"
 /usr/bin/python3 scripts/plot_paths.py "$out/tangent_scales_path_a.svg" \
-  "path A, tangent scale 0.25 (thesis)=$out/request_a.json:$out/profile_a.json" \
-  "path A, tangent scales for the least bending energy + 100 x length=$out/request_a.json:$out/profile_a_optimised.json"
+  "path A, tangent scale 0.25 (thesis)=$out/request_a_lowest.json:$out/profile_a_lowest.json" \
+  "path A, tangent scales for the least bending energy + 100 x length=$out/request_a_lowest.json:$out/profile_a_optimised.json"
 echo "Wrote $out/tangent_scales_path_a.svg"
 echo
 echo "=== Appendix B.3 (Table B.1's path): peak torsion and curvature by breakpoints"

@@ -64,12 +64,19 @@ bool apply(const OptimizeFlags& flags, v1::PlanRequest& request) {
     for (char c : name) upper += c == '-' ? '_' : static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
     const auto* value = descriptor->FindValueByName(upper);
     if (value == nullptr || value->number() == 0) {
-      std::cerr << "geotraj: unknown objective '" << name << "' (" << prefix << "...)\n";
+      std::cerr << "geotraj: unknown value '" << name << "' (" << prefix << "...)\n";
       return false;
     }
     out = value->number();
     return true;
   };
+  if (!flags.unspecified.empty()) {
+    int reading = 0;
+    if (!enum_value(flags.unspecified, "UNSPECIFIED_CONSTRAINTS_", v1::UnspecifiedConstraints_descriptor(), reading)) {
+      return false;
+    }
+    request.mutable_path()->set_unspecified(static_cast<v1::UnspecifiedConstraints>(reading));
+  }
   const bool any = !flags.tangent_scales.empty() || !flags.breakpoints.empty() || flags.time_optimal ||
                    flags.jerk_limited || flags.budget_s > 0.0;
   if (!any) return true;  // the request's own `optimize`, if any, stays as it is

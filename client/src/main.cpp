@@ -40,6 +40,9 @@ int main(int argc, char** argv) {
         ->capture_default_str();
   };
   const auto optimize_flags = [&](CLI::App* sub) {
+    sub->add_option("--unspecified", options.optimize.unspecified,
+                    "what constraints a frame does not give mean: smoothest (the default), thesis-zeros or "
+                    "lowest-degree (path.unspecified)");
     sub->add_option("--optimize-tangent-scales", options.optimize.tangent_scales,
                     "optimise the tangent scales: bending-energy, peak-curvature, peak-torsion or arc-length");
     sub->add_option("--optimize-breakpoints", options.optimize.breakpoints,

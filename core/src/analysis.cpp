@@ -30,7 +30,7 @@ double relative(double achieved, double asked) { return std::abs(achieved - aske
 
 void compare_side(Worst& w, const std::string& at, const KeyFrame& asked, const SideConstraints& side,
                   const Vector3d& p_asked, const Vector3d& p_achieved, const LocalGeometry& g,
-                  DerivativeConvention convention) {
+                  DerivativeConvention convention, UnspecifiedConstraints reading) {
   w.update((p_achieved - p_asked).norm() / std::max(1.0, p_asked.norm()), at + ".position");
   // An undefined direction on the curve counts as the largest angle error, pi.
   if (!g.regular) {
@@ -40,15 +40,23 @@ void compare_side(Worst& w, const std::string& at, const KeyFrame& asked, const 
   w.update(angle_between(g.T, side.T), at + ".tangent");
   // The side's own scale (side_scale: the leaving side of a cusp may have its own).
   w.update(relative(g.speed, side.d[0].norm()), at + ".tangentScale");
-  if (!asked.kappa) return;
-  w.update(relative(g.kappa, *asked.kappa), at + ".curvature");
-  if (*asked.kappa > 0.0) {
-    if (!g.has_normal) {
-      w.update(kPi, at + ".normal");
-      return;
+  if (!asked.kappa) {
+    // A normal without a curvature is a constraint of the smoothest reading: the curve bends
+    // in the plane of T and N, towards N or away from it, or not at all; the angle of the
+    // achieved osculating plane to that plane is the error. (The thesis's reading makes the
+    // curvature 0 there; a lowest-degree segment uses the normal for the tool only.)
+    if (reading == UnspecifiedConstraints::kSmoothest && asked.N_W && g.has_normal) {
+      w.update(std::min(angle_between(g.N, side.N), angle_between(g.N, -side.N)), at + ".normal");
     }
-    w.update(angle_between(g.N, side.N), at + ".normal");
+    return;
   }
+  w.update(relative(g.kappa, *asked.kappa), at + ".curvature");
+  if (!(*asked.kappa > 0.0)) return;  // torsion and derivatives are undefined (footnote 5)
+  if (!g.has_normal) {
+    w.update(kPi, at + ".normal");
+    return;
+  }
+  w.update(angle_between(g.N, side.N), at + ".normal");
   const bool per_s = convention == DerivativeConvention::kPerArcLength;
   if (asked.tau) w.update(relative(g.tau, *asked.tau), at + ".torsion");
   if (asked.kappa_d) w.update(relative(per_s ? g.kappa_ds : g.kappa_du, *asked.kappa_d), at + ".curvatureDerivative");
@@ -96,12 +104,13 @@ ClosedLoopError closed_loop_error(const Path& path, const std::vector<AchievedFr
       Jet jet;
       evaluate(path.segments[(k + m - 1) % m], 1.0, 0, jet);
       compare_side(w, at + ".approach", asked, path.frames[k].approach, p, jet[0], *achieved[k].approach,
-                   path.spec.convention);
+                   path.spec.convention, path.spec.unspecified);
     }
     if (achieved[k].leave) {
       Jet jet;
       evaluate(path.segments[k], 0.0, 0, jet);
-      compare_side(w, at + ".leave", asked, path.frames[k].leave, p, jet[0], *achieved[k].leave, path.spec.convention);
+      compare_side(w, at + ".leave", asked, path.frames[k].leave, p, jet[0], *achieved[k].leave, path.spec.convention,
+                   path.spec.unspecified);
     }
   }
   return w.result;

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "geotraj/core/arc_length.hpp"
+#include "geotraj/core/smoothest.hpp"
 #include "geotraj/core/validate.hpp"
 
 namespace geotraj::core {
@@ -109,6 +110,23 @@ Expected<Path> build_path(const PathSpec& raw) {
     }
   }
   if (!violations.empty()) return tl::unexpected(std::move(violations));
+  switch (path.spec.unspecified) {
+    case UnspecifiedConstraints::kSmoothest:
+      if (auto filled = fill_smoothest(path.spec, path.frames); !filled) return tl::unexpected(std::move(filled.error()));
+      break;
+    case UnspecifiedConstraints::kThesisZeros:
+      fill_thesis_zeros(path.frames);
+      break;
+    case UnspecifiedConstraints::kLowestDegree:
+      break;
+  }
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (!finite(path.frames[i].approach) || !finite(path.frames[i].leave)) {
+      return tl::unexpected(Violations{{"frames[" + std::to_string(i) + "]",
+                                        "the smoothest derivatives at this frame overflow double precision; reduce the "
+                                        "tangent scales or choose THESIS_ZEROS"}});
+    }
+  }
 
   const std::size_t m = segment_count(frames.size(), path.spec.closed);
   path.segments.reserve(m);

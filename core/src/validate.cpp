@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -54,8 +55,9 @@ bool unit_vector(Collector& c, const std::string& field, const char* name, Eigen
   return true;
 }
 
-void validate_frame(Collector& c, const std::string& at, KeyFrame& f, std::size_t index,
-                    std::size_t count, bool closed, const FrameTolerances& tol, const PathLimits& limits) {
+void validate_frame(Collector& c, const std::string& at, KeyFrame& f, std::size_t index, std::size_t count,
+                    bool closed, UnspecifiedConstraints reading, const FrameTolerances& tol,
+                    const PathLimits& limits) {
   if (c.finite(at + ".position", f.p_W) && f.p_W.cwiseAbs().maxCoeff() > limits.max_coordinate) {
     c.add(at + ".position", "coordinates must lie within " + fmt(limits.max_coordinate) + " m of the origin, got " +
                                 fmt(f.p_W));
@@ -126,9 +128,12 @@ void validate_frame(Collector& c, const std::string& at, KeyFrame& f, std::size_
   }
 
   // Thesis footnote 5: torsion and the derivatives are undefined where curvature is zero.
+  // Under the thesis's reading a zero there is the zero derivative of that order (5.7).
+  const bool zeros = reading == UnspecifiedConstraints::kThesisZeros;
   const auto needs_curvature = [&](const std::optional<double>& v, const char* name, const char* what) {
     if (!v) return;
     if (!c.finite(at + "." + name, *v)) return;
+    if (zeros && *v == 0.0) return;
     if (!f.kappa) {
       c.add(at + "." + name, std::string(what) + " needs a curvature > 0 at the same frame; curvature is not given");
     } else if (std::isfinite(*f.kappa) && *f.kappa == 0.0) {
@@ -138,7 +143,7 @@ void validate_frame(Collector& c, const std::string& at, KeyFrame& f, std::size_
   needs_curvature(f.kappa_d, "curvatureDerivative", "a curvature derivative");
   needs_curvature(f.tau, "torsion", "torsion");
   needs_curvature(f.tau_d, "torsionDerivative", "a torsion derivative");
-  if (f.tau_d && !f.tau) {
+  if (f.tau_d && !f.tau && !zeros) {
     c.add(at + ".torsionDerivative", "needs the torsion at the same frame (give torsion, 0 if it should vanish)");
   }
 
@@ -155,9 +160,8 @@ void validate_frame(Collector& c, const std::string& at, KeyFrame& f, std::size_
   };
   check_scale(f.tangent_scale, at + ".tangentScale");
   check_scale(f.leave_tangent_scale, at + ".leaveTangentScale");
-  if (f.leave_tangent_scale && !f.cusp) {
-    c.add(at + ".leaveTangentScale", "is only for a cusp (the leaving side's own scale); this frame is not a cusp: "
-                                     "use tangentScale");
+  if (f.leave_tangent_scale && !closed && index + 1 == count) {
+    c.add(at + ".leaveTangentScale", "the last frame of an open path has no leaving side");
   }
 
   const bool has_both_sides = closed || (index > 0 && index + 1 < count);
@@ -171,6 +175,42 @@ void validate_frame(Collector& c, const std::string& at, KeyFrame& f, std::size_
                                            : "an inflection needs a segment leaving the frame; the last frame of an open path has none");
     } else if (!f.kappa) {
       c.add(at + ".inflection", "an inflection inverts the normal of the curvature: give a curvature at the frame");
+    }
+  }
+}
+
+// Tangent scales the request leaves out (KeyFrame::tangent_scale): each side takes the chord
+// length |p_j - p_i| [m] of its own segment, so that |dp/du| is about the segment's chord
+// everywhere (a Hermite segment whose end speeds are its chord neither kinks nor bulges).
+// A side without a segment (the ends of an open path) takes the other side's chord.
+void default_tangent_scales(Collector& c, PathSpec& spec, const PathLimits& limits) {
+  const std::size_t n = spec.frames.size();
+  if (n < 2) return;
+  for (const auto& f : spec.frames)
+    if (!f.p_W.allFinite()) return;  // reported by validate_frame
+  const std::size_t m = segment_count(n, spec.closed);
+  const auto chord = [&](std::size_t seg) -> std::optional<double> {
+    if (seg >= m) return std::nullopt;
+    const double len = (spec.frames[(seg + 1) % n].p_W - spec.frames[seg].p_W).norm();
+    return len >= limits.min_tangent_scale ? std::optional<double>(len) : std::nullopt;
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    KeyFrame& f = spec.frames[i];
+    if (f.tangent_scale && f.leave_tangent_scale) continue;
+    const bool has_in = spec.closed || i > 0;
+    const std::optional<double> in = has_in ? chord((i + m - 1) % m) : std::nullopt;
+    const std::optional<double> out = chord(i);
+    const std::optional<double> approach = in ? in : out;
+    const std::optional<double> leave = out ? out : in;
+    if (!f.tangent_scale) {
+      if (!approach) {
+        c.add("frames[" + std::to_string(i) + "].tangentScale",
+              "is not given and cannot default to the chord length: the neighbouring key frames lie at the same "
+              "position as this one; give a tangent scale");
+        continue;
+      }
+      f.tangent_scale = *approach;
+      if (!f.leave_tangent_scale && leave && (spec.closed || i + 1 < n)) f.leave_tangent_scale = *leave;
     }
   }
 }
@@ -240,8 +280,22 @@ Expected<PathSpec> validate_path(const PathSpec& spec, const FrameTolerances& to
                         std::to_string(out.frames.size()));
     return tl::unexpected(std::move(violations));
   }
+  default_tangent_scales(c, out, limits);
   for (std::size_t i = 0; i < out.frames.size(); ++i) {
-    validate_frame(c, "frames[" + std::to_string(i) + "]", out.frames[i], i, out.frames.size(), out.closed, tol, limits);
+    validate_frame(c, "frames[" + std::to_string(i) + "]", out.frames[i], i, out.frames.size(), out.closed,
+                   out.unspecified, tol, limits);
+  }
+  if (violations.empty() && out.unspecified == UnspecifiedConstraints::kThesisZeros) {
+    // The thesis's zeros, written down: every geometric constraint a frame leaves out is
+    // 0 (5.7, 7.2.8), so the closed loop checks them like given ones.
+    for (auto& f : out.frames) {
+      f.kappa = f.kappa.value_or(0.0);
+      if (*f.kappa > 0.0) {
+        f.kappa_d = f.kappa_d.value_or(0.0);
+        f.tau = f.tau.value_or(0.0);
+        f.tau_d = f.tau_d.value_or(0.0);
+      }
+    }
   }
   validate_breakpoints(c, out, segment_count(out.frames.size(), out.closed));
   if (!violations.empty()) return tl::unexpected(std::move(violations));

@@ -629,12 +629,21 @@ std::string fmt(double v) {
 }
 
 // Validates the path and the options and sets the problem up. Field paths relative to the request.
+bool side_scale_differs(const core::KeyFrame& f) {
+  return f.leave_tangent_scale && core::side_scale(f, true) != core::side_scale(f, false);
+}
+
 core::Expected<Problem> make_problem(const core::PathSpec& raw, const TangentScaleOptions& options) {
   core::Violations violations;
   auto valid = core::validate_path(raw);
   if (!valid) violations = core::prefixed(std::move(valid.error()), "path.");
   if (valid && valid->blend != core::BlendMethod::kPolynomial) {
     violations.push_back({"path.blend", "tangent scales are optimised for the polynomial blend only"});
+  }
+  if (valid && valid->unspecified != core::UnspecifiedConstraints::kLowestDegree) {
+    violations.push_back({"path.unspecified",
+                          "tangent scales are optimised for lowest-degree segments only (the optimiser's model of the "
+                          "curve); set UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE to optimise them"});
   }
   const std::string at = kOptionsField;
   const core::PathLimits limits;
@@ -685,7 +694,9 @@ core::Expected<Problem> make_problem(const core::PathSpec& raw, const TangentSca
     lo = std::clamp(lo, limits.min_tangent_scale, limits.max_tangent_scale);
     if (!options.min_scale) lo = std::min(lo, hi);
     if (!options.max_scale) hi = std::max(hi, lo);
-    const int sides = f.cusp ? 2 : 1;
+    // Two variables where the sides may differ: a cusp, or a leaving scale of its own (given,
+    // or the chord default of validate_path), so that the start point is the request's curve.
+    const int sides = (f.cusp || side_scale_differs(f)) ? 2 : 1;
     for (int s = 0; s < sides; ++s) {
       const double scale = core::side_scale(f, s == 1);
       pb.lower.push_back(lo);
@@ -951,7 +962,12 @@ TangentScaleResult make_result(const core::PathSpec& raw, const Problem& pb, con
   for (std::size_t i = 0; i < r.spec.frames.size(); ++i) {
     auto& f = r.spec.frames[i];
     f.tangent_scale = scales[pb.approach_var[i]];
-    if (f.cusp) f.leave_tangent_scale = scales[pb.leave_var[i]];
+    // One scale per frame but at cusps: a leaving scale the request gave elsewhere is replaced.
+    if (pb.leave_var[i] != pb.approach_var[i]) {
+      f.leave_tangent_scale = scales[pb.leave_var[i]];
+    } else {
+      f.leave_tangent_scale.reset();
+    }
   }
   return r;
 }
@@ -1124,9 +1140,10 @@ core::Expected<double> tangent_scale_objective(const core::PathSpec& spec, const
   auto problem = make_problem(spec, options);
   if (!problem) return tl::unexpected(std::move(problem.error()));
   std::vector<double> scales;
-  for (const auto& f : problem->spec.frames) {
+  for (std::size_t i = 0; i < problem->spec.frames.size(); ++i) {
+    const auto& f = problem->spec.frames[i];
     scales.push_back(core::side_scale(f, false));
-    if (f.cusp) scales.push_back(core::side_scale(f, true));
+    if (problem->leave_var[i] != problem->approach_var[i]) scales.push_back(core::side_scale(f, true));
   }
   Evaluation ev;
   evaluate(*problem, scales.data(), ev);

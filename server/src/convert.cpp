@@ -104,6 +104,7 @@ void check_path(WireCheck& check, const v1::PathSpec& path) {
   check_enum(check, "path.derivativeConvention", path.derivative_convention(),
              v1::DerivativeConvention_descriptor());
   check_enum(check, "path.blend", path.blend(), v1::BlendMethod_descriptor());
+  check_enum(check, "path.unspecified", path.unspecified(), v1::UnspecifiedConstraints_descriptor());
 }
 
 // --- proto -> core --------------------------------------------------------------------------
@@ -157,6 +158,11 @@ core::PathSpec to_core(const v1::PathSpec& p) {
     spec.breakpoints.push_back(std::move(s));
   }
   spec.closed = p.closed();
+  switch (p.unspecified()) {
+    case v1::UNSPECIFIED_CONSTRAINTS_THESIS_ZEROS: spec.unspecified = core::UnspecifiedConstraints::kThesisZeros; break;
+    case v1::UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE: spec.unspecified = core::UnspecifiedConstraints::kLowestDegree; break;
+    default: spec.unspecified = core::UnspecifiedConstraints::kSmoothest; break;  // SMOOTHEST and UNSPECIFIED
+  }
   return spec;
 }
 

@@ -66,6 +66,8 @@ class PythonClient(unittest.TestCase):
         path.frames[1].curvature, path.frames[1].torsion = k2, t2
         path.frames[2].curvature, path.frames[2].torsion = k3, t3
         path.frames[2].cusp = True
+        for f in (path.frames[1], path.frames[2]):  # 7.2.8: "kappa' and tau' are also set to zero"
+            f.curvature_derivative, f.torsion_derivative = 0, 0
         return path
 
     def test_table_7_19_and_7_20(self):
@@ -343,6 +345,7 @@ class PythonClient(unittest.TestCase):
     def test_optimized_path_and_time_optimal_timing(self):
         # Tangent scales for the shortest path A: the report's objective is the plan's length.
         req = pb.PlanRequest(path=self.demo_path("A"))
+        req.path.unspecified = pb.UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE  # the optimiser's model
         plain = self.stub.PlanTrajectory(req)
         req.optimize.tangent_scales.objective = pb.TANGENT_SCALE_OBJECTIVE_ARC_LENGTH
         resp = self.stub.PlanTrajectory(req)

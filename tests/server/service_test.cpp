@@ -179,7 +179,7 @@ TEST_F(ServerTest, PlanClosedTrapezoidPath) {
   for (const auto& s : response.segments()) {
     EXPECT_EQ(s.blend(), v1::BLEND_METHOD_TRAPEZOIDAL);
     ASSERT_EQ(s.trapezoid_orders_size(), 3);
-    for (auto n : s.trapezoid_orders()) EXPECT_EQ(n, 2u) << "tangents only: order max(1, 1) + 1";
+    for (auto n : s.trapezoid_orders()) EXPECT_EQ(n, 5u) << "the smoothest reading fixes orders 1-4 at every frame: 4 + 1";
   }
   for (const auto& f : response.frames()) {
     EXPECT_TRUE(f.has_approach() && f.has_leave()) << "every frame of a closed path has both sides";

@@ -42,10 +42,22 @@ class CaseGenerator {
     spec.closed = chance(0.3);
     spec.convention = chance(0.5) ? DerivativeConvention::kPerArcLength : DerivativeConvention::kPerParameter;
     spec.blend = chance(0.5) ? BlendMethod::kPolynomial : BlendMethod::kTrapezoidal;
+    // Every reading of unspecified constraints, the default most often.
+    const double r = uniform(0, 1);
+    spec.unspecified = r < 0.5 ? core::UnspecifiedConstraints::kSmoothest
+                               : (r < 0.75 ? core::UnspecifiedConstraints::kThesisZeros
+                                           : core::UnspecifiedConstraints::kLowestDegree);
     Vector3d p(uniform(-1, 1), uniform(-1, 1), uniform(-1, 1));
     for (int i = 0; i < count; ++i) {
       const bool both_sides = spec.closed || (i > 0 && i + 1 < count);
       spec.frames.push_back(frame(p, both_sides));
+      // A lowest-degree segment cannot honour a normal without a curvature (its closed loop
+      // reports the angle, tested in readings_test.cpp): none in those cases.
+      auto& f = spec.frames.back();
+      if (spec.unspecified == core::UnspecifiedConstraints::kLowestDegree && !f.kappa) {
+        f.N_W.reset();
+        f.B_W.reset();
+      }
       p += uniform(0.4, 1.5) * unit();
     }
     if (spec.blend == BlendMethod::kTrapezoidal) add_breakpoints(spec);
@@ -118,7 +130,9 @@ class CaseGenerator {
     if (chance(0.5)) return;  // default uniform breakpoints (B.10) everywhere
     for (std::size_t s = 0; s < m; ++s) {
       if (!chance(0.7)) continue;  // default uniform breakpoints (B.10) on this segment
-      const int n = core::trapezoid_order(order(spec.frames[s]), order(spec.frames[(s + 1) % spec.frames.size()]));
+      const int n = spec.unspecified == core::UnspecifiedConstraints::kLowestDegree
+                        ? core::trapezoid_order(order(spec.frames[s]), order(spec.frames[(s + 1) % spec.frames.size()]))
+                        : core::trapezoid_order(4, 4);  // the other readings fix orders 1-4 everywhere
       core::SegmentBreakpoints bp;
       bp.segment = static_cast<std::uint32_t>(s);
       if (chance(0.5)) {

@@ -9,9 +9,11 @@
 namespace geotraj::test {
 
 core::PathSpec make_spec(std::vector<core::KeyFrame> frames, core::DerivativeConvention convention,
-                         core::BlendMethod blend, bool closed) {
+                         core::BlendMethod blend, bool closed, core::UnspecifiedConstraints reading) {
   core::PathSpec spec;
+  for (auto& f : frames) f.tangent_scale = f.tangent_scale.value_or(1.0);
   spec.frames = std::move(frames);
+  spec.unspecified = reading;
   spec.convention = convention;
   spec.blend = blend;
   spec.closed = closed;

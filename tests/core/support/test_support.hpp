@@ -69,10 +69,14 @@ class Frame {
   core::KeyFrame f_;
 };
 
-/// A PathSpec from frames and the usual options.
+/// A PathSpec from frames and the usual options. The unit tests of the conversion and the
+/// blends are written for the thesis's Chapter 5 and Appendix B cases: lowest-degree segments
+/// and a tangent scale of 1 where a frame gives none (the thesis's |dp/du| = 1). The readings
+/// and the chord-length default have tests of their own (readings_test.cpp).
 core::PathSpec make_spec(std::vector<core::KeyFrame> frames,
                          core::DerivativeConvention convention = core::DerivativeConvention::kPerArcLength,
-                         core::BlendMethod blend = core::BlendMethod::kPolynomial, bool closed = false);
+                         core::BlendMethod blend = core::BlendMethod::kPolynomial, bool closed = false,
+                         core::UnspecifiedConstraints reading = core::UnspecifiedConstraints::kLowestDegree);
 
 /// build_path that fails the test (with every violation printed) when the spec is invalid.
 core::Path build_or_fail(const core::PathSpec& spec);

@@ -20,6 +20,7 @@ namespace geotraj::testing {
 
 inline core::PathSpec table_b1_path() {
   core::PathSpec spec;
+  spec.unspecified = core::UnspecifiedConstraints::kLowestDegree;  // Appendix B.3's order-4 trapezoids
   spec.convention = core::DerivativeConvention::kPerParameter;
   spec.blend = core::BlendMethod::kTrapezoidal;
   core::KeyFrame f1, f2, f3;
@@ -28,6 +29,7 @@ inline core::PathSpec table_b1_path() {
   f1.N_W = Eigen::Vector3d(0, 1, 0);
   f1.B_W = Eigen::Vector3d(0, 0, 1);
   f1.kappa = 0.0;
+  f1.tangent_scale = 1.0;  // the thesis's |dp/du| = 1 where Table B.1 prints none
   f2.p_W = {2, 1, 1};
   f2.T_W = {0.0, 0.707, -0.707};
   f2.N_W = Eigen::Vector3d(-1, 0, 0);
@@ -41,6 +43,7 @@ inline core::PathSpec table_b1_path() {
   f3.N_W = Eigen::Vector3d(-1, 0, 0);
   f3.B_W = Eigen::Vector3d(0, 0, 1);
   f3.kappa = 0.0;
+  f3.tangent_scale = 1.0;
   spec.frames = {f1, f2, f3};
   return spec;
 }

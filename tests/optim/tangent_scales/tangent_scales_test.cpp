@@ -126,7 +126,7 @@ std::pair<double, double> check_optimisation(const PathSpec& spec, const Tangent
   std::size_t k = 0;
   for (const auto& f : r.spec.frames) {
     EXPECT_EQ(*f.tangent_scale, r.scales.at(k++));
-    if (f.cusp) {
+    if (f.leave_tangent_scale) {  // a cusp, or a frame whose two sides have scales of their own
       EXPECT_EQ(*f.leave_tangent_scale, r.scales.at(k++));
     }
   }
@@ -349,11 +349,16 @@ TEST(TangentScales, BadOptionsAreNamedErrors) {
 TEST(TangentScales, InvalidPathsAreNamedErrors) {
   PathSpec spec = testing::thesis_demo_path('A');
   spec.frames[1].kappa = -1.0;
-  spec.frames[1].leave_tangent_scale = 0.3;  // not a cusp
+  spec.frames[3].leave_tangent_scale = 0.3;  // the last frame has no leaving side
   const auto r = optimize_tangent_scales(spec);
   ASSERT_FALSE(r.has_value());
   EXPECT_TRUE(has_field(r.error(), "path.frames[1].curvature"));
-  EXPECT_TRUE(has_field(r.error(), "path.frames[1].leaveTangentScale"));
+  EXPECT_TRUE(has_field(r.error(), "path.frames[3].leaveTangentScale"));
+
+  const auto s = optimize_tangent_scales(testing::thesis_demo_path('A', core::BlendMethod::kPolynomial,
+                                                                   core::UnspecifiedConstraints::kSmoothest));
+  ASSERT_FALSE(s.has_value());
+  EXPECT_TRUE(has_field(s.error(), "path.unspecified"));
 
   const auto t = optimize_tangent_scales(testing::thesis_demo_path('A', core::BlendMethod::kTrapezoidal));
   ASSERT_FALSE(t.has_value());
@@ -387,6 +392,7 @@ class RandomFrames {
 
   PathSpec next() {
     PathSpec spec;
+    spec.unspecified = core::UnspecifiedConstraints::kLowestDegree;  // the optimiser's model
     const int count = uniform_int(3, 5);
     spec.closed = chance(0.25);
     spec.convention = chance(0.5) ? core::DerivativeConvention::kPerArcLength : core::DerivativeConvention::kPerParameter;

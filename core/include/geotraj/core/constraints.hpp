@@ -57,11 +57,12 @@ Eigen::Vector3d third_derivative(const Eigen::Vector3d& p_u, const Eigen::Vector
 Eigen::Vector3d fourth_derivative(const Eigen::Vector3d& p_u, const Eigen::Vector3d& p_uu,
                                   const Eigen::Vector3d& p_uuu, double tau, double tau_du);
 
-/// The tangent scale |dp/du| [m] of one side of a validated frame: `tangent_scale` (default
-/// 1), except on the leaving side of a cusp, which takes `leave_tangent_scale` when given.
+/// The tangent scale |dp/du| [m] of one side of a frame: `tangent_scale`, except on the
+/// leaving side, which takes `leave_tangent_scale` when given. validate_path fills both
+/// from the chord lengths where the request gives none; 1 m only for an unvalidated frame.
 inline double side_scale(const KeyFrame& frame, bool leaving) {
   const double scale = frame.tangent_scale.value_or(1.0);
-  return (leaving && frame.cusp) ? frame.leave_tangent_scale.value_or(scale) : scale;
+  return leaving ? frame.leave_tangent_scale.value_or(scale) : scale;
 }
 
 /// The Chapter 5 conversion of one side, generic in the scalar type `S` of the tangent
@@ -135,6 +136,7 @@ int side_derivatives(const KeyFrame& f, DerivativeConvention convention, const E
   if (!f.kappa) return 1;
   d[1] = detail::second_derivative<S>(d[0], *f.kappa, N);  // (5.10)
   if (!f.tau && !f.kappa_d) return 2;
+  if (!(*f.kappa > 0.0)) return 2;  // C = 0: the rows of (5.20) vanish (only a zero reaches here)
   // d/du = |dp/du| d/ds at the frame (chain rule), |dp/du| = scale.
   const S per_u = convention == DerivativeConvention::kPerArcLength ? scale : S(1.0);
   const double* tau = f.tau ? &*f.tau : nullptr;

@@ -18,6 +18,21 @@ enum class DerivativeConvention {
   kPerParameter,  ///< d/du: per unit of the segment parameter u, as in the thesis's tables.
 };
 
+/// What a constraint that the operator did not give means (thesis 5.7, 7.2.8, 7.3.1).
+enum class UnspecifiedConstraints {
+  /// The default: every given constraint is met exactly; every derivative up to the 4th
+  /// that the request leaves free is chosen to minimise the jerk energy
+  /// sum_segments integral_0^1 |d3p/du3|^2 du over the whole path (one sparse linear
+  /// solve, core/smoothest.hpp). Degree 9 segments, G4 across frames where nothing breaks.
+  kSmoothest,
+  /// The thesis's reading: orders 1-4 fixed at every frame, a parametric derivative that no
+  /// constraint fixes is 0 (degree 9 segments, 5.7, B.2, 7.2.8).
+  kThesisZeros,
+  /// Only the given orders, each segment of the lowest degree that meets them (kept for
+  /// comparison; 7.3.1's "future work").
+  kLowestDegree,
+};
+
 /// How each axis of each segment is blended between its end constraints (thesis App. B).
 enum class BlendMethod {
   kPolynomial,   ///< lowest-degree polynomial (App. B.2), held in Bernstein form.
@@ -46,12 +61,13 @@ struct KeyFrame {
   std::optional<double> kappa_d;                   ///< curvature derivative [1/m^2] or [1/m per u]
   std::optional<double> tau;                       ///< torsion [1/m], signed
   std::optional<double> tau_d;                     ///< torsion derivative [1/m^2] or [1/m per u]
-  std::optional<double> tangent_scale;             ///< |dp/du| at the frame [m], > 0; default 1
-  /// |dp/du| on the leaving side of a cusp [m], > 0; default `tangent_scale`. A cusp is the
-  /// only place where the two sides of a frame may have different tangent scales (the
-  /// tangent inverts there, the curve is not C1 anyway): `tangent_scale` then holds on the
-  /// approach side and this one on the leaving side. Given at a frame that is not a cusp,
-  /// it is an error (`frames[i].leaveTangentScale`).
+  /// |dp/du| at the frame [m], > 0, on the approach side (and on the leaving side unless
+  /// `leave_tangent_scale` is given). Not given: the chord length of the neighbouring
+  /// segment on each side (see validate_path).
+  std::optional<double> tangent_scale;
+  /// |dp/du| on the leaving side [m], > 0; default `tangent_scale` when that is given, the
+  /// leaving segment's chord otherwise. Where the sides differ and nothing breaks the curve
+  /// (no cusp, inflection or stop), the smoothest reading keeps it G4 (see smoothest.hpp).
   std::optional<double> leave_tangent_scale;
   bool cusp = false;        ///< the tangent inverts on the leaving side (thesis 5.6.2)
   bool inflection = false;  ///< the normal inverts on the leaving side (thesis 5.6.1)
@@ -73,6 +89,7 @@ struct SegmentBreakpoints {
 struct PathSpec {
   std::vector<KeyFrame> frames;  ///< at least 2
   DerivativeConvention convention = DerivativeConvention::kPerArcLength;
+  UnspecifiedConstraints unspecified = UnspecifiedConstraints::kSmoothest;
   BlendMethod blend = BlendMethod::kPolynomial;
   std::vector<SegmentBreakpoints> breakpoints;  ///< trapezoid only; default uniform (B.10)
   bool closed = false;  ///< a last segment returns from the last frame to the first

@@ -51,7 +51,9 @@
 //
 // Cusps: the thesis has one scale per frame. At a cusp (the tangent inverts, the curve is
 // not C1 there) both sides are free separately: the approach side is KeyFrame::tangent_scale
-// and the leaving side KeyFrame::leave_tangent_scale. Elsewhere both sides share one scale.
+// and the leaving side KeyFrame::leave_tangent_scale; so has a frame whose sides have scales
+// of their own (given, or the chord-length defaults of validate_path). Elsewhere both sides
+// share one scale. Only lowest-degree segments (PathSpec::unspecified) are modelled.
 //
 // Time: the solver stops at `deadline`, at `budget_seconds` after the call, or when `stop`
 // is requested, whichever is first (checked every iteration), and returns the best verified
@@ -112,10 +114,10 @@ struct TangentScaleOptions {
 
 struct TangentScaleResult {
   /// The request with the chosen scales written into tangent_scale (and leave_tangent_scale
-  /// at cusps); everything else as given.
+  /// where the sides have scales of their own); everything else as given.
   core::PathSpec spec;
   /// The scales [m] in variable order: for each frame i in order, its tangent scale, then,
-  /// if frame i is a cusp, its leaving-side scale right after it.
+  /// if frame i is a cusp or has a leaving scale of its own, that scale right after it.
   std::vector<double> scales;
   /// objective_before at the start (the request's scales, default 1, clamped into the
   /// bounds), objective_after at the result, both in the objective's unit.

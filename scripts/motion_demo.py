@@ -9,8 +9,10 @@ For paths A, B, C at 10 s and path C at 5, 10 and 15 s, with TAYLOR_SECOND_ORDER
 ARC_LENGTH timing, the samples are streamed and the speed is measured as the thesis does:
 the distance between consecutive samples over the period. The reference is the speed
 profile's mean speed over the same period, computed here from the plan (portions between
-rests, move time shared in proportion to arc length, trapezoid with ramp fraction 0.15,
-erratum of Eq. 6.13). The period in which the path reverses at a cusp is skipped.
+rests, every ramp 0.75 s long and one peak speed for all portions, erratum of Eq. 6.13).
+The paths are planned as the thesis reads them (UNSPECIFIED_CONSTRAINTS_THESIS_ZEROS) with
+its ramps as a time (Table 6.2's RampTime, rampTimeS 0.75). The period in which the path
+reverses at a cusp is skipped.
 Only the Python standard library is used.
 """
 import json
@@ -21,7 +23,7 @@ import sys
 import tempfile
 
 REQUESTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "client", "grpcurl")
-RAMP_FRACTION = 0.15
+RAMP_TIME_S = 0.75  # Table 6.2's RampTime; Table 7.22's peaks satisfy v (T - 1.5 s) = 1.63 m
 METHODS = [("TAYLOR_SECOND_ORDER", "Taylor 2nd order", "#d62728"),
            ("ARC_LENGTH", "arc length", "#1f77b4")]
 # (path, move time [s]) -> the thesis's maximum velocity, maximum velocity error [m/s] and
@@ -36,18 +38,18 @@ NOTE = """\
 Note. The measure is the thesis's: the chord between consecutive samples over the period.
 A chord is shorter than its arc by about kappa^2 ds^3 / 24, so the measured speed falls
 short of the true one by kappa^2 ds^2 / 24 of itself even when every sample is exactly
-where the profile puts it. The blended demonstration paths have curvature up to about
-150 1/m between the key frames (frames 1 and 4 leave the curvature free), which at 100 Hz
-and the peak speed is a few tenths of a percent of the peak (more at 5 s, where ds is
-larger). ARC_LENGTH samples are exact along the arc (the core tests check 1e-9 m; the
+where the profile puts it. The thesis's curves have curvature up to 86-221 1/m between
+the key frames, which at 100 Hz and the peak speed is a few tenths of a percent of the
+peak (more at 5 s, where ds is larger). ARC_LENGTH samples are exact along the arc (the core tests check 1e-9 m; the
 column "s vs profile" above is the largest gap between the streamed s and the reference
 profile computed here), so its error column is the chord's shortfall alone; what
 TAYLOR_SECOND_ORDER shows beyond that is the drift of its Taylor steps from the profile
 (largest at the corners of the trapezoid, around the sharpest bend and in the last
 period, which ends on the end frame).
-The thesis's figures are for its own curves and implementation: the same key frames, but
-blended and timed its way (its peaks at 5, 10 and 15 s are not in the ratio 3 : 1.5 : 1 of
-one profile; here they are, peak = L / (0.85 T)), so compare them in kind, not digit for digit."""
+The peak speeds reproduce the thesis's within 1 % (core test
+MotionPlan.ThesisTables721And722PeakSpeeds): the thesis's reading of the frames and ramps
+of 0.75 s in each portion. The error columns compare interpolators: the thesis's Taylor
+steps against geotraj's exact arc length."""
 
 
 def run(cli, *args):
@@ -58,7 +60,10 @@ def make_request(tmp, path, duration, method):
     """Writes the demonstration request for PATH with the given move time and timing."""
     with open(os.path.join(REQUESTS, f"plan_demo_path_{path.lower()}.json")) as f:
         req = json.load(f)
-    req["motion"].update(durationS=duration, timeParameterization=f"TIME_PARAMETERIZATION_{method}")
+    req["path"]["unspecified"] = "UNSPECIFIED_CONSTRAINTS_THESIS_ZEROS"
+    req["motion"].pop("rampFraction", None)
+    req["motion"].update(durationS=duration, rampTimeS=RAMP_TIME_S,
+                         timeParameterization=f"TIME_PARAMETERIZATION_{method}")
     name = os.path.join(tmp, f"{path}_{duration}_{method}.json")
     with open(name, "w") as f:
         json.dump(req, f)
@@ -86,10 +91,10 @@ class Profile:
     def __init__(self, lengths, duration):
         total = sum(lengths)
         self.parts, t0, s0 = [], 0.0, 0.0
+        t_b = RAMP_TIME_S
+        v_max = total / (duration - len(lengths) * t_b)  # v (T - n t_b) = L
         for length in lengths:
-            t_i = duration * length / total
-            t_b = RAMP_FRACTION * t_i
-            v_max = length / (t_i - t_b)
+            t_i = length / v_max + t_b
             self.parts.append((t0, t_i, t_b, v_max, v_max / t_b, s0, length))
             t0, s0 = t0 + t_i, s0 + length
         self.peak = max(p[3] for p in self.parts)

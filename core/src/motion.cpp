@@ -128,6 +128,16 @@ Violations validate_motion(const MotionSpec& spec) {
   if (!std::isfinite(spec.ramp_fraction) || !(spec.ramp_fraction > 0.0) || spec.ramp_fraction > 0.5)
     v.push_back({"motion.rampFraction",
                  "must be in (0, 0.5] (ramp time over portion time), got " + num(spec.ramp_fraction)});
+  if (spec.ramp_time_s) {
+    if (!finite_positive(*spec.ramp_time_s)) {
+      v.push_back({"motion.rampTimeS", "must be a finite time > 0 s, got " + num(*spec.ramp_time_s)});
+    } else if (spec.ramp_fraction_given) {
+      v.push_back({"motion.rampTimeS", "give the ramps as rampTimeS or as rampFraction, not both"});
+    } else if (!(spec.duration_s > 0.0)) {
+      v.push_back({"motion.rampTimeS", "is used with a duration only (durationS > 0); a fastest motion (durationS 0) "
+                                       "takes its ramps from the limits"});
+    }
+  }
   if (!finite_positive(spec.cycle_rate_hz) || spec.cycle_rate_hz > kMaxCycleRateHz)
     v.push_back({"motion.cycleRateHz", "must be in (0, " + num(kMaxCycleRateHz) + "] Hz, got " +
                                            num(spec.cycle_rate_hz)});
@@ -170,6 +180,22 @@ Expected<MotionPlan> plan_motion(const Path& path, const MotionSpec& spec) {
 
   const double scale = spec.speed_scale;
   const double duration = spec.duration_s / scale;
+  // A ramp time: one peak speed v for every portion, v (T - n t_b) = L (n portions).
+  std::optional<double> ramp_time, shared_speed;
+  if (spec.ramp_time_s && duration > 0.0) {
+    ramp_time = *spec.ramp_time_s / scale;
+    std::size_t moving = 0;
+    for (std::size_t i = 0; i + 1 < rests.size(); ++i)
+      if (path.cumulative_lengths[rests[i + 1]] > path.cumulative_lengths[rests[i]]) ++moving;
+    const double cruise = duration - static_cast<double>(moving) * *ramp_time;
+    if (!(cruise > 0.0)) {
+      return tl::make_unexpected(Violations{
+          {"motion.rampTimeS", "the " + std::to_string(moving) + " portions between rests need " + num(*ramp_time) +
+                                   " s of ramps each; the move time " + num(duration) +
+                                   " s leaves none for travel: shorten the ramps or lengthen the move"}});
+    }
+    shared_speed = total / cruise;
+  }
   double t = 0.0;
   for (std::size_t i = 0; i + 1 < rests.size(); ++i) {
     MotionPortion por;
@@ -182,9 +208,20 @@ Expected<MotionPlan> plan_motion(const Path& path, const MotionSpec& spec) {
     if (por.length > 0.0) {
       if (duration > 0.0) {
         // Equal peak speed: T_i proportional to L_i, so v_max = L_i / (T_i (1 - f)) is the same.
-        const double t_i = duration * (por.length / total);
-        profile = spec.profile == ProfileShape::kTrapezoidal ? trapezoid_profile(por.length, t_i, spec.ramp_fraction)
-                                                             : scurve_profile(por.length, t_i, spec.ramp_fraction);
+        double t_i = duration * (por.length / total);
+        double fraction = spec.ramp_fraction;
+        if (shared_speed) {  // v = L_i / (T_i - t_b) for every portion
+          t_i = por.length / *shared_speed + *ramp_time;
+          fraction = *ramp_time / t_i;
+          if (fraction > 0.5) {
+            return tl::make_unexpected(Violations{
+                {"motion.rampTimeS", "the portion from u = " + num(por.u_start) + " to " + num(por.u_end) + " (" +
+                                         num(por.length) + " m) is too short for two ramps of " + num(*ramp_time) +
+                                         " s at the shared peak speed " + num(*shared_speed) + " m/s"}});
+          }
+        }
+        profile = spec.profile == ProfileShape::kTrapezoidal ? trapezoid_profile(por.length, t_i, fraction)
+                                                             : scurve_profile(por.length, t_i, fraction);
       } else {
         // Minimum time; the speed scale is a time scaling: v s, a s^2, j s^3.
         const double a_lim = *spec.max_acceleration * scale * scale;

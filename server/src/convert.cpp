@@ -272,6 +272,8 @@ core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& requ
   spec.profile = m.profile() == v1::MOTION_PROFILE_S_CURVE ? core::ProfileShape::kSCurve
                                                            : core::ProfileShape::kTrapezoidal;
   if (m.has_ramp_fraction()) spec.ramp_fraction = m.ramp_fraction();
+  if (m.has_ramp_time_s()) spec.ramp_time_s = m.ramp_time_s();
+  spec.ramp_fraction_given = m.has_ramp_fraction();
   if (m.has_cycle_rate_hz()) spec.cycle_rate_hz = m.cycle_rate_hz();
   switch (m.time_parameterization()) {
     case v1::TIME_PARAMETERIZATION_TAYLOR_SECOND_ORDER:

@@ -528,3 +528,55 @@ TEST(MotionRegression, StopInMidPath) {
 
 }  // namespace
 }  // namespace geotraj::test
+
+namespace geotraj {
+namespace {
+
+// Tables 7.21 and 7.22 reproduced: the thesis's reading (orders 1-4 at every frame, zeros
+// where nothing is given, 7.2.8's kappa' = tau' = 0 at frames 2 and 3) and its ramps as a
+// time (Table 6.2's RampTime: 0.75 s per ramp in each of the two portions around the cusp)
+// give the printed peak speeds within 1 % at 5, 10 and 15 s.
+TEST(MotionPlan, ThesisTables721And722PeakSpeeds) {
+  struct Row {
+    char path;
+    double duration_s, thesis_peak;
+  };
+  const Row rows[] = {{'A', 10, 0.1855}, {'B', 10, 0.1899}, {'C', 10, 0.1918}, {'C', 5, 0.4658}, {'C', 15, 0.1208}};
+  for (const Row& row : rows) {
+    SCOPED_TRACE(std::string("path ") + row.path + " at " + std::to_string(row.duration_s) + " s");
+    const auto path = test::build_or_fail(
+        testing::thesis_demo_path(row.path, core::BlendMethod::kPolynomial, core::UnspecifiedConstraints::kThesisZeros));
+    core::MotionSpec spec;
+    spec.duration_s = row.duration_s;
+    spec.ramp_time_s = 0.75;
+    const auto plan = core::plan_motion(path, spec);
+    ASSERT_TRUE(plan) << plan.error()[0].field << ": " << plan.error()[0].description;
+    EXPECT_NEAR(plan->peak_speed, row.thesis_peak, 0.01 * row.thesis_peak);
+    // Two portions (the cusp rests), each with two 0.75 s ramps: v (T - 1.5 s) = L.
+    EXPECT_NEAR(plan->peak_speed * (row.duration_s - 1.5), path.length(), 1e-9 * path.length());
+  }
+}
+
+TEST(MotionSpec, RampTimeIsCheckedAndNamed) {
+  core::MotionSpec spec;
+  spec.duration_s = 10;
+  spec.ramp_time_s = -1;
+  auto v = core::validate_motion(spec);
+  ASSERT_FALSE(v.empty());
+  EXPECT_EQ(v[0].field, "motion.rampTimeS");
+  spec.ramp_time_s = 0.5;
+  spec.ramp_fraction_given = true;
+  v = core::validate_motion(spec);
+  ASSERT_FALSE(v.empty());
+  EXPECT_EQ(v[0].field, "motion.rampTimeS");
+  // Ramps longer than the move.
+  spec.ramp_fraction_given = false;
+  spec.ramp_time_s = 6.0;
+  const auto path = test::build_or_fail(testing::thesis_demo_path('C'));
+  const auto plan = core::plan_motion(path, spec);
+  ASSERT_FALSE(plan);
+  EXPECT_EQ(plan.error()[0].field, "motion.rampTimeS");
+}
+
+}  // namespace
+}  // namespace geotraj

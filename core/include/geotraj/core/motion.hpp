@@ -45,6 +45,11 @@ struct MotionSpec {
   ProfileShape profile = ProfileShape::kTrapezoidal;
   /// t_b / T_i of each portion's ramps (rampFraction), in (0, 0.5]; used with a duration.
   double ramp_fraction = 0.15;
+  bool ramp_fraction_given = false;  ///< the request gave rampFraction (refused with ramp_time_s)
+  /// Every ramp's time [s] (rampTimeS, Table 6.2's RampTime), > 0, instead of the fraction:
+  /// all portions share one peak speed v = L / (T - n t_b) for n portions (rests between
+  /// them), portion i lasting T_i = L_i / v + t_b. Used with a duration only.
+  std::optional<double> ramp_time_s;
   /// Samples per second (cycleRateHz), in (0, 1e5] [Hz]. The thesis uses 100 Hz.
   double cycle_rate_hz = 100.0;
   TimeParameterization time_parameterization = TimeParameterization::kArcLength;

@@ -235,3 +235,26 @@ TEST(Readings, ThesisZerosAcceptZerosAtStraightFrames) {
 
 }  // namespace
 }  // namespace geotraj
+
+namespace geotraj {
+namespace {
+
+// The cusp's leaving side keeps the normal (5.6.2, Table 5.15); an inflection at the cusp
+// keeps the binormal instead (the branch 7.2.8's text describes). On path B the two differ
+// by 1.8 % in length where the torsion at the cusp is not zero.
+TEST(Readings, CuspKeepsTheNormalAnInflectionThereKeepsTheBinormal) {
+  auto spec = testing::thesis_demo_path('B', core::BlendMethod::kPolynomial, UnspecifiedConstraints::kThesisZeros);
+  const auto kept_normal = test::build_or_fail(spec);
+  spec.frames[2].inflection = true;
+  const auto kept_binormal = test::build_or_fail(spec);
+  const auto a = core::achieved_geometry(kept_normal), b = core::achieved_geometry(kept_binormal);
+  ASSERT_TRUE(a[2].leave && b[2].leave && a[2].leave->has_normal && b[2].leave->has_normal);
+  const Vector3d B = spec.frames[2].T_W.cross(*spec.frames[2].N_W);
+  EXPECT_LT((a[2].leave->N - *spec.frames[2].N_W).norm(), 1e-9);
+  EXPECT_LT((b[2].leave->B - B).norm(), 1e-9);
+  EXPECT_NEAR(kept_binormal.length() / kept_normal.length() - 1.0, -0.0179, 0.0005);
+  EXPECT_LT(closed_loop(kept_binormal), 1e-9);
+}
+
+}  // namespace
+}  // namespace geotraj

@@ -11,6 +11,7 @@
 #include "geotraj/core/analysis.hpp"
 #include "geotraj/core/arc_length.hpp"
 #include "geotraj/core/constraints.hpp"
+#include "geotraj/core/geometry_report.hpp"
 #include "geotraj/core/path.hpp"
 #include "thesis_paths.hpp"
 
@@ -124,6 +125,23 @@ void BM_BuildManyFrames(benchmark::State& state) {
   state.SetComplexityN(state.range(0));
 }
 BENCHMARK(BM_BuildManyFrames)->RangeMultiplier(10)->Range(10, 10000)->Unit(benchmark::kMillisecond)->Complexity(benchmark::oN);
+
+// The geometry between frames that every PlanTrajectory reports (geometry_report): the
+// demonstration path (3 segments, 64 points each) and long paths (65,536 points in all).
+void BM_GeometryReportDemoPath(benchmark::State& state) {
+  const auto path = core::build_path(testing::thesis_demo_path('C', core::BlendMethod::kPolynomial,
+                                                                core::UnspecifiedConstraints::kSmoothest))
+                        .value();
+  for (auto _ : state) benchmark::DoNotOptimize(core::geometry_report(path));
+}
+BENCHMARK(BM_GeometryReportDemoPath)->Unit(benchmark::kMicrosecond);
+
+void BM_GeometryReportManyFrames(benchmark::State& state) {
+  const auto path = core::build_path(many_frames(static_cast<std::size_t>(state.range(0)))).value();
+  for (auto _ : state) benchmark::DoNotOptimize(core::geometry_report(path));
+  state.SetItemsProcessed(state.iterations() * state.range(0));
+}
+BENCHMARK(BM_GeometryReportManyFrames)->Arg(100)->Arg(1000)->Arg(10000)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

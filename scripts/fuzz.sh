@@ -30,7 +30,7 @@ timeout="${FUZZ_TIMEOUT:-10}"
 
 if [ "${FUZZ_NO_BUILD:-0}" != 1 ]; then
   # Debug: assertions (Eigen's bounds checks included) stay on; GEOTRAJ_SANITIZE builds at -O1.
-  cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_COMPILER=clang++ \
+  cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG=-g1 -DCMAKE_CXX_COMPILER=clang++ \
     -DGEOTRAJ_BUILD_FUZZ=ON -DGEOTRAJ_SANITIZE=ON -DGEOTRAJ_BUILD_TESTS=OFF -DGEOTRAJ_BUILD_BENCH=OFF >/dev/null
   cmake --build "$build_dir" -j "$jobs" --target $targets fuzz_seeds
 fi

@@ -77,6 +77,7 @@ bool apply(const OptimizeFlags& flags, v1::PlanRequest& request) {
     }
     request.mutable_path()->set_unspecified(static_cast<v1::UnspecifiedConstraints>(reading));
   }
+  if (flags.max_curvature > 0.0) request.mutable_path()->set_max_curvature(flags.max_curvature);
   const bool any = !flags.tangent_scales.empty() || !flags.breakpoints.empty() || flags.time_optimal ||
                    flags.jerk_limited || flags.budget_s > 0.0;
   if (!any) return true;  // the request's own `optimize`, if any, stays as it is

@@ -10,6 +10,7 @@ namespace geotraj::cli {
 /// What `--optimize-*` flags add to a PlanRequest's `optimize` block (over the file's own).
 struct OptimizeFlags {
   std::string unspecified;     ///< reading of unspecified constraints (smoothest, thesis-zeros, lowest-degree); empty: the request's
+  double max_curvature = 0.0;  ///< path.maxCurvature [1/m]; 0: the request's
   std::string tangent_scales;  ///< objective name (bending-energy, peak-curvature, peak-torsion, arc-length); empty: none
   std::string breakpoints;     ///< objective name (peak-torsion, peak-curvature, peak-derivatives); empty: none
   bool time_optimal = false;   ///< optimize.timing.timeOptimal

@@ -43,6 +43,9 @@ int main(int argc, char** argv) {
     sub->add_option("--unspecified", options.optimize.unspecified,
                     "what constraints a frame does not give mean: smoothest (the default), thesis-zeros or "
                     "lowest-degree (path.unspecified)");
+    sub->add_option("--max-curvature", options.optimize.max_curvature,
+                    "warn of bends tighter than this curvature [1/m] (path.maxCurvature)")
+        ->check(CLI::PositiveNumber);
     sub->add_option("--optimize-tangent-scales", options.optimize.tangent_scales,
                     "optimise the tangent scales: bending-energy, peak-curvature, peak-torsion or arc-length");
     sub->add_option("--optimize-breakpoints", options.optimize.breakpoints,

@@ -112,11 +112,26 @@ void print_table(const v1::PlanResponse& response, std::ostream& out) {
   const auto& loop = response.closed_loop();
   out << "\nclosed loop: max error " << num(loop.max_error(), 1)
       << (loop.worst_field().empty() ? std::string() : " at " + loop.worst_field()) << '\n';
+  out << "\ngeometry between the frames, measured on the curve\n"
+      << "  seg  peak kappa        at u    peak tau        at u  min |dp/du|        at u     turning\n"
+      << "            [1/m]                  [1/m]                     [m]                   [rad]\n";
+  for (const auto& s : response.segments()) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%5u", s.index());
+    out << buf << num(s.peak_curvature().value()) << num(s.peak_curvature().u()) << num(s.peak_torsion().value())
+        << num(s.peak_torsion().u()) << num(s.min_speed().value()) << num(s.min_speed().u()) << num(s.turning())
+        << '\n';
+  }
+  for (const auto& w : response.warnings()) {
+    out << "WARNING " << short_enum(v1::PlanWarningCode_Name(w.code()), "PLAN_WARNING_CODE_") << ": " << w.message()
+        << '\n';
+  }
   if (response.has_motion()) {
     const auto& m = response.motion();
     out << "\nmotion: duration" << num(m.duration_s(), 1) << " s, peak speed" << num(m.peak_speed(), 1)
-        << " m/s, peak tangential acceleration" << num(m.peak_acceleration(), 1) << " m/s^2, "
-        << m.sample_count() << " samples\n";
+        << " m/s, peak acceleration" << num(m.peak_acceleration(), 1) << " m/s^2 (tangential"
+        << num(m.peak_tangential_acceleration(), 1) << "), peak angular speed" << num(m.peak_angular_speed(), 1)
+        << " rad/s, " << m.sample_count() << " samples\n";
   }
   if (response.has_optimization()) print_table(response.optimization(), out);
   if (response.has_robot()) print_table(response.robot(), out);

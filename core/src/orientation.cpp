@@ -213,7 +213,7 @@ Quaterniond tool_frame(const Vector3d& T_W, const Vector3d& N_W) {
   return Quaterniond(R).normalized();
 }
 
-Expected<OrientationPlan> plan_orientation(const Path& path) {
+Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quaterniond& start_W) {
   const auto& frames = path.spec.frames;
   const std::size_t n = frames.size();
   const std::size_t m = path.segment_count();
@@ -264,11 +264,14 @@ Expected<OrientationPlan> plan_orientation(const Path& path) {
         const auto q0 = key_frame_tool(path, 0, achieved[0].leave);
         if (q0) {
           so.q_start = *q0;
+        } else if (so.mode != OrientationMode::kParallelTransport) {
+          so.q_start = start_W.normalized();  // a straight start: the tool as it is before the motion
         } else {
           start_known = false;
           violations.push_back({frame_field(0, "normal"),
-                                "the tool starts in frame 0's [-B N T] (Eq. 6.21), which needs a normal: the frame gives "
-                                "none and the curve is straight there; give a normal"});
+                                "ORIENTATION_MODE_PARALLEL_TRANSPORT starts the tool in frame 0's [-B N T] (Eq. 6.21), "
+                                "which needs a normal: the frame gives none and the curve is straight there; give a "
+                                "normal, or start with ORIENTATION_MODE_FIXED (the tool keeps its start orientation)"});
         }
       }
     } else {

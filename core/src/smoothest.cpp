@@ -5,6 +5,7 @@
 #include <string>
 #include <utility>
 
+#include <Eigen/Cholesky>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 
@@ -18,6 +19,7 @@ namespace {
 
 constexpr int kDegree = 9;     // n0 = n1 = 4 (App. B.2)
 constexpr int kSlots = 10;     // end data of one segment: p, p', .., p'''' at u = 0, then at u = 1
+constexpr int kDenseUnknowns = 64;  // up to this many unknowns, a dense LDLT (see fill_smoothest)
 using SlotMatrix = Eigen::Matrix<double, kSlots, kSlots>;
 
 // M with  integral_0^1 |d^r p/du^r|^2 du = sum_ab M_ab J_a . J_b  for the degree 9 segment
@@ -187,8 +189,17 @@ Expected<void> fill_smoothest(const PathSpec& spec, std::vector<FrameConstraints
     std::array<Term, 4> terms{};
     int count = 0;
   };
+  // Small systems (the usual few frames) are assembled dense and factorised by a dense LDLT:
+  // the sparse path's ordering and symbolic analysis cost more than the whole dense solve
+  // below about 64 unknowns (bench_core's BuildDemoPath, docs/performance.md).
+  const bool dense = vars <= kDenseUnknowns;
   std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(m * 400);
+  Eigen::MatrixXd Hd;
+  if (dense) {
+    Hd = Eigen::MatrixXd::Zero(vars, vars);
+  } else {
+    triplets.reserve(m * 400);
+  }
   Eigen::VectorXd g = Eigen::VectorXd::Zero(vars);
   std::array<SlotData, kSlots> slot;
   for (std::size_t s = 0; s < m; ++s) {
@@ -224,31 +235,53 @@ Expected<void> fill_smoothest(const PathSpec& spec, std::vector<FrameConstraints
           g(ta.var) += mab * ta.w.dot(sb.f);
           for (int q = 0; q < sb.count; ++q) {
             const Term& tb = sb.terms[static_cast<std::size_t>(q)];
-            triplets.emplace_back(ta.var, tb.var, mab * ta.w.dot(tb.w));
+            if (dense) {
+              Hd(ta.var, tb.var) += mab * ta.w.dot(tb.w);
+            } else {
+              triplets.emplace_back(ta.var, tb.var, mab * ta.w.dot(tb.w));
+            }
           }
         }
       }
     }
   }
-  Eigen::SparseMatrix<double> H(vars, vars);
-  H.setFromTriplets(triplets.begin(), triplets.end());
-  // Jacobi scaling: the unknowns are derivatives of orders 2 to 4 of segments of any
-  // length, so the diagonal spans many decades; unscaled, the factorisation loses digits.
-  Eigen::VectorXd scale(vars);
-  for (int v = 0; v < vars; ++v) {
-    const double d = H.coeff(v, v);
-    scale(v) = d > 0.0 && std::isfinite(d) ? 1.0 / std::sqrt(d) : 1.0;
-  }
-  const Eigen::SparseMatrix<double> Hs = scale.asDiagonal() * H * scale.asDiagonal();
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Hs);
-  const Eigen::VectorXd rhs = -scale.cwiseProduct(g);
-  Eigen::VectorXd y = ldlt.info() == Eigen::Success ? ldlt.solve(rhs) : Eigen::VectorXd();
-  if (ldlt.info() != Eigen::Success || !y.allFinite()) {
+  const auto singular = [] {
     return tl::unexpected(Violations{{"unspecified",
                                       "the smoothest curve through these frames cannot be computed in double precision "
                                       "(its linear system is singular); choose THESIS_ZEROS or LOWEST_DEGREE"}});
+  };
+  // Jacobi scaling: the unknowns are derivatives of orders 2 to 4 of segments of any
+  // length, so the diagonal spans many decades; unscaled, the factorisation loses digits.
+  Eigen::VectorXd scale(vars);
+  Eigen::VectorXd y;
+  if (dense) {
+    for (int v = 0; v < vars; ++v) {
+      const double d = Hd(v, v);
+      scale(v) = d > 0.0 && std::isfinite(d) ? 1.0 / std::sqrt(d) : 1.0;
+    }
+    const Eigen::MatrixXd Hs = scale.asDiagonal() * Hd * scale.asDiagonal();
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(Hs);
+    const Eigen::VectorXd rhs = -scale.cwiseProduct(g);
+    // A zero pivot is a singular system (the sparse factorisation divides by it; the dense
+    // one would quietly drop the direction): refused alike.
+    const bool ok = ldlt.info() == Eigen::Success && ldlt.vectorD().minCoeff() > 0.0;
+    if (ok) y = ldlt.solve(rhs);
+    if (!ok || !y.allFinite()) return singular();
+    y += ldlt.solve(rhs - Hs * y);  // one step of iterative refinement
+  } else {
+    Eigen::SparseMatrix<double> H(vars, vars);
+    H.setFromTriplets(triplets.begin(), triplets.end());
+    for (int v = 0; v < vars; ++v) {
+      const double d = H.coeff(v, v);
+      scale(v) = d > 0.0 && std::isfinite(d) ? 1.0 / std::sqrt(d) : 1.0;
+    }
+    const Eigen::SparseMatrix<double> Hs = scale.asDiagonal() * H * scale.asDiagonal();
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Hs);
+    const Eigen::VectorXd rhs = -scale.cwiseProduct(g);
+    if (ldlt.info() == Eigen::Success) y = ldlt.solve(rhs);
+    if (ldlt.info() != Eigen::Success || !y.allFinite()) return singular();
+    y += ldlt.solve(rhs - Hs * y);  // one step of iterative refinement
   }
-  y += ldlt.solve(rhs - Hs * y);  // one step of iterative refinement
   const Eigen::VectorXd x = scale.cwiseProduct(y);
 
   for (std::size_t i = 0; i < n; ++i) {

@@ -298,6 +298,10 @@ Expected<PathSpec> validate_path(const PathSpec& spec, const FrameTolerances& to
     }
   }
   validate_breakpoints(c, out, segment_count(out.frames.size(), out.closed));
+  if (out.max_curvature && !(std::isfinite(*out.max_curvature) && *out.max_curvature > 0.0)) {
+    c.add("maxCurvature", "must be a positive, finite curvature in 1/m (the tightest bend the path may have "
+                          "without a warning), got " + fmt(*out.max_curvature));
+  }
   if (!violations.empty()) return tl::unexpected(std::move(violations));
   return out;
 }

@@ -158,6 +158,7 @@ core::PathSpec to_core(const v1::PathSpec& p) {
     spec.breakpoints.push_back(std::move(s));
   }
   spec.closed = p.closed();
+  if (p.has_max_curvature()) spec.max_curvature = p.max_curvature();
   switch (p.unspecified()) {
     case v1::UNSPECIFIED_CONSTRAINTS_THESIS_ZEROS: spec.unspecified = core::UnspecifiedConstraints::kThesisZeros; break;
     case v1::UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE: spec.unspecified = core::UnspecifiedConstraints::kLowestDegree; break;
@@ -329,8 +330,28 @@ void to_proto(const std::vector<core::FrameConstraints>& frames, v1::ConvertResp
   }
 }
 
+namespace {
+
+void set(v1::Extremum* out, const core::Extremum& e) {
+  out->set_value(e.value);
+  out->set_u(e.u);
+  out->set_s(e.s);
+}
+
+v1::PlanWarningCode to_proto(core::PathWarningCode code) {
+  switch (code) {
+    case core::PathWarningCode::kNearCusp: return v1::PLAN_WARNING_CODE_NEAR_CUSP;
+    case core::PathWarningCode::kTightBend: return v1::PLAN_WARNING_CODE_TIGHT_BEND;
+    case core::PathWarningCode::kTurnsBack: return v1::PLAN_WARNING_CODE_TURNS_BACK;
+  }
+  return v1::PLAN_WARNING_CODE_UNSPECIFIED;
+}
+
+}  // namespace
+
 void to_proto(const core::Path& path, const std::vector<core::AchievedFrame>& achieved,
-              const core::ClosedLoopError& closed_loop, v1::PlanResponse& response) {
+              const core::ClosedLoopError& closed_loop, const core::GeometryReport& geometry,
+              v1::PlanResponse& response) {
   const std::size_t frame_count = path.frames.size();
   for (std::size_t i = 0; i < path.segment_count(); ++i) {
     auto* s = response.add_segments();
@@ -352,6 +373,20 @@ void to_proto(const core::Path& path, const std::vector<core::AchievedFrame>& ac
         path.segments[i]);
     s->set_start_order(static_cast<std::uint32_t>(path.frames[i].leave.order));
     s->set_end_order(static_cast<std::uint32_t>(path.frames[to].approach.order));
+    const core::SegmentGeometry& g = geometry.segments[i];
+    set(s->mutable_peak_curvature(), g.peak_curvature);
+    set(s->mutable_peak_torsion(), g.peak_torsion);
+    set(s->mutable_min_speed(), g.min_speed);
+    s->set_turning(g.turning);
+  }
+  for (const auto& w : geometry.warnings) {
+    auto* out = response.add_warnings();
+    out->set_code(to_proto(w.code));
+    out->set_segment(static_cast<std::uint32_t>(w.segment));
+    out->set_u(w.u);
+    out->set_s(w.s);
+    out->set_value(w.value);
+    out->set_message(w.message);
   }
   response.set_arc_length(path.length());
 

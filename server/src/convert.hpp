@@ -13,6 +13,7 @@
 #include "geotraj/core/analysis.hpp"
 #include "geotraj/core/constraints.hpp"
 #include "geotraj/core/error.hpp"
+#include "geotraj/core/geometry_report.hpp"
 #include "geotraj/core/key_frame.hpp"
 #include "geotraj/core/motion.hpp"
 #include "geotraj/core/orientation.hpp"
@@ -69,7 +70,8 @@ void to_proto(const std::vector<core::FrameConstraints>& frames, v1::ConvertResp
 /// PlanTrajectory's answer (geometry part): segments, arc lengths, the achieved geometry
 /// with curvature and torsion derivatives in the path's convention, the closed-loop error.
 void to_proto(const core::Path& path, const std::vector<core::AchievedFrame>& achieved,
-              const core::ClosedLoopError& closed_loop, v1::PlanResponse& response);
+              const core::ClosedLoopError& closed_loop, const core::GeometryReport& geometry,
+              v1::PlanResponse& response);
 
 /// AnalyzePath's answer; derivatives per arc length.
 void to_proto(const core::Path& path, const std::vector<core::ProfilePoint>& points,

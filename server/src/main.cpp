@@ -111,7 +111,7 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->group("Limits");
   app.add_option("--max-stream-samples", limits.max_stream_samples,
-                 "samples in one motion that is streamed or checked on a robot")
+                 "samples in one motion that is planned, streamed or checked on a robot")
       ->envname("GEOTRAJ_MAX_STREAM_SAMPLES")
       ->check(CLI::Range(std::uint64_t{2}, std::uint64_t{1'000'000'000}))
       ->capture_default_str()

@@ -20,6 +20,7 @@
 #include "convert.hpp"
 #include "geotraj/core/analysis.hpp"
 #include "geotraj/core/constraints.hpp"
+#include "geotraj/core/kinematics.hpp"
 #include "geotraj/core/motion.hpp"
 #include "geotraj/core/orientation.hpp"
 #include "geotraj/core/path.hpp"
@@ -34,6 +35,13 @@
 
 namespace geotraj::server {
 namespace {
+
+// The path part of a PlanResponse: segments with the geometry between frames, the achieved
+// frames, the closed loop and the warnings.
+void report_path(const core::Path& path, v1::PlanResponse& response) {
+  const auto achieved = core::achieved_geometry(path);
+  to_proto(path, achieved, core::closed_loop_error(path, achieved), core::geometry_report(path), response);
+}
 
 std::string format_seconds(double s) {
   char buffer[32];
@@ -416,7 +424,12 @@ tl::expected<Planned, grpc::Status> plan_request(const Abandon& abandon, const S
   if (!spec) return tl::unexpected(spec.error());
   auto path = core::build_path(*spec);
   if (!path) return tl::unexpected(invalid_argument(core::prefixed(path.error(), "path.")));
-  auto orientation = core::plan_orientation(*path);
+  // A straight start keeps the tool as the robot holds it at its initial joints (or the
+  // world axes without a robot): see plan_orientation.
+  const Eigen::Quaterniond start_W =
+      robot ? Eigen::Quaterniond(core::forward_kinematics(robot->model, robot->seed).rotation())
+            : Eigen::Quaterniond::Identity();
+  auto orientation = core::plan_orientation(*path, start_W);
   if (!orientation) return tl::unexpected(invalid_argument(core::prefixed(orientation.error(), "path.")));
   const auto& timing_request = request.optimize().timing();
   // As fast as the limits allow: the time-optimal timing, with a robot (joint limits) or
@@ -446,17 +459,28 @@ tl::expected<Planned, grpc::Status> plan_request(const Abandon& abandon, const S
 // abandoned call's overrun to tens of milliseconds at a cost below 0.5 %.
 constexpr std::size_t kSamplesPerCheck = 16;
 
-// The joint-space pass over every sample: the report, or the status when the call was
-// abandoned. Also measures the tool's peak speed and acceleration (for the summary of
-// moves, whose Cartesian speed is known only by sampling).
-struct RobotPass {
-  core::JointMotionReport report;
-  double peak_speed = 0.0;
-  double peak_acceleration = 0.0;
+// The tool's peaks over the samples that StreamSamples sends: speed, whole acceleration
+// (tangential and centripetal) and angular speed.
+struct ToolPeaks {
+  double speed = 0.0;          ///< [m/s]
+  double acceleration = 0.0;   ///< |a_WT| [m/s^2]
+  double angular_speed = 0.0;  ///< |omega_WT| [rad/s]
+  void add(const core::TrajectorySample& sample) {
+    speed = std::max(speed, sample.speed);
+    acceleration = std::max(acceleration, sample.tool.a_WT.norm());
+    angular_speed = std::max(angular_speed, sample.tool.omega_WT.norm());
+  }
 };
 
-// INVALID_ARGUMENT when a motion that is streamed or followed by a robot (the IK runs at
-// every sample) has more samples than the server allows.
+// The joint-space pass over every sample: the report, or the status when the call was
+// abandoned. Also measures the tool's peaks.
+struct RobotPass {
+  core::JointMotionReport report;
+  ToolPeaks tool;
+};
+
+// INVALID_ARGUMENT when a motion has more samples than the server allows: it is streamed,
+// followed by a robot (the IK runs at every sample) or summarised from its samples.
 std::optional<grpc::Status> sample_limit(const Planned& planned, const ServiceLimits& limits) {
   const auto count = core::sample_count(planned.trajectory);
   if (count <= limits.max_stream_samples) return std::nullopt;
@@ -477,14 +501,27 @@ tl::expected<RobotPass, grpc::Status> robot_pass(const Abandon& abandon, const P
   while (sampler.next(sample)) {
     const std::size_t k = sampler.index() - 1;
     builder.add(k, sample.t, sample.s, sample.joints);
-    pass.peak_speed = std::max(pass.peak_speed, sample.speed);
-    pass.peak_acceleration = std::max(pass.peak_acceleration, sample.tool.a_WT.norm());
+    pass.tool.add(sample);
     if (k % kSamplesPerCheck == 0) {
       if (auto stop = abandon.check()) return tl::unexpected(*stop);
     }
   }
   pass.report = builder.report();
   return pass;
+}
+
+// The tool's peaks without a robot: the samples without IK (about a microsecond each).
+tl::expected<ToolPeaks, grpc::Status> tool_pass(const Abandon& abandon, const core::Trajectory& trajectory) {
+  core::TrajectorySampler sampler(trajectory, nullptr, {});
+  core::TrajectorySample sample;
+  ToolPeaks peaks;
+  while (sampler.next(sample)) {
+    peaks.add(sample);
+    if (sampler.index() % 1024 == 0) {
+      if (auto stop = abandon.check()) return tl::unexpected(*stop);
+    }
+  }
+  return peaks;
 }
 
 // FAILED_PRECONDITION naming the first broken limit (time, sample, joint) in the message
@@ -507,19 +544,16 @@ grpc::Status robot_cannot_follow(const std::string& robot_name, const core::Join
   return failed_precondition(message, details);
 }
 
-void summarize(const core::Trajectory& trajectory, const RobotPass* pass, v1::MotionSummary& summary) {
-  if (const auto* path = std::get_if<core::PathMotion>(&trajectory)) {
-    to_proto(path->timing, summary);
-    return;
-  }
+void summarize(const core::Trajectory& trajectory, const ToolPeaks& tool, v1::MotionSummary& summary) {
   summary.set_duration_s(core::duration(trajectory));
   summary.set_sample_count(core::sample_count(trajectory));
-  if (const auto* linear = std::get_if<core::LinearMovePlan>(&trajectory)) {
-    summary.set_peak_speed(linear->peak_speed);
-    summary.set_peak_acceleration(linear->peak_acceleration);
-  } else if (pass != nullptr) {
-    summary.set_peak_speed(pass->peak_speed);
-    summary.set_peak_acceleration(pass->peak_acceleration);
+  summary.set_peak_speed(tool.speed);
+  summary.set_peak_acceleration(tool.acceleration);
+  summary.set_peak_angular_speed(tool.angular_speed);
+  if (const auto* path = std::get_if<core::PathMotion>(&trajectory)) {
+    summary.set_peak_tangential_acceleration(path->timing.peak_acceleration);
+  } else if (const auto* linear = std::get_if<core::LinearMovePlan>(&trajectory)) {
+    summary.set_peak_tangential_acceleration(linear->peak_acceleration);
   }
 }
 
@@ -540,12 +574,12 @@ grpc::Status plan_trajectory(const Abandon& abandon, const Services& services, c
     if (!planned) return planned.error();
     if (auto stop = abandon.check()) return *stop;
     if (const auto* path = std::get_if<core::PathMotion>(&planned->trajectory)) {
-      const auto achieved = core::achieved_geometry(path->path);
-      to_proto(path->path, achieved, core::closed_loop_error(path->path, achieved), response);
+      report_path(path->path, response);
     }
+    // The summary's peaks are those of the samples (tool_pass, robot_pass): bounded like a stream.
+    if (auto refused = sample_limit(*planned, services.limits)) return *refused;
     std::optional<RobotPass> pass;
     if (planned->robot) {
-      if (auto refused = sample_limit(*planned, services.limits)) return *refused;
       auto result = robot_pass(abandon, *planned);
       if (!result) return result.error();
       pass = std::move(*result);
@@ -554,7 +588,15 @@ grpc::Status plan_trajectory(const Abandon& abandon, const Services& services, c
       }
       to_proto(planned->robot->model.name, pass->report, *response.mutable_robot());
     }
-    summarize(planned->trajectory, pass ? &*pass : nullptr, *response.mutable_motion());
+    ToolPeaks tool;
+    if (pass) {
+      tool = pass->tool;
+    } else {
+      auto peaks = tool_pass(abandon, planned->trajectory);
+      if (!peaks) return peaks.error();
+      tool = *peaks;
+    }
+    summarize(planned->trajectory, tool, *response.mutable_motion());
     return grpc::Status::OK;
   }
   const auto spec =
@@ -563,8 +605,7 @@ grpc::Status plan_trajectory(const Abandon& abandon, const Services& services, c
   const auto path = core::build_path(*spec);
   if (!path) return invalid_argument(core::prefixed(path.error(), "path."));
   if (auto stop = abandon.check()) return *stop;
-  const auto achieved = core::achieved_geometry(*path);
-  to_proto(*path, achieved, core::closed_loop_error(*path, achieved), response);
+  report_path(*path, response);
   return grpc::Status::OK;
 }
 
@@ -881,6 +922,9 @@ class TrajectoryService final : public RawService {
       frame->set_tangent_scale(0.2);
     }
     request.mutable_motion()->set_duration_s(2.0);
+    // Within --max-stream-samples however low it is set (at least 2: the two ends).
+    const double samples = static_cast<double>(limits().max_stream_samples);
+    request.mutable_motion()->set_cycle_rate_hz(std::min(100.0, (samples - 1.0) / 2.0));
     v1::PlanResponse plan;
     if (auto status = plan_trajectory(abandon, services(), request, plan); !status.ok()) return status;
     v1::PathProfile profile;

@@ -95,6 +95,111 @@ class PythonClient(unittest.TestCase):
             self.assertAlmostEqual(frame2.leave.curvature, {"A": 5, "B": 10, "C": 20}[which], places=9)
             self.assertAlmostEqual(frame2.leave.torsion, -50, places=7)
 
+    # --- Random frame sets under the three readings (PathSpec.unspecified) ---------------------
+
+    def random_path(self, rng, reading):
+        def unit():
+            v = [rng.gauss(0, 1) for _ in range(3)]
+            n = math.sqrt(sum(c * c for c in v))
+            return [c / n for c in v]
+
+        def cross(a, b):
+            return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+        count = rng.randint(2, 6)
+        closed = rng.random() < 0.3
+        path = pb.PathSpec(closed=closed, unspecified=reading)
+        p = [rng.uniform(-1, 1) for _ in range(3)]
+        for i in range(count):
+            both_sides = closed or 0 < i < count - 1
+            f = path.frames.add()
+            v3(f.position, *p)
+            t = unit()
+            n = cross(t, unit())
+            norm = math.sqrt(sum(c * c for c in n))
+            n = [c / norm for c in n]
+            v3(f.tangent, *t)
+            if rng.random() < 0.3:
+                f.tangent_scale = rng.uniform(0.3, 2.5)
+            if both_sides and rng.random() < 0.3:
+                f.leave_tangent_scale = rng.uniform(0.3, 2.5)  # the two sides' scales differ
+            kappa = None
+            if rng.random() < 0.75:
+                kappa = 0.0 if rng.random() < 0.1 else math.exp(rng.uniform(math.log(0.2), math.log(5.0)))
+                f.curvature = kappa
+                if kappa > 0:
+                    if rng.random() < 0.5:
+                        f.torsion = rng.uniform(-5, 5)
+                    if rng.random() < 0.4:
+                        f.curvature_derivative = rng.uniform(-10, 10)
+                    if f.HasField("torsion") and rng.random() < 0.5:
+                        f.torsion_derivative = rng.uniform(-20, 20)
+            # A lowest-degree segment bends only where a curvature is given.
+            if (kappa and kappa > 0) or (rng.random() < 0.3 and reading != pb.UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE):
+                v3(f.normal, *n)
+            if both_sides and rng.random() < 0.15:
+                f.cusp = True
+            if both_sides and kappa is not None and rng.random() < 0.15:
+                f.inflection = True
+            step = rng.uniform(0.4, 1.5)
+            p = [a + step * b for a, b in zip(p, unit())]
+        return path
+
+    def jerk_energy(self, path, per_segment=1000):
+        """The sum over segments of the integral of |d3p/du3|^2 du, by third differences of
+        AnalyzePath's positions (stencils inside one segment only)."""
+        segments = len(path.frames) if path.closed else len(path.frames) - 1
+        profile = self.stub.AnalyzePath(pb.PlanRequest(path=path, analysis_points=per_segment * segments + 1))
+        pts = [(q.u, (q.position.x, q.position.y, q.position.z)) for q in profile.points]
+        h = 1.0 / per_segment
+        energy = 0.0
+        for k in range(len(pts) - 3):
+            if math.floor(pts[k][0] + 1e-9) != math.floor(pts[k + 3][0] - 1e-9):
+                continue  # the stencil straddles a frame, where d3p/du3 may jump
+            d3 = [(pts[k + 3][1][c] - 3 * pts[k + 2][1][c] + 3 * pts[k + 1][1][c] - pts[k][1][c]) / h ** 3
+                  for c in range(3)]
+            energy += sum(c * c for c in d3) * h
+        return energy
+
+    def test_random_frame_sets_under_every_reading(self):
+        import random
+        rng = random.Random(2026)
+        readings = [pb.UNSPECIFIED_CONSTRAINTS_SMOOTHEST, pb.UNSPECIFIED_CONSTRAINTS_THESIS_ZEROS,
+                    pb.UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE]
+        checked_g4 = 0
+        for case in range(24):
+            state = rng.getstate()
+            paths = []
+            for reading in readings:
+                rng.setstate(state)  # the same frames under each reading
+                paths.append(self.random_path(rng, reading))
+            for reading, path in zip(readings, paths):
+                with self.subTest(case=case, reading=pb.UnspecifiedConstraints.Name(reading)):
+                    resp = self.stub.PlanTrajectory(pb.PlanRequest(path=path))
+                    self.assertLess(resp.closed_loop.max_error, 1e-9, resp.closed_loop.worst_field)
+                    for seg in resp.segments:
+                        for v in (seg.arc_length, seg.peak_curvature.value, seg.min_speed.value, seg.turning):
+                            self.assertTrue(math.isfinite(v))
+                    if reading != pb.UNSPECIFIED_CONSTRAINTS_SMOOTHEST:
+                        continue
+                    # G4 where nothing breaks it: the same curvature, torsion and derivatives
+                    # measured on the curve on both sides of every frame with two sides.
+                    n = len(path.frames)
+                    for i, f in enumerate(path.frames):
+                        if f.cusp or f.inflection or f.stop or not (path.closed or 0 < i < n - 1):
+                            continue
+                        a, b = resp.frames[i].approach, resp.frames[i].leave
+                        for field in ("curvature", "torsion", "curvature_derivative", "torsion_derivative"):
+                            self.assertEqual(a.HasField(field), b.HasField(field), f"frame {i} {field}")
+                            if a.HasField(field):
+                                x, y = getattr(a, field), getattr(b, field)
+                                self.assertLess(abs(x - y), 1e-6 * max(1.0, abs(x)), f"frame {i} {field}: {x} vs {y}")
+                        checked_g4 += 1
+            # The smoothest curve's energy is never above the thesis's zeros (a candidate of its).
+            e_smooth, e_thesis = self.jerk_energy(paths[0]), self.jerk_energy(paths[1])
+            self.assertLessEqual(e_smooth, e_thesis * (1 + 1e-4) + 1e-9, f"case {case}")
+        self.assertGreater(checked_g4, 10)
+
     def test_analysis_recomputed_here(self):
         req = pb.PlanRequest(path=self.demo_path("C"), analysis_points=3001)
         prof = self.stub.AnalyzePath(req)

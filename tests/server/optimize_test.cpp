@@ -447,7 +447,7 @@ TEST_F(OptimizeTest, TimeOptimalPa10OnDemoPathC) {
   std::printf("[ measured ] at the cusp: sample %zu, t %.4f s, s - s_cusp %.3g m, speed %.3g m/s\n", nearest,
               samples[nearest].t(), samples[nearest].s() - s_cusp, samples[nearest].speed());
   EXPECT_NEAR(samples[nearest].s(), s_cusp, 1e-6);
-  EXPECT_LT(samples[nearest].speed(), response.motion().peak_acceleration() * dt);
+  EXPECT_LT(samples[nearest].speed(), response.motion().peak_tangential_acceleration() * dt);
   ASSERT_GT(nearest, 0u);
   ASSERT_LT(nearest + 1, samples.size());
   EXPECT_LE(samples[nearest].speed(), samples[nearest - 1].speed());

@@ -387,6 +387,10 @@ TEST(Limits, EachRefusalNamesItsLimit) {
   status = read_stream(*stub, three, samples, *ctx);
   ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(violation_of(bad_request_violations(status), "motion.durationS"), HasSubstr("--max-stream-samples"));
+  // PlanTrajectory summarises the motion from its samples: bounded alike.
+  status = stub->PlanTrajectory(short_context().get(), three, &plan);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(violation_of(bad_request_violations(status), "motion.durationS"), HasSubstr("--max-stream-samples"));
   three.mutable_motion()->set_duration_s(0.5);  // 51 samples
   ctx = short_context();
   EXPECT_TRUE(read_stream(*stub, three, samples, *ctx).ok());

@@ -266,6 +266,35 @@ TEST_F(RobotTest, WithoutReportOnlyTheBrokenLimitsAreAFailedPrecondition) {
 
 // Path A over 60 s is within every limit of the PA-10 (accelerations scale with 1 / T^2: the
 // 10 s plan's worst usage, 2.36, becomes 0.07).
+// FIXED orientation on a straight start (no normal at frame 0): the tool keeps the
+// orientation the PA-10 holds at its home (the IK seed), so the first sample is the robot's
+// pose and the joints stay near home; before, the plan was refused for want of a normal.
+TEST_F(RobotTest, FixedStraightStartKeepsTheRobotsToolOrientation) {
+  const auto pa10 = robot_model("pa10");
+  const Eigen::Isometry3d X_home = forward_kinematics(pa10, pa10.home());
+  const Eigen::Vector3d p0 = X_home.translation();
+  auto request = from_json<v1::PlanRequest>(R"({"path": {"frames": [
+      {"tangent": {"y": 1}}, {"tangent": {"y": 1}}]},
+      "motion": {"durationS": 3}, "robot": {"name": "pa10"}})");
+  auto* frames = request.mutable_path()->mutable_frames();
+  for (int k = 0; k < 2; ++k) {
+    auto* p = frames->Mutable(k)->mutable_position();
+    p->set_x(p0.x());
+    p->set_y(p0.y() + 0.1 * k);
+    p->set_z(p0.z());
+  }
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_FALSE(samples.empty());
+  const Eigen::Quaterniond q_home(X_home.linear());
+  for (const auto& s : samples) {
+    EXPECT_LT(quat(s.orientation()).angularDistance(q_home), 1e-9);
+    EXPECT_LT(Eigen::Quaterniond(forward_kinematics(pa10, s.joints()).linear()).angularDistance(q_home), 1e-8);
+  }
+  for (int j = 0; j < 7; ++j) EXPECT_NEAR(samples.front().joints(j), pa10.home(j), 1e-6) << "joint " << j;
+}
+
 TEST_F(RobotTest, SlowDemoStreamsJointsThatReproduceTheTool) {
   const auto request = pa10_path_a(60.0, /*report_only=*/false);
   v1::PlanResponse response;

@@ -1,5 +1,6 @@
 // TrajectoryService through a generated stub on a loopback port: the thesis's worked
 // numbers (golden), the closed loop of PlanTrajectory, the profiles of AnalyzePath.
+#include <algorithm>
 #include <cmath>
 #include <ostream>
 #include <string>
@@ -185,6 +186,128 @@ TEST_F(ServerTest, PlanClosedTrapezoidPath) {
     EXPECT_TRUE(f.has_approach() && f.has_leave()) << "every frame of a closed path has both sides";
   }
   EXPECT_LT(response.closed_loop().max_error(), 1e-9) << response.closed_loop().worst_field();
+}
+
+// --- The geometry between frames and the plan's warnings ---------------------------------------
+
+// The README's minimal request; `middle_scale` > 0 sets the middle frame's tangent scale.
+v1::PlanRequest readme_request(double middle_scale) {
+  auto request = from_json<v1::PlanRequest>(R"({"path": {"frames": [
+      {"position": {"x": 0, "y": 0, "z": 0}, "tangent": {"x": 1}, "tangentScale": 0.5},
+      {"position": {"x": 0.3, "y": 0.2, "z": 0.1}, "tangent": {"y": 1}, "normal": {"x": -1},
+       "curvature": 5, "torsion": 2},
+      {"position": {"x": 0.1, "y": 0.5, "z": 0.1}, "tangent": {"x": -1}, "tangentScale": 0.5}]}})");
+  if (middle_scale > 0.0) request.mutable_path()->mutable_frames(1)->set_tangent_scale(middle_scale);
+  return request;
+}
+
+// With the old 1 m default at its middle frame (and lowest-degree segments, the old reading)
+// the README's request doubles back with a 15 um radius: the plan says so, at the point; as
+// the README gives it, it is gentle and quiet. The extremes are where they say (a dense
+// AnalyzePath agrees) and each names u and s.
+TEST_F(ServerTest, PlanReportsGeometryBetweenFramesAndWarnings) {
+  auto kinked = readme_request(1.0);
+  kinked.mutable_path()->set_unspecified(v1::UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE);
+  v1::PlanResponse response;
+  auto status = plan(kinked, response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_EQ(response.segments_size(), 2);
+  const auto& seg = response.segments(1);
+  EXPECT_GT(seg.peak_curvature().value(), 1e4);
+  EXPECT_LT(seg.min_speed().value(), 0.1 * seg.arc_length());
+  EXPECT_GT(seg.min_speed().u(), 1.0);
+  EXPECT_LT(seg.min_speed().u(), 2.0);
+  EXPECT_GT(seg.min_speed().s(), response.segments(0).arc_length());
+  // Segment 0 curls too (its tangent turns about 4.5 rad more than its ends need).
+  const auto near_cusp = std::find_if(response.warnings().begin(), response.warnings().end(),
+                                      [](const auto& x) { return x.code() == v1::PLAN_WARNING_CODE_NEAR_CUSP; });
+  ASSERT_NE(near_cusp, response.warnings().end());
+  const auto& w = *near_cusp;
+  EXPECT_EQ(w.segment(), 1u);
+  EXPECT_DOUBLE_EQ(w.value(), seg.min_speed().value());
+  EXPECT_DOUBLE_EQ(w.u(), seg.min_speed().u());
+  EXPECT_NE(w.message().find("tangent scales"), std::string::npos) << w.message();
+
+  // The profile around the reported minimum never goes below it.
+  kinked.set_analysis_points(20001);
+  v1::PathProfile profile;
+  status = analyze(kinked, profile);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  double peak = 0.0;
+  for (const auto& p : profile.points()) {
+    if (p.segment() == 1 && p.has_curvature()) peak = std::max(peak, p.curvature());
+  }
+  EXPECT_GE(seg.peak_curvature().value(), peak * (1 - 1e-9));
+
+  response.Clear();
+  status = plan(readme_request(0.0), response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_EQ(response.warnings_size(), 0) << response.warnings(0).message();
+  for (const auto& g : response.segments()) {
+    EXPECT_GT(g.peak_curvature().value(), 0.0);
+    EXPECT_LT(g.peak_curvature().value(), 20.0);
+    EXPECT_GT(g.turning(), 0.0);
+  }
+
+  // maxCurvature below the README's bends: a TIGHT_BEND per segment; bad values named.
+  auto tight = readme_request(0.0);
+  tight.mutable_path()->set_max_curvature(1.0);
+  response.Clear();
+  ASSERT_TRUE(plan(tight, response).ok());
+  ASSERT_EQ(response.warnings_size(), 2);
+  for (const auto& t : response.warnings()) EXPECT_EQ(t.code(), v1::PLAN_WARNING_CODE_TIGHT_BEND);
+  tight.mutable_path()->set_max_curvature(-1.0);
+  status = plan(tight, response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  const auto violations = bad_request_violations(status);
+  ASSERT_EQ(violations.size(), 1u);
+  EXPECT_EQ(violations[0].field, "path.maxCurvature");
+}
+
+// MotionSummary: the peaks are those of the streamed samples: the whole acceleration
+// (tangential and centripetal, larger than the profile's tangential part on a curve) and the
+// tool's angular speed, checked against finite differences of the streamed orientations.
+TEST_F(ServerTest, MotionSummaryPeaksAreThoseOfTheSamples) {
+  auto request = demo_example('a');
+  for (auto& f : *request.mutable_path()->mutable_frames()) f.set_orientation_mode(v1::ORIENTATION_MODE_FRAME_BASED);
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  grpc::Status stream_status;
+  const auto samples = stream_all(request, stream_status);
+  ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+  ASSERT_EQ(samples.size(), response.motion().sample_count());
+  double peak_a = 0.0, peak_v = 0.0, peak_w_fd = 0.0;
+  for (std::size_t k = 0; k < samples.size(); ++k) {
+    const auto& a = samples[k].acceleration();
+    peak_a = std::max(peak_a, std::sqrt(a.x() * a.x() + a.y() * a.y() + a.z() * a.z()));
+    peak_v = std::max(peak_v, samples[k].speed());
+    if (k == 0) continue;
+    const auto& q0 = samples[k - 1].orientation();
+    const auto& q1 = samples[k].orientation();
+    const double dot = std::abs(q0.w() * q1.w() + q0.x() * q1.x() + q0.y() * q1.y() + q0.z() * q1.z());
+    peak_w_fd = std::max(peak_w_fd, 2.0 * std::acos(std::min(1.0, dot)) / (samples[k].t() - samples[k - 1].t()));
+  }
+  const auto& m = response.motion();
+  EXPECT_DOUBLE_EQ(m.peak_acceleration(), peak_a);
+  EXPECT_DOUBLE_EQ(m.peak_speed(), peak_v);
+  EXPECT_GT(m.peak_acceleration(), 1.5 * m.peak_tangential_acceleration()) << "the centripetal part counts";
+  EXPECT_GT(m.peak_angular_speed(), 0.0);
+  EXPECT_NEAR(m.peak_angular_speed(), peak_w_fd, 0.02 * peak_w_fd);
+}
+
+// FIXED orientation on a straight start (frame 0 without a normal): the tool keeps the
+// orientation the robot holds at its initial joints; without a robot, the world axes.
+TEST_F(ServerTest, FixedOrientationOnAStraightStart) {
+  auto request = from_json<v1::PlanRequest>(R"({"path": {"frames": [
+      {"position": {"x": 0.5, "y": 0.0, "z": 0.5}, "tangent": {"y": 1}},
+      {"position": {"x": 0.5, "y": 0.2, "z": 0.5}, "tangent": {"y": 1}}]},
+      "motion": {"durationS": 2}})");
+  grpc::Status status;
+  auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_FALSE(samples.empty());
+  for (const auto& s : samples) EXPECT_NEAR(std::abs(s.orientation().w()), 1.0, 1e-12);
 }
 
 // --- AnalyzePath -------------------------------------------------------------------------------

@@ -382,6 +382,22 @@ TEST(Orientation, StartNeedsNormal) {
   EXPECT_EQ(plan.error()[0].field, "frames[0].normal");
 }
 
+// A straight start without a normal under FIXED: the tool keeps the orientation it has
+// before the motion (start_W; the world axes by default) all along, without a refusal.
+TEST(Orientation, FixedStraightStartKeepsTheStartOrientation) {
+  const auto path = build_or_fail(with_mode(line_spec(false), OrientationMode::kFixed));
+  const Quaterniond start(Eigen::AngleAxisd(0.7, Vector3d(1, 2, 3).normalized()));
+  for (const Quaterniond& q0 : {Quaterniond::Identity(), start}) {
+    const auto plan = core::plan_orientation(path, q0);
+    ASSERT_TRUE(plan) << plan.error()[0].field << ": " << plan.error()[0].description;
+    for (double u : {0.0, 0.3, 1.0}) {
+      const auto o = core::orientation_at(*plan, path, u < 1.0 ? 0 : 1, u < 1.0 ? u : 1.0, 0.5 * u, 0.2, 0.1);
+      EXPECT_LT(o.q_WT.angularDistance(q0), 1e-12);
+      EXPECT_EQ(o.omega_W.norm(), 0.0);
+    }
+  }
+}
+
 TEST(Orientation, CustomOrientationChecked) {
   auto spec = with_mode(circle_spec(), OrientationMode::kCustom);
   spec.frames[1].orientation.reset();

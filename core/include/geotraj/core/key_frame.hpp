@@ -93,6 +93,8 @@ struct PathSpec {
   BlendMethod blend = BlendMethod::kPolynomial;
   std::vector<SegmentBreakpoints> breakpoints;  ///< trapezoid only; default uniform (B.10)
   bool closed = false;  ///< a last segment returns from the last frame to the first
+  /// Curvature above which a bend is reported (PathWarningCode::kTightBend) [1/m]; > 0.
+  std::optional<double> max_curvature;
 };
 
 /// Number of segments of a path with `frame_count` frames.

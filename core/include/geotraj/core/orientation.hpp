@@ -53,7 +53,11 @@
 // The orientation at the start of the path is key frame 0's [-B N T] (normal as for
 // kFrameBased). Deviation: when segment 0 is kFrenet the path starts in the curve's Frenet
 // frame, as that mode defines (the frames differ when frame 0 gives a normal but no
-// curvature).
+// curvature). Where frame 0 defines no [-B N T] (no normal, and the curve is straight
+// there) and segment 0 is kFixed, kFrameBased or kCustom (modes that take any start), the
+// tool starts in `start_W`: the robot's tool orientation at its initial joints, or the
+// world axes (identity) without a robot. kParallelTransport needs the tool's z along the
+// tangent and a twist about it, so there a normal stays required.
 //
 // Continuity: each segment starts where the previous one ended. For the tangent-following
 // modes (kFrenet, kParallelTransport) that is a condition, not a construction: where the
@@ -128,7 +132,9 @@ struct OrientationSample {
 ///    target) but the frame gives no normal and the curve is straight there;
 ///  - `frames[i].orientationMode`: kFrenet on a segment where the curvature vanishes (the u
 ///    is named), or a tangent-following segment that would start with a jump.
-Expected<OrientationPlan> plan_orientation(const Path& path);
+///  (`start_W`: the tool orientation before the motion, see the start above.)
+Expected<OrientationPlan> plan_orientation(const Path& path,
+                                           const Eigen::Quaterniond& start_W = Eigen::Quaterniond::Identity());
 
 /// The tool orientation on `segment` at local parameter u_local in [0, 1], arc length s [m]
 /// from the path start (the same point), path speed s_dot = ds/dt [m/s] and path

@@ -1,6 +1,7 @@
 // Tangent-scale optimisation (optim/tangent_scales.hpp) on the thesis's 4-frame demo
 // (Section 7.2, paths A, B, C of Table 7.18), one benchmark per objective. Arguments: the
-// path (0 = A, 1 = B, 2 = C). Counters: solver iterations and the objective before and after
+// path (0 = A, 1 = B, 2 = C) and the reading of unspecified constraints (0 = smoothest, the
+// default, on SLSQP; 1 = the thesis's zeros and 2 = lowest degree, on Ipopt). Counters: solver iterations and the objective before and after
 // (in the objective's unit), so a change in cost can be told from a change in the solution.
 // Each runs 7 repetitions and reports the median and the worst (max) case: the machine is
 // often shared, and the median is the robust figure.
@@ -19,7 +20,11 @@ using geotraj::optim::TangentScaleObjective;
 
 void run(benchmark::State& state, TangentScaleObjective objective) {
   const char which = "ABC"[state.range(0)];
-  const auto spec = geotraj::testing::thesis_demo_path(which);
+  using Reading = geotraj::core::UnspecifiedConstraints;
+  const Reading readings[] = {Reading::kSmoothest, Reading::kThesisZeros, Reading::kLowestDegree};
+  const char* names[] = {"smoothest", "thesis zeros", "lowest degree"};
+  const auto spec = geotraj::testing::thesis_demo_path(which, geotraj::core::BlendMethod::kPolynomial,
+                                                       readings[state.range(1)]);
   geotraj::optim::TangentScaleOptions options;
   options.objective = objective;
   geotraj::optim::OptimizerReport report;
@@ -28,7 +33,8 @@ void run(benchmark::State& state, TangentScaleObjective objective) {
     benchmark::DoNotOptimize(result);
     report = result->report;
   }
-  state.SetLabel(std::string("path ") + which + ", " + geotraj::optim::name(report.status));
+  state.SetLabel(std::string("path ") + which + ", " + names[state.range(1)] + ", " +
+                 geotraj::optim::name(report.status));
   state.counters["iterations"] = report.iterations;
   state.counters["before"] = report.objective_before;
   state.counters["after"] = report.objective_after;
@@ -48,10 +54,10 @@ void BM_PeakCurvature(benchmark::State& s) { run(s, TangentScaleObjective::kPeak
 void BM_PeakTorsion(benchmark::State& s) { run(s, TangentScaleObjective::kPeakTorsion); }
 void BM_ArcLength(benchmark::State& s) { run(s, TangentScaleObjective::kArcLength); }
 
-BENCHMARK(BM_BendingEnergy)->DenseRange(0, 2)->Apply(repeated);
-BENCHMARK(BM_PeakCurvature)->DenseRange(0, 2)->Apply(repeated);
-BENCHMARK(BM_PeakTorsion)->DenseRange(0, 2)->Apply(repeated);
-BENCHMARK(BM_ArcLength)->DenseRange(0, 2)->Apply(repeated);
+BENCHMARK(BM_BendingEnergy)->ArgsProduct({{0, 1, 2}, {0, 1, 2}})->Apply(repeated);
+BENCHMARK(BM_PeakCurvature)->ArgsProduct({{0, 1, 2}, {0, 1, 2}})->Apply(repeated);
+BENCHMARK(BM_PeakTorsion)->ArgsProduct({{0, 1, 2}, {0, 1, 2}})->Apply(repeated);
+BENCHMARK(BM_ArcLength)->ArgsProduct({{0, 1, 2}, {0, 1, 2}})->Apply(repeated);
 
 }  // namespace
 

@@ -79,7 +79,7 @@ bool apply(const OptimizeFlags& flags, v1::PlanRequest& request) {
   }
   if (flags.max_curvature > 0.0) request.mutable_path()->set_max_curvature(flags.max_curvature);
   const bool any = !flags.tangent_scales.empty() || !flags.breakpoints.empty() || flags.time_optimal ||
-                   flags.jerk_limited || flags.budget_s > 0.0;
+                   flags.jerk_limited || flags.budget_s > 0.0 || flags.length_weight;
   if (!any) return true;  // the request's own `optimize`, if any, stays as it is
   auto* optimize = request.mutable_optimize();
   int value = 0;
@@ -88,6 +88,14 @@ bool apply(const OptimizeFlags& flags, v1::PlanRequest& request) {
       return false;
     }
     optimize->mutable_tangent_scales()->set_objective(static_cast<v1::TangentScaleObjective>(value));
+  }
+  if (flags.length_weight) {
+    if (!optimize->has_tangent_scales()) {
+      std::cerr << "geotraj: --length-weight needs --optimize-tangent-scales (or a request with "
+                   "optimize.tangentScales)\n";
+      return false;
+    }
+    optimize->mutable_tangent_scales()->set_length_weight(*flags.length_weight);
   }
   if (!flags.breakpoints.empty()) {
     if (!enum_value(flags.breakpoints, "BREAKPOINT_OBJECTIVE_", v1::BreakpointObjective_descriptor(), value)) {

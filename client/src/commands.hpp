@@ -1,6 +1,7 @@
 // The CLI's subcommands: read a request, call the service, print the answer.
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include "connection.hpp"
@@ -12,6 +13,7 @@ struct OptimizeFlags {
   std::string unspecified;     ///< reading of unspecified constraints (smoothest, thesis-zeros, lowest-degree); empty: the request's
   double max_curvature = 0.0;  ///< path.maxCurvature [1/m]; 0: the request's
   std::string tangent_scales;  ///< objective name (bending-energy, peak-curvature, peak-torsion, arc-length); empty: none
+  std::optional<double> length_weight;  ///< optimize.tangentScales.lengthWeight [1/m^2]; absent: the request's
   std::string breakpoints;     ///< objective name (peak-torsion, peak-curvature, peak-derivatives); empty: none
   bool time_optimal = false;   ///< optimize.timing.timeOptimal
   bool jerk_limited = false;   ///< optimize.timing.jerkLimited

@@ -48,6 +48,10 @@ int main(int argc, char** argv) {
         ->check(CLI::PositiveNumber);
     sub->add_option("--optimize-tangent-scales", options.optimize.tangent_scales,
                     "optimise the tangent scales: bending-energy, peak-curvature, peak-torsion or arc-length");
+    sub->add_option("--length-weight", options.optimize.length_weight,
+                    "bending-energy: weight of the arc length [1/m^2]; default E0 / L0 of the request, 0 for the "
+                    "energy alone (optimize.tangentScales.lengthWeight)")
+        ->check(CLI::NonNegativeNumber);
     sub->add_option("--optimize-breakpoints", options.optimize.breakpoints,
                     "optimise the trapezoid breakpoints: peak-torsion, peak-curvature or peak-derivatives");
     sub->add_flag("--time-optimal", options.optimize.time_optimal,

@@ -158,6 +158,7 @@ void print_table(const v1::OptimizationReport& report, std::ostream& out) {
     print_optimizer("tangent scales", "", t, out);
     out << "  chosen scales [m]:";
     for (double x : t.tangent_scales()) out << ' ' << num(x, 1);
+    if (t.length_weight() > 0.0) out << "; length weight" << num(t.length_weight(), 1) << " 1/m^2";
     out << '\n';
   }
   if (report.has_breakpoints()) {

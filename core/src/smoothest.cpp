@@ -95,7 +95,9 @@ SideUnknowns classify(const KeyFrame& f, const SideConstraints& side) {
   s.free[0][1] = !f.kappa && !f.N_W;
   // p'''
   s.free[1][0] = !(curved && f.kappa_d);
-  s.free[1][1] = !(curved && f.tau);
+  // A normal without a curvature also holds the osculating plane at the frame: B . p''' = 0,
+  // so tau = B . p''' / (kappa |p'|^3) = 0 there (see the header).
+  s.free[1][1] = !(curved && f.tau) && !(f.N_W && !f.kappa);
   // p''''
   s.free[2][0] = true;
   s.free[2][1] = !(curved && f.tau_d);

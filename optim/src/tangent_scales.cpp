@@ -14,10 +14,12 @@
 #include <Eigen/Core>
 #include <coin/IpIpoptApplication.hpp>
 #include <coin/IpTNLP.hpp>
+#include <nlopt.h>
 
 #include "geotraj/core/bezier.hpp"
 #include "geotraj/core/constraints.hpp"
 #include "geotraj/core/differential_geometry.hpp"
+#include "geotraj/core/smoothest.hpp"
 #include "geotraj/core/validate.hpp"
 #include "ipopt_lock.hpp"
 
@@ -187,6 +189,7 @@ constexpr int kRegularityRows = 8;
 // kAggregatePower; eps = kPeakEps v_0 keeps straight points finite.
 constexpr double kAggregatePower = 48.0;
 constexpr double kPeakEps = 1e-12;
+
 constexpr const char* kOptionsField = "optimize.tangentScales.";
 // Ipopt, with the exact Hessian (see evaluate). tol 1e-6 on Ipopt's scaled KKT error; Ipopt stops earlier at the acceptable level (KKT
 // error 1e-3) once the objective changes by less than 1e-4 relative on 2 successive
@@ -323,6 +326,11 @@ struct SegmentVars {
 
 struct Problem {
   core::PathSpec spec;  // validated, normalised
+  // The smoothest reading: the free derivatives at every frame come from one solve over the
+  // whole path (core::fill_smoothest), so a segment depends on every scale, not on its two.
+  bool global = false;
+  // Peak objectives: the longest curve a returned point may have [m] (see kPeakLengthGrowth).
+  double max_length = std::numeric_limits<double>::infinity();
   TangentScaleObjective objective = TangentScaleObjective::kBendingEnergy;
   double length_weight = 0.0;
   int scale_count = 0;
@@ -337,7 +345,10 @@ struct Problem {
   }
   std::size_t peak_rows() const { return peak() ? segments.size() * kPeakSamples : 0; }
   int rows_per_segment = kRegularityRows;  // divides kRegularitySamples
-  std::size_t constraint_count() const { return segments.size() * rows_per_segment; }
+  std::size_t regularity_count() const { return segments.size() * rows_per_segment; }
+  // Peaks: one more row, 1 - L / max_length >= 0 (kPeakLengthGrowth), after the regularity rows.
+  bool length_row() const { return peak() && std::isfinite(max_length); }
+  std::size_t constraint_count() const { return regularity_count() + (length_row() ? 1 : 0); }
 };
 
 // Control points of one segment at scales (s0, s1), generic in the scalar: the end
@@ -350,10 +361,12 @@ void control_points(const Problem& pb, const SegmentVars& sg, const S& s0, const
   const auto& f1 = pb.spec.frames[sg.to];
   std::array<Vec3<S>, core::kMaxJetOrder + 1> start, end;
   std::array<Vec3<S>, 4> d;
+  for (auto& v : d) v = Vec3<S>::Zero();  // the thesis's zeros above what the frame gives
   start[0] = f0.p_W.cast<S>();
   core::side_derivatives<S>(f0, pb.spec.convention, sg.T0, sg.N0, s0, d);
   for (int k = 1; k <= sg.n0; ++k) start[k] = d[k - 1];
   end[0] = f1.p_W.cast<S>();
+  for (auto& v : d) v = Vec3<S>::Zero();
   core::side_derivatives<S>(f1, pb.spec.convention, sg.T1, sg.N1, s1, d);
   for (int k = 1; k <= sg.n1; ++k) end[k] = d[k - 1];
   core::hermite_control_points(start, sg.n0, end, sg.n1, b);
@@ -445,7 +458,10 @@ struct Evaluation {
   double largest = 0.0;        // peaks: the largest peak row [1/m^2]
   std::vector<AD> peak;        // peaks: the rows v_j [1/m^2], in their segment's two variables
   std::vector<AD> g;           // regularity rows G_r, rows_per_segment per segment (>= 0 when met)
-  bool regular = false;        // every regularity sample met
+  std::vector<AD> length;      // Problem::length_row: each segment's arc length [m], in its two variables
+  double length_row = 0.0;     // Problem::length_row: 1 - L / max_length (>= 0 when met)
+  std::vector<double> length_grad;  // d length_row / d y
+  bool regular = false;        // every regularity sample met (and the length row, if any)
 };
 
 // Adds w x the local Hessian of `t` (in the segment's variables var0, var1) to the lower
@@ -463,9 +479,11 @@ void add_hessian(std::vector<double>& hess, int n, const SegmentVars& sg, const 
 // every sample of the group meets the floor, and all of them at ln(...) >= ln(|J_r|) / rho
 // imply G_r >= 0. With one sample per group G_r is that sample's ln. `min_ln` returns the
 // smallest sample's ln(|p'|^2 / speed_floor^2), or 0 if that is larger.
-void regularity_rows(const SegmentVars& sg, const ControlPoints<AD>& b, int rows_per_segment, AD* out,
-                     double& min_ln) {
-  std::array<AD, kRegularitySamples> rows;
+template <class S>
+void regularity_rows(const SegmentVars& sg, const ControlPoints<S>& b, int rows_per_segment, S* out, double& min_ln) {
+  using std::exp;
+  using std::log;
+  std::array<S, kRegularitySamples> rows;
   segment_speeds(sg, b, sg.tables->regular, rows.data());
   min_ln = 0.0;
   const int per = kRegularitySamples / rows_per_segment;
@@ -473,12 +491,12 @@ void regularity_rows(const SegmentVars& sg, const ControlPoints<AD>& b, int rows
     double lo = std::numeric_limits<double>::infinity();
     for (int j = r * per; j < (r + 1) * per; ++j) {
       rows[j] = log(rows[j]);
-      lo = std::min(lo, rows[j].a);
+      lo = std::min(lo, value_of(rows[j]));
     }
     min_ln = std::min(min_ln, lo);
-    AD sum(0.0);
+    S sum(0.0);
     for (int j = r * per; j < (r + 1) * per; ++j) sum += exp((rows[j] - lo) * -kRegularityAggregatePower);
-    out[r] = AD(lo) - log(sum) / kRegularityAggregatePower;
+    out[r] = S(lo) - log(sum) / kRegularityAggregatePower;
   }
 }
 
@@ -491,7 +509,9 @@ void evaluate(const Problem& pb, const double* scales, Evaluation& ev, double v0
   ev.grad.assign(n, 0.0);
   ev.hess.assign(static_cast<std::size_t>(n) * n, 0.0);
   ev.peak.resize(pb.peak_rows());
-  ev.g.resize(pb.constraint_count());
+  ev.g.resize(pb.regularity_count());
+  ev.length.resize(pb.length_row() ? pb.segments.size() : 0);
+  ev.length_grad.assign(pb.length_row() ? n : 0, 0.0);
   std::array<AD, kPeakSamples> rows;
   double value = 0.0;
   ev.largest = 0.0;
@@ -505,6 +525,12 @@ void evaluate(const Problem& pb, const double* scales, Evaluation& ev, double v0
       for (int j = 0; j < kPeakSamples; ++j) {
         ev.peak[i * kPeakSamples + j] = rows[j];
         ev.largest = std::max(ev.largest, rows[j].a);
+      }
+      if (pb.length_row()) {
+        AD e;
+        segment_integrals(pb, b, sg.tables->quad, pb.rule, e, ev.length[i]);  // the length only
+        ev.length_grad[sg.var0] -= ev.length[i].g[0] / pb.max_length;
+        ev.length_grad[sg.var1] -= ev.length[i].g[1] / pb.max_length;
       }
     } else {
       AD e, l;
@@ -522,6 +548,12 @@ void evaluate(const Problem& pb, const double* scales, Evaluation& ev, double v0
   if (!pb.peak()) {
     ev.f = value;
     return;
+  }
+  if (pb.length_row()) {
+    double total = 0.0;
+    for (const AD& l : ev.length) total += l.a;
+    ev.length_row = 1.0 - total / pb.max_length;
+    if (!(ev.length_row >= 0.0)) ev.regular = false;
   }
   // The aggregate F (see kAggregatePower) by log-sum-exp, shifted by its largest term. With
   // c_j = v_j + eps and the softmax weights p_j:
@@ -569,14 +601,126 @@ bool finite(const Evaluation& ev) {
     if (!std::isfinite(v)) return false;
   for (const AD& v : ev.g)
     if (!finite(v)) return false;
+  for (const AD& v : ev.length)
+    if (!finite(v)) return false;
+  return std::isfinite(ev.length_row);
+}
+
+// Writes `scales` (layout of TangentScaleResult) into the frames of `spec`: one scale per
+// frame, and the leaving side's own where it has one (cusps; a leaving scale that differs).
+void write_scales(core::PathSpec& spec, const std::vector<int>& approach_var, const std::vector<int>& leave_var,
+                  const double* scales) {
+  for (std::size_t i = 0; i < spec.frames.size(); ++i) {
+    auto& f = spec.frames[i];
+    f.tangent_scale = scales[approach_var[i]];
+    if (leave_var[i] != approach_var[i]) {
+      f.leave_tangent_scale = scales[leave_var[i]];
+    } else {
+      f.leave_tangent_scale.reset();
+    }
+  }
+}
+
+// The control points of every segment under the smoothest reading at `scales`: the Chapter 5
+// conversion at those scales, the one solve over the whole path of core::fill_smoothest
+// (5.7's rows with the jerk energy, core/smoothest.hpp), then the degree 9 Hermite control
+// points. False if that solve is singular or its result is not finite.
+bool global_control_points(const Problem& pb, const double* scales, std::vector<ControlPoints<double>>& out) {
+  core::PathSpec spec = pb.spec;
+  write_scales(spec, pb.approach_var, pb.leave_var, scales);
+  std::vector<core::FrameConstraints> frames;
+  frames.reserve(spec.frames.size());
+  for (const auto& f : spec.frames) frames.push_back(core::convert_frame(f, spec.convention));
+  if (!core::fill_smoothest(spec, frames)) return false;
+  out.resize(pb.segments.size());
+  for (std::size_t i = 0; i < pb.segments.size(); ++i) {
+    const auto& sg = pb.segments[i];
+    std::array<Vector3d, core::kMaxJetOrder + 1> start, end;
+    start[0] = spec.frames[sg.from].p_W;
+    end[0] = spec.frames[sg.to].p_W;
+    for (int k = 1; k <= 4; ++k) {
+      start[k] = frames[sg.from].leave.d[k - 1];
+      end[k] = frames[sg.to].approach.d[k - 1];
+    }
+    core::hermite_control_points(start, 4, end, 4, out[i]);
+    for (const auto& c : out[i])
+      if (!c.allFinite()) return false;
+  }
   return true;
+}
+
+// The control points of every segment at `scales`, under the problem's reading.
+bool all_control_points(const Problem& pb, const double* scales, std::vector<ControlPoints<double>>& out) {
+  if (pb.global) return global_control_points(pb, scales, out);
+  out.resize(pb.segments.size());
+  for (std::size_t i = 0; i < pb.segments.size(); ++i) {
+    const auto& sg = pb.segments[i];
+    control_points(pb, sg, scales[sg.var0], scales[sg.var1], out[i]);
+  }
+  return true;
+}
+
+// The smoothest reading's objective and rows at one point, in double (no derivatives: the
+// solver takes them by central differences, see GlobalSolver).
+struct GlobalEvaluation {
+  double f = 0.0;          // the solver's objective (peaks: the aggregate F of kAggregatePower)
+  double largest = 0.0;    // peaks: the largest peak row [1/m^2]
+  std::vector<double> g;   // regularity rows G_r (>= 0 when met)
+  bool regular = false;    // every regularity sample met
+  bool ok = false;         // the global solve succeeded and every value is finite
+};
+
+void evaluate_global(const Problem& pb, const double* scales, GlobalEvaluation& ev, double v0,
+                     std::vector<ControlPoints<double>>& points) {
+  ev.ok = false;
+  ev.regular = true;
+  ev.largest = 0.0;
+  ev.g.assign(pb.constraint_count(), 0.0);
+  if (!all_control_points(pb, scales, points)) return;
+  std::vector<double> peaks(pb.peak_rows());
+  double value = 0.0, length = 0.0;
+  for (std::size_t i = 0; i < pb.segments.size(); ++i) {
+    const auto& sg = pb.segments[i];
+    if (pb.peak()) {
+      segment_peaks(pb, sg, points[i], sg.tables->peak, false, &peaks[i * kPeakSamples]);
+      if (pb.length_row()) {
+        double e = 0.0, l = 0.0;
+        segment_integrals(pb, points[i], sg.tables->quad, pb.rule, e, l);  // the length only
+        length += l;
+      }
+    } else {
+      double e = 0.0, l = 0.0;
+      segment_integrals(pb, points[i], sg.tables->quad, pb.rule, e, l);
+      value += pb.objective == TangentScaleObjective::kArcLength ? l : e + l * pb.length_weight;
+    }
+    double min_ln = 0.0;
+    regularity_rows(sg, points[i], pb.rows_per_segment, &ev.g[i * pb.rows_per_segment], min_ln);
+    if (!(min_ln >= std::log1p(-kFeasibilityTolerance))) ev.regular = false;
+  }
+  if (pb.length_row()) {
+    ev.g.back() = 1.0 - length / pb.max_length;
+    if (!(ev.g.back() >= 0.0)) ev.regular = false;
+  }
+  if (pb.peak()) {
+    for (double v : peaks) ev.largest = std::max(ev.largest, v);
+    if (!(v0 > 0.0)) v0 = ev.largest > 0.0 ? ev.largest : 1.0;
+    const double q = kAggregatePower;
+    const double eps = kPeakEps * v0;
+    const double top = q * std::log((ev.largest + eps) / v0);
+    double sum = 0.0;
+    for (double v : peaks) sum += std::exp(q * std::log((v + eps) / v0) - top);
+    value = (top + std::log(sum)) / q;
+  }
+  ev.f = value;
+  ev.ok = std::isfinite(value) && std::isfinite(ev.largest) &&
+          std::all_of(ev.g.begin(), ev.g.end(), [](double x) { return std::isfinite(x); });
 }
 
 // The verification measure of one point, in double, on rules kAuditFactor times finer than
 // the solver's: the objective in its reported unit (peak torsion with the hard curvature
 // floor), and whether the curve stays regular (|p'| >= kAuditSpeedFraction x the floor at
-// every fine point) and, for the integrals, whether the solver's rule agrees with the fine
-// one to kRuleAgreement.
+// every fine point; for the peaks also no longer than Problem::max_length) and, for the
+// integrals, whether the solver's rule agrees with the fine one to kRuleAgreement.
 struct Audit {
   double value = 0.0;
   bool regular = true;
@@ -587,9 +731,15 @@ Audit audit(const Problem& pb, const double* scales) {
   Audit a;
   double energy = 0.0, length = 0.0, coarse_energy = 0.0, coarse_length = 0.0, largest = 0.0;
   std::vector<double> values;
-  for (const auto& sg : pb.segments) {
-    ControlPoints<double> b;
-    control_points(pb, sg, scales[sg.var0], scales[sg.var1], b);
+  std::vector<ControlPoints<double>> points;
+  if (!all_control_points(pb, scales, points)) {
+    a.value = std::numeric_limits<double>::infinity();
+    a.regular = false;
+    return a;
+  }
+  for (std::size_t i = 0; i < pb.segments.size(); ++i) {
+    const auto& sg = pb.segments[i];
+    const ControlPoints<double>& b = points[i];
     const Tables& t = *sg.tables;
     values.resize(t.audit_points.points);
     segment_speeds(sg, b, t.audit_points, values.data());
@@ -599,6 +749,9 @@ Audit audit(const Problem& pb, const double* scales) {
     if (pb.peak()) {
       segment_peaks(pb, sg, b, t.audit_points, true, values.data());
       for (double v : values) largest = std::max(largest, v);
+      double e = 0.0, l = 0.0;
+      segment_integrals(pb, b, t.audit_quad, pb.audit_rule, e, l);  // the length only
+      length += l;
       continue;
     }
     double e = 0.0, l = 0.0;
@@ -611,6 +764,7 @@ Audit audit(const Problem& pb, const double* scales) {
   }
   if (pb.peak()) {
     a.value = std::sqrt(largest);
+    if (!(length <= pb.max_length)) a.regular = false;
     return a;
   }
   const bool arc = pb.objective == TangentScaleObjective::kArcLength;
@@ -640,11 +794,6 @@ core::Expected<Problem> make_problem(const core::PathSpec& raw, const TangentSca
   if (valid && valid->blend != core::BlendMethod::kPolynomial) {
     violations.push_back({"path.blend", "tangent scales are optimised for the polynomial blend only"});
   }
-  if (valid && valid->unspecified != core::UnspecifiedConstraints::kLowestDegree) {
-    violations.push_back({"path.unspecified",
-                          "tangent scales are optimised for lowest-degree segments only (the optimiser's model of the "
-                          "curve); set UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE to optimise them"});
-  }
   const std::string at = kOptionsField;
   const core::PathLimits limits;
   const auto scale_ok = [&](double v) {
@@ -660,8 +809,8 @@ core::Expected<Problem> make_problem(const core::PathSpec& raw, const TangentSca
     violations.push_back({at + "maxScale", "must be >= minScale (" + fmt(*options.min_scale) + " m), got " +
                                                fmt(*options.max_scale)});
   }
-  if (!(std::isfinite(options.length_weight) && options.length_weight >= 0.0)) {
-    violations.push_back({at + "lengthWeight", "must be >= 0 [1/m^2], got " + fmt(options.length_weight)});
+  if (options.length_weight && !(std::isfinite(*options.length_weight) && *options.length_weight >= 0.0)) {
+    violations.push_back({at + "lengthWeight", "must be >= 0 [1/m^2], got " + fmt(*options.length_weight)});
   }
   if (options.budget_seconds && !(*options.budget_seconds >= 0.0)) {
     violations.push_back({at + "budgetSeconds", "must be >= 0 s, got " + fmt(*options.budget_seconds)});
@@ -673,8 +822,10 @@ core::Expected<Problem> make_problem(const core::PathSpec& raw, const TangentSca
 
   Problem pb;
   pb.spec = std::move(*valid);
+  pb.global = pb.spec.unspecified == core::UnspecifiedConstraints::kSmoothest;
+  const bool full_order = pb.spec.unspecified != core::UnspecifiedConstraints::kLowestDegree;
   pb.objective = options.objective;
-  pb.length_weight = options.length_weight;
+  pb.length_weight = options.length_weight.value_or(0.0);
   const auto& frames = pb.spec.frames;
   const std::size_t count = frames.size();
   const bool closed = pb.spec.closed;
@@ -721,8 +872,9 @@ core::Expected<Problem> make_problem(const core::PathSpec& raw, const TangentSca
     sg.var0 = pb.leave_var[sg.from];
     sg.var1 = pb.approach_var[sg.to];
     GEOTRAJ_CHECK(sg.var0 != sg.var1);
-    sg.n0 = c0.leave.order;
-    sg.n1 = c1.approach.order;
+    // Under the thesis's and the smoothest readings every side has order 4 (degree 9).
+    sg.n0 = full_order ? 4 : c0.leave.order;
+    sg.n1 = full_order ? 4 : c1.approach.order;
     sg.T0 = c0.leave.T;
     sg.N0 = c0.leave.N;
     sg.T1 = c1.approach.T;
@@ -736,6 +888,30 @@ core::Expected<Problem> make_problem(const core::PathSpec& raw, const TangentSca
     if (!pb.tables.count(d)) pb.tables.emplace(d, tables_for(d));
     sg.tables = pb.tables.at(d).get();
     pb.segments.push_back(sg);
+  }
+  // The default length weight: E0 / L0 at the start (the request's scales, clamped), so that
+  // both terms weigh the same there and a gentler curve cannot be bought by length alone. It
+  // scales with the geometry (E in 1/m, L in m, the weight in 1/m^2), so it is the same for
+  // the same shape in millimetres or metres.
+  // The peak objectives may lengthen the curve by at most kPeakLengthGrowth over the start
+  // (see Audit).
+  const bool auto_weight = pb.objective == TangentScaleObjective::kBendingEnergy && !options.length_weight;
+  if (auto_weight || pb.peak()) {
+    std::vector<ControlPoints<double>> points;
+    double energy = 0.0, length = 0.0;
+    if (all_control_points(pb, pb.start.data(), points)) {
+      for (std::size_t i = 0; i < pb.segments.size(); ++i) {
+        double e = 0.0, l = 0.0;
+        segment_integrals(pb, points[i], pb.segments[i].tables->quad, pb.rule, e, l);
+        energy += e;
+        length += l;
+      }
+    }
+    if (auto_weight) {
+      const double weight = energy / length;
+      pb.length_weight = std::isfinite(weight) && weight > 0.0 ? weight : 0.0;
+    }
+    if (pb.peak() && std::isfinite(length) && length > 0.0) pb.max_length = kPeakLengthGrowth * length;
   }
   return pb;
 }
@@ -765,15 +941,15 @@ std::shared_ptr<const Tables> tables_for(int d) {
 // Objective: the integral, or the peaks' aggregate F (kAggregatePower). Rows: the regularity
 // rows G_r >= 0 (regularity_rows), each depending on its segment's two scales. Hessian: exact,
 // the lower triangle (dense for the peaks, whose aggregate couples every segment).
+// A point a solver evaluated that meets the regularity rows, with its solver measure (the
+// integral, or the largest peak row).
+struct Candidate {
+  std::vector<double> scales;
+  double measure = 0.0;
+};
+
 class ScaleNlp : public Ipopt::TNLP {
  public:
-  // A point the solver evaluated that meets the regularity rows, with its solver measure
-  // (the integral, or the largest peak row).
-  struct Candidate {
-    std::vector<double> scales;
-    double measure = 0.0;
-  };
-
   ScaleNlp(const Problem& pb, Clock::time_point stop_at, std::stop_token stop)
       : pb_(pb), stop_at_(stop_at), stop_(std::move(stop)), n_(pb.scale_count),
         m_(static_cast<int>(pb.constraint_count())) {
@@ -805,7 +981,7 @@ class ScaleNlp : public Ipopt::TNLP {
                     IndexStyleEnum& index_style) override {
     n = n_;
     m = m_;
-    nnz_jac_g = 2 * m_;
+    nnz_jac_g = 2 * static_cast<int>(pb_.regularity_count()) + (pb_.length_row() ? n_ : 0);
     nnz_h_lag = static_cast<Ipopt::Index>(hess_rows_.size());
     index_style = C_STYLE;
     return true;
@@ -845,26 +1021,34 @@ class ScaleNlp : public Ipopt::TNLP {
 
   bool eval_g(Ipopt::Index, const Ipopt::Number* x, bool, Ipopt::Index m, Ipopt::Number* g) override {
     if (!update(x)) return false;
-    for (int j = 0; j < m; ++j) g[j] = ev_.g[j].a;
+    const int reg = static_cast<int>(pb_.regularity_count());
+    for (int j = 0; j < reg; ++j) g[j] = ev_.g[j].a;
+    if (m > reg) g[reg] = ev_.length_row;
     return true;
   }
 
   bool eval_jac_g(Ipopt::Index, const Ipopt::Number* x, bool, Ipopt::Index m, Ipopt::Index, Ipopt::Index* rows,
                   Ipopt::Index* cols, Ipopt::Number* values) override {
+    const int reg = static_cast<int>(pb_.regularity_count());
     if (values == nullptr) {
-      for (int j = 0; j < m; ++j) {
+      for (int j = 0; j < reg; ++j) {
         const auto& sg = pb_.segments[j / pb_.rows_per_segment];
         rows[2 * j] = rows[2 * j + 1] = j;
         cols[2 * j] = sg.var0;
         cols[2 * j + 1] = sg.var1;
       }
+      for (int k = 0; m > reg && k < n_; ++k) {
+        rows[2 * reg + k] = reg;
+        cols[2 * reg + k] = k;
+      }
       return true;
     }
     if (!update(x)) return false;
-    for (int j = 0; j < m; ++j) {
+    for (int j = 0; j < reg; ++j) {
       values[2 * j] = ev_.g[j].g[0];
       values[2 * j + 1] = ev_.g[j].g[1];
     }
+    for (int k = 0; m > reg && k < n_; ++k) values[2 * reg + k] = ev_.length_grad[k];
     return true;
   }
 
@@ -879,12 +1063,23 @@ class ScaleNlp : public Ipopt::TNLP {
     }
     if (!update(x)) return false;
     for (std::size_t k = 0; k < hess_rows_.size(); ++k) values[k] = obj_factor * ev_.hess[hess_rows_[k] * n_ + hess_cols_[k]];
-    for (int j = 0; j < m; ++j) {
+    const int reg = static_cast<int>(pb_.regularity_count());
+    for (int j = 0; j < reg; ++j) {
       const auto& sg = pb_.segments[j / pb_.rows_per_segment];
       const AD& G = ev_.g[j];
       values[hess_index_[sg.var0 * n_ + sg.var0]] += lambda[j] * G.h[0];
       values[hess_index_[sg.var1 * n_ + sg.var1]] += lambda[j] * G.h[2];
       values[hess_index_[std::max(sg.var0, sg.var1) * n_ + std::min(sg.var0, sg.var1)]] += lambda[j] * G.h[1];
+    }
+    if (m > reg) {  // the length row: -sum of the segments' lengths / max_length
+      const double w = -lambda[reg] / pb_.max_length;
+      for (std::size_t i = 0; i < pb_.segments.size(); ++i) {
+        const auto& sg = pb_.segments[i];
+        const AD& L = ev_.length[i];
+        values[hess_index_[sg.var0 * n_ + sg.var0]] += w * L.h[0];
+        values[hess_index_[sg.var1 * n_ + sg.var1]] += w * L.h[2];
+        values[hess_index_[std::max(sg.var0, sg.var1) * n_ + std::min(sg.var0, sg.var1)]] += w * L.h[1];
+      }
     }
     return true;
   }
@@ -959,16 +1154,9 @@ TangentScaleResult make_result(const core::PathSpec& raw, const Problem& pb, con
   TangentScaleResult r;
   r.spec = raw;
   r.scales = scales;
-  for (std::size_t i = 0; i < r.spec.frames.size(); ++i) {
-    auto& f = r.spec.frames[i];
-    f.tangent_scale = scales[pb.approach_var[i]];
-    // One scale per frame but at cusps: a leaving scale the request gave elsewhere is replaced.
-    if (pb.leave_var[i] != pb.approach_var[i]) {
-      f.leave_tangent_scale = scales[pb.leave_var[i]];
-    } else {
-      f.leave_tangent_scale.reset();
-    }
-  }
+  r.length_weight = pb.length_weight;
+  // One scale per frame but at cusps: a leaving scale the request gave elsewhere is replaced.
+  write_scales(r.spec, pb.approach_var, pb.leave_var, scales.data());
   return r;
 }
 
@@ -976,15 +1164,17 @@ TangentScaleResult make_result(const core::PathSpec& raw, const Problem& pb, con
 // from the best solver objective up (ties in evaluation order), the first that passes the
 // verification (regular and resolved on the fine rules) and beats the start by the fine
 // measure. At most kMaxVerifications points are measured. Empty when none qualifies.
-std::optional<std::pair<std::vector<double>, double>> verified_best(const Problem& pb, const ScaleNlp& nlp,
+std::optional<std::pair<std::vector<double>, double>> verified_best(const Problem& pb,
+                                                                    const std::vector<double>& final_scales,
+                                                                    const std::vector<Candidate>& candidates,
                                                                     double start_value) {
   std::vector<const std::vector<double>*> order;
-  if (!nlp.final_scales().empty()) order.push_back(&nlp.final_scales());
-  std::vector<std::size_t> idx(nlp.candidates().size());
+  if (!final_scales.empty()) order.push_back(&final_scales);
+  std::vector<std::size_t> idx(candidates.size());
   for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = i;
   std::stable_sort(idx.begin(), idx.end(),
-                   [&](std::size_t a, std::size_t b) { return nlp.candidates()[a].measure < nlp.candidates()[b].measure; });
-  for (std::size_t i : idx) order.push_back(&nlp.candidates()[i].scales);
+                   [&](std::size_t a, std::size_t b) { return candidates[a].measure < candidates[b].measure; });
+  for (std::size_t i : idx) order.push_back(&candidates[i].scales);
   int measured = 0;
   std::vector<const std::vector<double>*> seen;
   for (const auto* scales : order) {
@@ -996,6 +1186,159 @@ std::optional<std::pair<std::vector<double>, double>> verified_best(const Proble
     if (a.regular && a.resolved && a.value < start_value) return std::make_pair(*scales, a.value);
   }
   return std::nullopt;
+}
+
+// The smoothest reading on NLopt's SLSQP (sequential quadratic programming, bounds and the
+// regularity rows as inequality constraints). Each segment depends on every scale through the
+// global solve, so the derivatives are central differences in y = ln(scale) of the whole
+// evaluation (objective and rows together, step kDifferenceStep): 2 n + 1 global solves per
+// gradient for n scales. Ipopt's exact-Hessian model of the lowest-degree reading does not
+// apply; SLSQP's quasi-Newton model needs no Hessian. NLopt is reentrant (no global state
+// for SLSQP), so no lock is taken. Iterations count evaluations with their gradient.
+constexpr double kDifferenceStep = 1e-5;
+constexpr double kSlsqpFtolRel = 1e-7;
+constexpr double kSlsqpXtolRel = 1e-6;
+constexpr double kFailedValue = 1e30;  // an evaluation that failed (singular solve): a bad point for SLSQP
+
+class GlobalSolver {
+ public:
+  GlobalSolver(const Problem& pb, Clock::time_point stop_at, std::stop_token stop)
+      : pb_(pb), stop_at_(stop_at), stop_(std::move(stop)), n_(pb.scale_count),
+        m_(static_cast<int>(pb.constraint_count())) {
+    GlobalEvaluation start;
+    evaluate_global(pb_, pb_.start.data(), start, 0.0, points_);
+    v0_ = start.largest;
+  }
+
+  // Runs SLSQP from the request's scales; returns NLopt's result.
+  nlopt_result run(int max_evaluations) {
+    nlopt_opt opt = nlopt_create(NLOPT_LD_SLSQP, static_cast<unsigned>(n_));
+    opt_ = opt;
+    std::vector<double> lo(n_), hi(n_), y(n_);
+    for (int i = 0; i < n_; ++i) {
+      lo[i] = std::log(pb_.lower[i]);
+      hi[i] = std::log(pb_.upper[i]);
+      y[i] = std::clamp(std::log(pb_.start[i]), lo[i], hi[i]);
+    }
+    nlopt_set_lower_bounds(opt, lo.data());
+    nlopt_set_upper_bounds(opt, hi.data());
+    nlopt_set_min_objective(opt, &GlobalSolver::objective, this);
+    const std::vector<double> tol(m_, 0.0);
+    nlopt_add_inequality_mconstraint(opt, static_cast<unsigned>(m_), &GlobalSolver::constraints, this, tol.data());
+    nlopt_set_ftol_rel(opt, kSlsqpFtolRel);
+    nlopt_set_xtol_rel(opt, kSlsqpXtolRel);
+    nlopt_set_maxeval(opt, max_evaluations);
+    double f = 0.0;
+    const nlopt_result result = nlopt_optimize(opt, y.data(), &f);
+    nlopt_destroy(opt);
+    opt_ = nullptr;
+    final_.resize(n_);
+    for (int i = 0; i < n_; ++i) final_[i] = std::clamp(std::exp(y[i]), pb_.lower[i], pb_.upper[i]);
+    return result;
+  }
+
+  const std::vector<Candidate>& candidates() const { return candidates_; }
+  const std::vector<double>& final_scales() const { return final_; }
+  bool timed_out() const { return timed_out_; }
+  int iterations() const { return iterations_; }
+
+ private:
+  static double objective(unsigned, const double* y, double* grad, void* data) {
+    auto& s = *static_cast<GlobalSolver*>(data);
+    if (!s.update(y, grad != nullptr)) return kFailedValue;
+    if (grad) std::copy(s.grad_.begin(), s.grad_.end(), grad);
+    return s.ev_.f;
+  }
+
+  // NLopt's form c(y) <= 0: c = -G.
+  static void constraints(unsigned m, double* result, unsigned n, const double* y, double* grad, void* data) {
+    auto& s = *static_cast<GlobalSolver*>(data);
+    if (!s.update(y, grad != nullptr)) {
+      std::fill(result, result + m, kFailedValue);
+      if (grad) std::fill(grad, grad + static_cast<std::size_t>(m) * n, 0.0);
+      return;
+    }
+    for (unsigned j = 0; j < m; ++j) result[j] = -s.ev_.g[j];
+    if (grad) {
+      for (std::size_t k = 0; k < static_cast<std::size_t>(m) * n; ++k) grad[k] = -s.jac_[k];
+    }
+  }
+
+  bool out_of_time() {
+    if (Clock::now() >= stop_at_ || stop_.stop_requested()) {
+      timed_out_ = true;
+      if (opt_) nlopt_force_stop(opt_);
+      return true;
+    }
+    return false;
+  }
+
+  // Evaluates at y (scales exp(y) clamped into the bounds) unless y is the last point, and its
+  // derivatives if asked; records a regular point as a candidate.
+  bool update(const double* y, bool derivatives) {
+    const bool same = have_ && std::equal(y, y + n_, y_.begin());
+    if (same && (!derivatives || have_derivatives_)) return ok_;
+    if (out_of_time()) return false;
+    if (!same) {
+      y_.assign(y, y + n_);
+      scales_.resize(n_);
+      for (int i = 0; i < n_; ++i) scales_[i] = std::clamp(std::exp(y_[i]), pb_.lower[i], pb_.upper[i]);
+      evaluate_global(pb_, scales_.data(), ev_, v0_, points_);
+      have_ = true;
+      have_derivatives_ = false;
+      ok_ = ev_.ok;
+      if (ok_ && ev_.regular) candidates_.push_back({scales_, pb_.peak() ? ev_.largest : ev_.f});
+    }
+    if (!ok_ || !derivatives) return ok_;
+    ++iterations_;
+    grad_.assign(n_, 0.0);
+    jac_.assign(static_cast<std::size_t>(m_) * n_, 0.0);
+    std::vector<double> probe = scales_;
+    GlobalEvaluation plus, minus;
+    for (int k = 0; k < n_; ++k) {
+      if (out_of_time()) return false;
+      probe[k] = scales_[k] * std::exp(kDifferenceStep);
+      evaluate_global(pb_, probe.data(), plus, v0_, points_);
+      probe[k] = scales_[k] * std::exp(-kDifferenceStep);
+      evaluate_global(pb_, probe.data(), minus, v0_, points_);
+      probe[k] = scales_[k];
+      if (!plus.ok || !minus.ok) continue;  // a singular neighbour: no slope along k
+      grad_[k] = (plus.f - minus.f) / (2.0 * kDifferenceStep);
+      for (int j = 0; j < m_; ++j) jac_[j * n_ + k] = (plus.g[j] - minus.g[j]) / (2.0 * kDifferenceStep);
+    }
+    have_derivatives_ = true;
+    return true;
+  }
+
+  const Problem& pb_;
+  Clock::time_point stop_at_;
+  std::stop_token stop_;
+  int n_, m_;
+  nlopt_opt opt_ = nullptr;
+  double v0_ = 0.0;
+  GlobalEvaluation ev_;
+  std::vector<ControlPoints<double>> points_;
+  std::vector<double> y_, scales_, grad_, jac_, final_;
+  bool have_ = false, have_derivatives_ = false, ok_ = false;
+  std::vector<Candidate> candidates_;
+  bool timed_out_ = false;
+  int iterations_ = 0;
+};
+
+const char* nlopt_status_name(nlopt_result r) {
+  switch (r) {
+    case NLOPT_SUCCESS: return "SLSQP: converged";
+    case NLOPT_STOPVAL_REACHED: return "SLSQP: objective value reached";
+    case NLOPT_FTOL_REACHED: return "SLSQP: converged (objective tolerance)";
+    case NLOPT_XTOL_REACHED: return "SLSQP: converged (step tolerance)";
+    case NLOPT_MAXEVAL_REACHED: return "SLSQP: evaluation limit reached";
+    case NLOPT_MAXTIME_REACHED: return "SLSQP: time limit reached";
+    case NLOPT_ROUNDOFF_LIMITED: return "SLSQP: stopped by rounding";
+    case NLOPT_FORCED_STOP: return "SLSQP: stopped at the time limit";
+    case NLOPT_INVALID_ARGS: return "SLSQP: invalid arguments";
+    case NLOPT_OUT_OF_MEMORY: return "SLSQP: out of memory";
+    default: return "SLSQP: failure";
+  }
 }
 
 }  // namespace
@@ -1034,6 +1377,33 @@ core::Expected<TangentScaleResult> optimize_from(const core::PathSpec& spec, con
     report.status = OptimizerStatus::kTimeLimit;
     report.message = "no time left before the first iteration";
     return finish(pb.start, report.objective_before);
+  }
+
+  if (pb.global) {
+    GlobalSolver solver(pb, stop_at, options.stop);
+    const nlopt_result result = solver.run(std::max(1, options.max_iterations));
+    report.iterations = solver.iterations();
+    report.message = nlopt_status_name(result);
+    switch (result) {
+      case NLOPT_SUCCESS:
+      case NLOPT_STOPVAL_REACHED:
+      case NLOPT_FTOL_REACHED:
+      case NLOPT_XTOL_REACHED:
+      case NLOPT_ROUNDOFF_LIMITED: report.status = OptimizerStatus::kConverged; break;
+      case NLOPT_MAXEVAL_REACHED: report.status = OptimizerStatus::kIterationLimit; break;
+      case NLOPT_FORCED_STOP:
+      case NLOPT_MAXTIME_REACHED: report.status = OptimizerStatus::kTimeLimit; break;
+      default: report.status = OptimizerStatus::kFailed; break;
+    }
+    if (solver.timed_out()) report.status = OptimizerStatus::kTimeLimit;
+    if (report.status == OptimizerStatus::kFailed) return finish(pb.start, report.objective_before);
+    const auto best = verified_best(pb, solver.final_scales(), solver.candidates(), report.objective_before);
+    if (!best) {
+      if (report.status != OptimizerStatus::kTimeLimit) report.status = OptimizerStatus::kNoImprovement;
+      report.message += "; no regular point beats the start by the fine measure";
+      return finish(pb.start, report.objective_before);
+    }
+    return finish(best->first, best->second);
   }
 
   // Declared before the application, so released after it is destroyed (ipopt_lock.hpp).
@@ -1087,7 +1457,7 @@ core::Expected<TangentScaleResult> optimize_from(const core::PathSpec& spec, con
   if (nlp->timed_out()) report.status = OptimizerStatus::kTimeLimit;
   if (report.status == OptimizerStatus::kFailed) return finish(pb.start, report.objective_before);
 
-  const auto best = verified_best(pb, *nlp, report.objective_before);
+  const auto best = verified_best(pb, nlp->final_scales(), nlp->candidates(), report.objective_before);
   if (!best) {
     if (report.status != OptimizerStatus::kTimeLimit) report.status = OptimizerStatus::kNoImprovement;
     report.message += "; no regular point beats the start by the fine measure";
@@ -1110,8 +1480,7 @@ core::Expected<TangentScaleResult> optimize_tangent_scales(const core::PathSpec&
   // request, and when the warm start does not beat it, the direct solve runs as before.
   const auto t0 = Clock::now();
   TangentScaleOptions smooth = options;
-  smooth.objective = TangentScaleObjective::kBendingEnergy;
-  smooth.length_weight = 0.0;
+  smooth.objective = TangentScaleObjective::kBendingEnergy;  // with the request's length weight, or the default
   auto first = optimize_from(spec, smooth);
   if (!first) return first;
   const auto before = tangent_scale_objective(spec, options);
@@ -1145,6 +1514,15 @@ core::Expected<double> tangent_scale_objective(const core::PathSpec& spec, const
     scales.push_back(core::side_scale(f, false));
     if (problem->leave_var[i] != problem->approach_var[i]) scales.push_back(core::side_scale(f, true));
   }
+  if (problem->global) {
+    GlobalEvaluation ev;
+    std::vector<ControlPoints<double>> points;
+    evaluate_global(*problem, scales.data(), ev, 0.0, points);
+    if (!ev.ok) {
+      return tl::unexpected(core::Violations{{"path", "the smoothest solve at these tangent scales is singular"}});
+    }
+    return problem->peak() ? std::sqrt(ev.largest) : ev.f;
+  }
   Evaluation ev;
   evaluate(*problem, scales.data(), ev);
   return reported(*problem, ev);
@@ -1158,6 +1536,32 @@ core::Expected<ObjectiveGradient> tangent_scale_gradient(const core::PathSpec& s
   if (scales.size() != static_cast<std::size_t>(pb.scale_count)) {
     return tl::unexpected(core::Violations{{"scales", "expected " + std::to_string(pb.scale_count) + " scales, got " +
                                                           std::to_string(scales.size())}});
+  }
+  if (pb.global) {
+    // Central differences in ln(scale) of the value (see GlobalSolver).
+    const auto value_at = [&](const std::vector<double>& at, double& v) {
+      GlobalEvaluation ev;
+      std::vector<ControlPoints<double>> points;
+      evaluate_global(pb, at.data(), ev, 0.0, points);
+      v = pb.peak() ? ev.largest : ev.f;
+      return ev.ok;
+    };
+    ObjectiveGradient out;
+    if (!value_at(scales, out.value)) {
+      return tl::unexpected(core::Violations{{"path", "the smoothest solve at these tangent scales is singular"}});
+    }
+    out.gradient.assign(pb.scale_count, 0.0);
+    std::vector<double> probe = scales;
+    for (int k = 0; k < pb.scale_count; ++k) {
+      double plus = 0.0, minus = 0.0;
+      probe[k] = scales[k] * std::exp(kDifferenceStep);
+      const bool a = value_at(probe, plus);
+      probe[k] = scales[k] * std::exp(-kDifferenceStep);
+      const bool b = value_at(probe, minus);
+      probe[k] = scales[k];
+      if (a && b) out.gradient[k] = (plus - minus) / (2.0 * kDifferenceStep) / scales[k];
+    }
+    return out;
   }
   Evaluation ev;
   evaluate(pb, scales.data(), ev);

@@ -840,6 +840,7 @@ core::Expected<optim::BreakpointOptions> breakpoint_options(const v1::PlanReques
 void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out) {
   set_report(result.report, out);
   for (double scale : result.scales) out.add_tangent_scales(scale);
+  out.set_length_weight(result.length_weight);
 }
 
 void to_proto(const optim::OptimizerReport& report, const std::vector<core::BindingStretch>& binding,

@@ -26,8 +26,9 @@ v1::PlanRequest pa10_fastest(bool jerk_limited) {
   return request;
 }
 
-v1::PlanRequest tangent_scales() {
-  auto request = demo_request('a');
+// Lowest degree (Ipopt, serialised) or the default smoothest reading (NLopt's SLSQP, reentrant).
+v1::PlanRequest tangent_scales(bool smoothest = false) {
+  auto request = smoothest ? demo_example('a') : demo_request('a');
   request.mutable_optimize()->mutable_tangent_scales()->set_objective(v1::TANGENT_SCALE_OBJECTIVE_BENDING_ENERGY);
   return request;
 }
@@ -48,8 +49,10 @@ class Concurrency : public ::testing::Test {
   }
   void TearDown() override { server::stop_server(running_, std::chrono::seconds(5)); }
 
-  // One call of kind `k`; `cancel_after` > 0 cancels it after that long. Returns its code.
-  grpc::StatusCode call(v1::TrajectoryService::Stub& stub, int k, std::chrono::milliseconds cancel_after) {
+  // One call of kind `k`; `cancel_after` > 0 cancels it after that long; `smoothest`: the
+  // tangent-scale kind under the default reading. Returns its code.
+  grpc::StatusCode call(v1::TrajectoryService::Stub& stub, int k, std::chrono::milliseconds cancel_after,
+                        bool smoothest = false) {
     auto ctx = short_context(120);
     std::optional<std::jthread> canceller;
     if (cancel_after.count() > 0) {
@@ -65,7 +68,7 @@ class Concurrency : public ::testing::Test {
     v1::PlanResponse plan;
     switch (k) {
       case 0: status = stub.PlanTrajectory(ctx.get(), demo_request('b'), &plan); break;
-      case 1: status = stub.PlanTrajectory(ctx.get(), tangent_scales(), &plan); break;
+      case 1: status = stub.PlanTrajectory(ctx.get(), tangent_scales(smoothest), &plan); break;
       case 2: status = stub.PlanTrajectory(ctx.get(), breakpoints(), &plan); break;
       case 3: status = stub.PlanTrajectory(ctx.get(), pa10_fastest(false), &plan); break;
       case 4: status = stub.PlanTrajectory(ctx.get(), pa10_fastest(true), &plan); break;
@@ -149,7 +152,7 @@ TEST_F(Concurrency, EveryRpcManyAtOnceSomeCancelledMidway) {
           // Every third call is cancelled after 1-30 ms: before, during or after its work.
           const bool cancel = (k + r + c) % 3 == 0;
           const auto after = std::chrono::milliseconds(cancel ? 1 + static_cast<int>(random() % 30) : 0);
-          const auto code = call(*stub, kind, after);
+          const auto code = call(*stub, kind, after, (r + c) % 2 == 1);
           const std::lock_guard lock(mutex);
           ++codes[code];
           if (cancel) {
@@ -177,12 +180,12 @@ TEST_F(Concurrency, EveryRpcManyAtOnceSomeCancelledMidway) {
 TEST_F(Concurrency, TangentScaleOptimisationsAtOnce) {
   std::vector<std::future<grpc::Status>> calls;
   for (int c = 0; c < 4; ++c) {
-    calls.push_back(std::async(std::launch::async, [this] {
+    calls.push_back(std::async(std::launch::async, [this, c] {
       auto stub = stub_to(running_.port);
       grpc::Status last;
       for (int i = 0; i < 3; ++i) {
         v1::PlanResponse response;
-        last = stub->PlanTrajectory(short_context(120).get(), tangent_scales(), &response);
+        last = stub->PlanTrajectory(short_context(120).get(), tangent_scales((c + i) % 2 == 1), &response);
         if (!last.ok()) return last;
         EXPECT_TRUE(response.optimization().has_tangent_scales());
       }

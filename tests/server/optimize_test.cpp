@@ -93,6 +93,7 @@ double peak_torsion(const v1::PathProfile& profile) {
 struct ScaleCase {
   v1::TangentScaleObjective objective;
   const char* name;
+  bool default_reading = false;  // the shipped example (the smoothest reading), else lowest degree
 };
 void PrintTo(const ScaleCase& c, std::ostream* os) { *os << c.name; }
 
@@ -100,7 +101,8 @@ class TangentScales : public OptimizeTest, public ::testing::WithParamInterface<
 
 TEST_P(TangentScales, DemoPathA) {
   const ScaleCase c = GetParam();
-  const v1::PlanRequest plain = demo_request('a');  // with its 10 s motion, so that it also streams
+  // With its 10 s motion, so that it also streams.
+  const v1::PlanRequest plain = c.default_reading ? demo_example('a') : demo_request('a');
   v1::PlanRequest request = plain;
   request.mutable_optimize()->mutable_tangent_scales()->set_objective(c.objective);
 
@@ -165,6 +167,17 @@ TEST_P(TangentScales, DemoPathA) {
     EXPECT_NEAR(before.arc_length(), r.objective_before(), 1e-6 * r.objective_before());
     EXPECT_LT(after.arc_length(), before.arc_length());
     std::printf("[ measured ] arc length %.6f m -> %.6f m\n", before.arc_length(), after.arc_length());
+  } else if (c.objective == v1::TANGENT_SCALE_OBJECTIVE_PEAK_CURVATURE) {
+    // Independent: the largest curvature over the 20001-point profile, and the geometry
+    // report's peak (refined between samples).
+    double peak = 0.0, reported = 0.0;
+    for (const auto& p : profile.points()) peak = std::max(peak, p.has_curvature() ? p.curvature() : 0.0);
+    for (const auto& seg : after.segments()) reported = std::max(reported, seg.peak_curvature().value());
+    std::printf("[ measured ] peak curvature %.6g -> %.6g 1/m (profile), %.6g (geometry report)\n",
+                r.objective_before(), peak, reported);
+    EXPECT_NEAR(peak, r.objective_after(), 0.01 * r.objective_after());
+    EXPECT_NEAR(reported, r.objective_after(), 0.01 * r.objective_after());
+    EXPECT_LT(after.arc_length(), 2.25 * before.arc_length()) << "kPeakLengthGrowth from its bending-energy start";
   } else {
     // Independent: kappa^2 integrated over s by the trapezoid rule on 20001 points uniform in
     // u. The optimiser measures it with its own Gauss-Legendre rule; they agree to about
@@ -174,15 +187,24 @@ TEST_P(TangentScales, DemoPathA) {
     plain_dense.set_analysis_points(20001);
     const double energy_before = bending_energy(analyze_ok(plain_dense));
     std::printf("[ measured ] bending energy (trapezoid, 20001 points) %.6g -> %.6g 1/m\n", energy_before, energy);
-    EXPECT_NEAR(energy, r.objective_after(), 0.01 * r.objective_after());
-    EXPECT_NEAR(energy_before, r.objective_before(), 0.01 * r.objective_before());
-    EXPECT_LT(energy, energy_before);
+    // The objective adds the length weight times the arc length (by default E0 / L0).
+    const double w = r.length_weight();
+    EXPECT_GT(w, 0.0) << "the default length weight";
+    EXPECT_NEAR(w, energy_before / before.arc_length(), 0.01 * w);
+    EXPECT_NEAR(energy + w * after.arc_length(), r.objective_after(), 0.01 * r.objective_after());
+    EXPECT_NEAR(energy_before + w * before.arc_length(), r.objective_before(), 0.01 * r.objective_before());
+    EXPECT_LT(energy + w * after.arc_length(), energy_before + w * before.arc_length());
+    EXPECT_LT(after.arc_length(), 1.3 * before.arc_length()) << "the length stays in check";
   }
 }
 
 INSTANTIATE_TEST_SUITE_P(Objectives, TangentScales,
                          ::testing::Values(ScaleCase{v1::TANGENT_SCALE_OBJECTIVE_BENDING_ENERGY, "BendingEnergy"},
-                                           ScaleCase{v1::TANGENT_SCALE_OBJECTIVE_ARC_LENGTH, "ArcLength"}),
+                                           ScaleCase{v1::TANGENT_SCALE_OBJECTIVE_ARC_LENGTH, "ArcLength"},
+                                           ScaleCase{v1::TANGENT_SCALE_OBJECTIVE_BENDING_ENERGY,
+                                                     "BendingEnergySmoothest", true},
+                                           ScaleCase{v1::TANGENT_SCALE_OBJECTIVE_PEAK_CURVATURE,
+                                                     "PeakCurvatureSmoothest", true}),
                          [](const auto& p) { return std::string(p.param.name); });
 
 // =========================================================================================

@@ -354,6 +354,61 @@ TEST_F(RobotTest, SlowDemoStreamsJointsThatReproduceTheTool) {
   }
 }
 
+// The thesis's demonstration under the default reading on the PA-10, as fast as its limits
+// allow (durationS 0): every path streams, starts at home and keeps every joint limit, as
+// streamed and as measured on the stream by differences of the joint positions (first
+// differences for the velocity, second for the acceleration: both see what happens between
+// samples, where the timing's limits are met at its grid points: measured up to 0.008 % over).
+TEST_F(RobotTest, FastestDemonstrationStreamsWithinTheLimitsUnderTheDefaultReading) {
+  const auto pa10 = robot_model("pa10");
+  for (char which : {'a', 'b', 'c'}) {
+    SCOPED_TRACE(std::string("path ") + which);
+    auto request = example<v1::PlanRequest>("plan_pa10_path_c.json");
+    *request.mutable_path() = demo_example(which).path();
+    ASSERT_EQ(request.path().unspecified(), v1::UNSPECIFIED_CONSTRAINTS_UNSPECIFIED) << "the default reading";
+    request.mutable_motion()->set_duration_s(0.0);
+    v1::PlanResponse response;
+    const auto plan_status = plan(request, response);
+    ASSERT_TRUE(plan_status.ok()) << plan_status.error_message();
+    ASSERT_TRUE(response.robot().feasible());
+    EXPECT_LT(response.motion().duration_s(), 6.0) << "faster than the thesis's 10 s";
+    grpc::Status status;
+    const auto samples = stream_all(request, status);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    ASSERT_EQ(samples.size(), response.motion().sample_count());
+    double worst_v = 0.0, worst_a = 0.0, worst_fd_v = 0.0, worst_fd_a = 0.0;
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+      const auto& smp = samples[k];
+      ASSERT_EQ(smp.joints_size(), 7);
+      for (int j = 0; j < 7; ++j) {
+        const auto& lim = pa10.limits(j);
+        EXPECT_GE(smp.joints(j), lim.min_position());
+        EXPECT_LE(smp.joints(j), lim.max_position());
+        worst_v = std::max(worst_v, std::abs(smp.joint_velocities(j)) / lim.max_velocity());
+        worst_a = std::max(worst_a, std::abs(smp.joint_accelerations(j)) / lim.max_acceleration());
+        if (k == 0) continue;
+        const auto& prev = samples[k - 1];
+        const double dt = smp.t() - prev.t();
+        worst_fd_v = std::max(worst_fd_v, std::abs(smp.joints(j) - prev.joints(j)) / dt / lim.max_velocity());
+        if (k + 1 == samples.size()) continue;
+        const auto& next = samples[k + 1];
+        const double h = 0.5 * (next.t() - prev.t());
+        const double second = ((next.joints(j) - smp.joints(j)) / (next.t() - smp.t()) -
+                               (smp.joints(j) - prev.joints(j)) / (smp.t() - prev.t())) / h;
+        worst_fd_a = std::max(worst_fd_a, std::abs(second) / lim.max_acceleration());
+      }
+    }
+    std::printf("[ measured ] path %c: %.3f s; usage streamed v %.6f a %.6f, by differences v %.6f a %.6f\n", which,
+                response.motion().duration_s(), worst_v, worst_a, worst_fd_v, worst_fd_a);
+    EXPECT_LE(worst_v, 1.0 + 1e-6);
+    EXPECT_LE(worst_a, 1.0 + 1e-6);
+    EXPECT_LE(worst_fd_v, 1.0 + 1e-3);
+    EXPECT_LE(worst_fd_a, 1.0 + 1e-2);
+    EXPECT_GT(worst_v, 0.99) << "time-optimal: some joint at its velocity limit";
+    for (int j = 0; j < 7; ++j) EXPECT_NEAR(samples.front().joints(j), pa10.home(j), 1e-6) << "joint " << j;
+  }
+}
+
 // A limit broken on purpose: an inline copy of the PA-10 whose joint 2 may barely move.
 TEST_F(RobotTest, ABrokenLimitNamesItsJoint) {
   auto slow = robot_model("pa10");

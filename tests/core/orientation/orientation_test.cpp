@@ -256,6 +256,10 @@ struct Case {
 };
 
 core::PathSpec demo_c() { return testing::thesis_demo_path('C'); }
+// The demonstration under the default reading (the smoothest curve).
+core::PathSpec demo_c_smoothest() {
+  return testing::thesis_demo_path('C', core::BlendMethod::kPolynomial, core::UnspecifiedConstraints::kSmoothest);
+}
 core::PathSpec line_with_normals() { return line_spec(true); }
 
 class EveryMode : public ::testing::TestWithParam<std::tuple<Case, OrientationMode>> {};
@@ -282,7 +286,8 @@ TEST_P(EveryMode, OnPath) {
 INSTANTIATE_TEST_SUITE_P(Orientation, EveryMode,
                          ::testing::Combine(::testing::Values(Case{"helix", helix_spec}, Case{"circle", circle_spec},
                                                               Case{"line", line_with_normals},
-                                                              Case{"demoC", demo_c}),
+                                                              Case{"demoC", demo_c},
+                                                              Case{"demoCSmoothest", demo_c_smoothest}),
                                             ::testing::Values(OrientationMode::kFixed, OrientationMode::kFrameBased,
                                                               OrientationMode::kCustom, OrientationMode::kFrenet,
                                                               OrientationMode::kParallelTransport)),
@@ -290,6 +295,55 @@ INSTANTIATE_TEST_SUITE_P(Orientation, EveryMode,
                            return std::string(std::get<0>(param_info.param).name) + "_" +
                                   name(std::get<1>(param_info.param));
                          });
+
+// Under the default reading the demonstration is G4 at frame 1 (nothing breaks it there):
+// the tangent-following tools turn continuously across it, the same orientation and the
+// same angular velocity and acceleration per unit speed on both sides (FRENET's velocity is
+// the Darboux vector tau T + kappa B; the acceleration takes kappa' and tau', which frame 1
+// leaves to the reading here). Along every segment no step between
+// points 1/2000 apart turns more than that rate allows.
+TEST(Orientation, TangentFollowingModesAreContinuousUnderTheDefaultReading) {
+  for (char which : {'A', 'B', 'C'}) {
+    for (const auto mode : {OrientationMode::kFrenet, OrientationMode::kParallelTransport}) {
+      const std::string what = std::string("path ") + which + "/" + name(mode);
+      auto spec =
+          testing::thesis_demo_path(which, core::BlendMethod::kPolynomial, core::UnspecifiedConstraints::kSmoothest);
+      spec.frames[1].kappa_d.reset();  // left to the smoothest reading: continuous, not given
+      spec.frames[1].tau_d.reset();
+      const Path path = build_or_fail(with_mode(spec, mode));
+      const auto plan = core::plan_orientation(path);
+      ASSERT_TRUE(plan) << what;
+      const double s1 = path.cumulative_lengths[1];
+      const auto before = core::orientation_at(*plan, path, 0, 1.0, s1, 1.0, 0.0);
+      const auto after = core::orientation_at(*plan, path, 1, 0.0, s1, 1.0, 0.0);
+      EXPECT_LT(before.q_WT.angularDistance(after.q_WT), 1e-9) << what;
+      EXPECT_LT((before.omega_W - after.omega_W).norm(), 1e-6 * std::max(1.0, before.omega_W.norm()))
+          << what << ": " << before.omega_W.transpose() << " | " << after.omega_W.transpose();
+      // d omega / ds (at s_dot = 1, s_ddot = 0) involves kappa' and tau': G4 keeps it too.
+      EXPECT_LT((before.alpha_W - after.alpha_W).norm(), 1e-6 * std::max(1.0, before.alpha_W.norm()))
+          << what << ": " << before.alpha_W.transpose() << " | " << after.alpha_W.transpose();
+      if (mode == OrientationMode::kFrenet) {
+        const auto g = geometry(path, 1, 0.0);
+        EXPECT_TRUE(VecNear(after.omega_W, g.tau * g.T + g.kappa * g.B, 1e-6 * after.omega_W.norm())) << what;
+      }
+      constexpr int kSteps = 2000;
+      for (std::size_t i = 0; i < path.segment_count(); ++i) {
+        auto prev = core::orientation_at(*plan, path, i, 0.0, path.cumulative_lengths[i], 1.0, 0.0);
+        double prev_s = path.cumulative_lengths[i];
+        for (int k = 1; k <= kSteps; ++k) {
+          const double u = static_cast<double>(k) / kSteps;
+          const double s = prev_s + core::segment_arc_length(path.segments[i], u - 1.0 / kSteps, u);
+          const auto o = core::orientation_at(*plan, path, i, u, s, 1.0, 0.0);
+          const double rate = std::max(prev.omega_W.norm(), o.omega_W.norm());
+          EXPECT_LE(prev.q_WT.angularDistance(o.q_WT), 1.05 * rate * (s - prev_s) + 1e-9)
+              << what << " segment " << i << " u " << u;
+          prev = o;
+          prev_s = s;
+        }
+      }
+    }
+  }
+}
 
 // The demo path's frame 2 is a cusp: the tangent-following modes flip the tool frame by pi
 // about its y axis after it, so the tool's z keeps pointing along the key frame's T.

@@ -214,7 +214,34 @@ TEST(Readings, NormalWithoutCurvatureIsHonoured) {
   const auto achieved = core::achieved_geometry(path);
   ASSERT_TRUE(achieved[1].leave && achieved[1].leave->has_normal);
   EXPECT_LT(std::abs(achieved[1].leave->N.y()), 1e-12) << "the osculating plane is the x-z plane";
+  // ... and the plane does not turn at the frame: B . p''' = 0, tau = 0 on both sides.
+  EXPECT_LT(std::abs(achieved[1].leave->tau), 1e-9 * std::max(1.0, achieved[1].leave->kappa));
+  ASSERT_TRUE(achieved[1].approach && achieved[1].approach->has_normal);
+  EXPECT_LT(std::abs(achieved[1].approach->tau), 1e-9 * std::max(1.0, achieved[1].approach->kappa));
   EXPECT_LT(closed_loop(path), 1e-9);
+}
+
+// The demonstration's end frames give a tangent and a normal only. Their curvature is free
+// and can be small (path C's last frame: 0.98 1/m); with B . p''' free too the plane spun
+// there at tau = 1244 1/m. Held by the normal, tau is 0 at both ends and path C's last
+// segment stays within 1.2x the largest torsion the request gives (100 1/m).
+TEST(Readings, FreeEndsWithANormalKeepTheirPlane) {
+  for (char which : {'A', 'B', 'C'}) {
+    const auto path = test::build_or_fail(
+        testing::thesis_demo_path(which, core::BlendMethod::kPolynomial, UnspecifiedConstraints::kSmoothest));
+    const auto achieved = core::achieved_geometry(path);
+    ASSERT_TRUE(achieved.front().leave && achieved.front().leave->has_normal) << which;
+    ASSERT_TRUE(achieved.back().approach && achieved.back().approach->has_normal) << which;
+    EXPECT_LT(std::abs(achieved.front().leave->tau), 1e-9) << which;
+    EXPECT_LT(std::abs(achieved.back().approach->tau), 1e-9) << which;
+  }
+  const auto c = test::build_or_fail(
+      testing::thesis_demo_path('C', core::BlendMethod::kPolynomial, UnspecifiedConstraints::kSmoothest));
+  double peak = 0.0;
+  for (const auto& pt : core::analyze(c, 20001)) {
+    if (pt.segment == 2 && pt.geometry.has_normal) peak = std::max(peak, std::abs(pt.geometry.tau));
+  }
+  EXPECT_LT(peak, 120.0);
 }
 
 // Under the thesis's reading a zero torsion or derivative where the curvature is 0 is the

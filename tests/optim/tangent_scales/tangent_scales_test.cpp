@@ -121,7 +121,20 @@ std::pair<double, double> check_optimisation(const PathSpec& spec, const Tangent
   EXPECT_NE(r.report.status, OptimizerStatus::kFailed) << r.report.message << "\n" << describe(spec);
   EXPECT_LE(r.report.objective_after, r.report.objective_before);
   // The frames' constraints are met exactly (the conversion meets them for any scale).
-  EXPECT_LT(closed_loop(r.spec), 1e-9);
+  {
+    const auto path = core::build_path(r.spec);
+    EXPECT_TRUE(path.has_value()) << describe(spec);
+    if (!path) return {NAN, NAN};
+    const auto loop = core::closed_loop_error(*path, core::achieved_geometry(*path));
+    // Under the degree 9 readings at scales near their lower bound (0.1 chord, where the
+    // arc-length objective goes) the fourth derivative at a frame is a fourth difference of
+    // control points a metre in size, 9 * 8 * 7 * 6 times amplified: its rounding reaches a few
+    // 1e-9 of a given tau' (measured 7e-9 on one random set). Elsewhere 1e-9.
+    const bool degree9 = spec.unspecified != core::UnspecifiedConstraints::kLowestDegree;
+    const double loop_tolerance = degree9 && options.objective == Objective::kArcLength ? 1e-8 : 1e-9;
+    EXPECT_LT(loop.max_error, loop_tolerance) << loop.worst_field << " " << objective_name(options.objective) << "\n"
+                                    << describe(r.spec);
+  }
   // Within the default bounds, in the documented layout.
   std::size_t k = 0;
   for (const auto& f : r.spec.frames) {
@@ -134,9 +147,13 @@ std::pair<double, double> check_optimisation(const PathSpec& spec, const Tangent
   for (double s : r.scales) EXPECT_GT(s, 0.0);
   // The reported objective is what core measures (quadrature vs dense sampling; the peaks
   // are taken at kPeakSamples points, so they can only be below the dense maximum).
-  const double after = independent_objective(r.spec, options.objective, options.length_weight);
+  const double after = independent_objective(r.spec, options.objective, r.length_weight);
   if (options.objective == Objective::kPeakCurvature || options.objective == Objective::kPeakTorsion) {
-    EXPECT_LE(r.report.objective_after, after * (1 + 1e-3));
+    // Peak torsion: both measures sample a function that spikes at the curvature floor, so
+    // they differ by a little either way (2 %, as the property test allows).
+    const double slack = options.objective == Objective::kPeakTorsion ? 1.02 : 1 + 1e-3;
+    EXPECT_LE(r.report.objective_after, after * slack) << objective_name(options.objective) << "\n"
+                                                            << describe(r.spec);
     // Torsion can spike between samples where the curve is nearly straight (a known
     // limitation of the sampled peak, see the header): only curvature is held to the dense measure.
     if (options.objective == Objective::kPeakCurvature) {
@@ -145,15 +162,28 @@ std::pair<double, double> check_optimisation(const PathSpec& spec, const Tangent
   } else {
     EXPECT_NEAR(r.report.objective_after, after, 2e-3 * after);
   }
-  const double before = independent_objective(spec, options.objective, options.length_weight);
+  const double before = independent_objective(spec, options.objective, r.length_weight);
   return {before, after};
 }
 
-class ThesisDemo : public ::testing::TestWithParam<std::tuple<char, Objective>> {};
+using Reading = core::UnspecifiedConstraints;
+const Reading kAllReadings[] = {Reading::kSmoothest, Reading::kThesisZeros, Reading::kLowestDegree};
+
+const char* reading_name(Reading r) {
+  switch (r) {
+    case Reading::kSmoothest: return "smoothest";
+    case Reading::kThesisZeros: return "thesis zeros";
+    case Reading::kLowestDegree: return "lowest degree";
+  }
+  return "?";
+}
+
+class ThesisDemo : public ::testing::TestWithParam<std::tuple<char, Objective, Reading>> {};
 
 TEST_P(ThesisDemo, ObjectiveImprovesAndFramesStayMet) {
-  const auto [which, objective] = GetParam();
-  const PathSpec spec = testing::thesis_demo_path(which);
+  const auto [which, objective, reading] = GetParam();
+  SCOPED_TRACE(std::string("path ") + which + ", " + objective_name(objective) + ", " + reading_name(reading));
+  const PathSpec spec = testing::thesis_demo_path(which, core::BlendMethod::kPolynomial, reading);
   TangentScaleOptions options;
   options.objective = objective;
   const auto [before, after] = check_optimisation(spec, options);
@@ -186,7 +216,8 @@ TEST_P(ThesisDemo, ObjectiveImprovesAndFramesStayMet) {
 }
 
 INSTANTIATE_TEST_SUITE_P(PathsAndObjectives, ThesisDemo,
-                         ::testing::Combine(::testing::Values('A', 'B', 'C'), ::testing::ValuesIn(kAllObjectives)));
+                         ::testing::Combine(::testing::Values('A', 'B', 'C'), ::testing::ValuesIn(kAllObjectives),
+                                            ::testing::ValuesIn(kAllReadings)));
 
 TEST(TangentScales, BendingEnergyWithLengthWeight) {
   const PathSpec spec = testing::thesis_demo_path('B');
@@ -355,11 +386,6 @@ TEST(TangentScales, InvalidPathsAreNamedErrors) {
   EXPECT_TRUE(has_field(r.error(), "path.frames[1].curvature"));
   EXPECT_TRUE(has_field(r.error(), "path.frames[3].leaveTangentScale"));
 
-  const auto s = optimize_tangent_scales(testing::thesis_demo_path('A', core::BlendMethod::kPolynomial,
-                                                                   core::UnspecifiedConstraints::kSmoothest));
-  ASSERT_FALSE(s.has_value());
-  EXPECT_TRUE(has_field(s.error(), "path.unspecified"));
-
   const auto t = optimize_tangent_scales(testing::thesis_demo_path('A', core::BlendMethod::kTrapezoidal));
   ASSERT_FALSE(t.has_value());
   EXPECT_TRUE(has_field(t.error(), "path.blend"));
@@ -384,15 +410,130 @@ TEST(TangentScales, CuspLeavingSideHasItsOwnScale) {
   EXPECT_TRUE(has_field(bad.error(), "frames[2].leaveTangentScale"));
 }
 
+// The default length weight is E0 / L0 at the start: it keeps the optimised curve close to
+// the request's length, where the energy alone buys its gentleness with length.
+TEST(TangentScales, DefaultLengthWeightKeepsTheLengthInCheck) {
+  for (Reading reading : kAllReadings) {
+    for (char which : {'A', 'B', 'C'}) {
+      SCOPED_TRACE(std::string("path ") + which + ", " + reading_name(reading));
+      const PathSpec spec = testing::thesis_demo_path(which, core::BlendMethod::kPolynomial, reading);
+      const double e0 = independent_objective(spec, Objective::kBendingEnergy, 0.0);
+      const double l0 = core::build_path(spec)->length();
+      const auto by_default = optimize_tangent_scales(spec);
+      TangentScaleOptions energy_only;
+      energy_only.length_weight = 0.0;
+      const auto unweighted = optimize_tangent_scales(spec, energy_only);
+      ASSERT_TRUE(by_default && unweighted);
+      EXPECT_NEAR(by_default->length_weight, e0 / l0, 2e-3 * e0 / l0);
+      EXPECT_EQ(unweighted->length_weight, 0.0);
+      const double l_default = core::build_path(by_default->spec)->length();
+      const double l_unweighted = core::build_path(unweighted->spec)->length();
+      EXPECT_LT(l_default, l_unweighted);
+      EXPECT_LT(l_default, 1.3 * l0);
+      // Each is the better of the two by its own objective.
+      EXPECT_LE(independent_objective(unweighted->spec, Objective::kBendingEnergy, 0.0),
+                independent_objective(by_default->spec, Objective::kBendingEnergy, 0.0) * (1 + 2e-3));
+      // Under the default reading the optimum is also gentler than the request: its peak
+      // curvature is lower (not a property of the energy in general: path B under the thesis's
+      // zeros rises from 123.7 to 126.1 1/m while its energy falls).
+      if (reading == Reading::kSmoothest) {
+        EXPECT_LT(independent_objective(by_default->spec, Objective::kPeakCurvature),
+                  independent_objective(spec, Objective::kPeakCurvature));
+      }
+    }
+  }
+}
+
+// The peak objectives keep the length within kPeakLengthGrowth of their start (the request,
+// or the bending-energy optimum they start from).
+TEST(TangentScales, PeakObjectivesKeepTheLengthInCheck) {
+  for (Reading reading : kAllReadings) {
+    for (char which : {'A', 'B', 'C'}) {
+      const PathSpec spec = testing::thesis_demo_path(which, core::BlendMethod::kPolynomial, reading);
+      const auto bending = optimize_tangent_scales(spec);
+      ASSERT_TRUE(bending.has_value());
+      const double start = std::max(core::build_path(spec)->length(), core::build_path(bending->spec)->length());
+      for (Objective objective : {Objective::kPeakCurvature, Objective::kPeakTorsion}) {
+        TangentScaleOptions options;
+        options.objective = objective;
+        const auto r = optimize_tangent_scales(spec, options);
+        ASSERT_TRUE(r.has_value());
+        EXPECT_LE(core::build_path(r->spec)->length(), kPeakLengthGrowth * start * (1 + 1e-3))
+            << which << ", " << reading_name(reading) << ", " << objective_name(objective);
+      }
+    }
+  }
+}
+
+// Under the smoothest reading the optimised curve is still G4 across frames where nothing
+// breaks it (frame 2 of the demonstration; frame 3 is a cusp), now with optimised scales on
+// both sides: kappa, tau, dkappa/ds and dtau/ds agree on both sides, measured on the curve.
+TEST(TangentScales, SmoothestOptimumIsG4AtUnbrokenFrames) {
+  for (char which : {'A', 'B', 'C'}) {
+    for (Objective objective : kAllObjectives) {
+      TangentScaleOptions options;
+      options.objective = objective;
+      const auto r = optimize_tangent_scales(
+          testing::thesis_demo_path(which, core::BlendMethod::kPolynomial, Reading::kSmoothest), options);
+      ASSERT_TRUE(r.has_value());
+      const auto path = core::build_path(r->spec);
+      ASSERT_TRUE(path.has_value());
+      core::Jet arrive, leave;
+      core::evaluate(path->segments[0], 1.0, 4, arrive);
+      core::evaluate(path->segments[1], 0.0, 4, leave);
+      const auto a = core::local_geometry(arrive);
+      const auto b = core::local_geometry(leave);
+      const auto close = [](double x, double y) { return std::abs(x - y) <= 1e-7 * std::max(1.0, std::abs(x)); };
+      EXPECT_TRUE(close(a.kappa, b.kappa)) << which << " " << a.kappa << " " << b.kappa;
+      EXPECT_TRUE(close(a.tau, b.tau)) << which << " " << a.tau << " " << b.tau;
+      EXPECT_TRUE(close(a.kappa_ds, b.kappa_ds)) << which << " " << a.kappa_ds << " " << b.kappa_ds;
+      EXPECT_TRUE(close(a.tau_ds, b.tau_ds)) << which << " " << a.tau_ds << " " << b.tau_ds;
+      EXPECT_LT((a.T - b.T).norm(), 1e-12);
+      EXPECT_LT((a.N - b.N).norm(), 1e-9);
+    }
+  }
+}
+
+// On the smoothest reading the derivatives are central differences of the global solve:
+// they agree with a coarser independent difference of the objective.
+TEST(TangentScales, SmoothestGradientMatchesDifferencesOfTheObjective) {
+  const PathSpec spec = testing::thesis_demo_path('C', core::BlendMethod::kPolynomial, Reading::kSmoothest);
+  TangentScaleOptions options;
+  options.length_weight = 3.0;
+  const std::vector<double> x = {0.25, 0.3, 0.2, 0.35, 0.28};
+  const auto g = tangent_scale_gradient(spec, x, options);
+  ASSERT_TRUE(g.has_value());
+  const auto value = [&](const std::vector<double>& at) {
+    PathSpec s = spec;
+    s.frames[0].tangent_scale = at[0];
+    s.frames[1].tangent_scale = at[1];
+    s.frames[2].tangent_scale = at[2];
+    s.frames[2].leave_tangent_scale = at[3];
+    s.frames[3].tangent_scale = at[4];
+    return *tangent_scale_objective(s, options);
+  };
+  EXPECT_NEAR(g->value, value(x), 1e-12 * g->value);
+  double norm = 0.0;
+  for (double v : g->gradient) norm = std::max(norm, std::abs(v));
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const double h = 1e-4 * x[i];
+    auto xp = x, xm = x;
+    xp[i] += h;
+    xm[i] -= h;
+    const double fd = (value(xp) - value(xm)) / (2 * h);
+    EXPECT_NEAR(g->gradient[i], fd, 1e-5 * norm) << "scale " << i;
+  }
+}
+
 // Random frame sets: 3-5 frames of order 1 m apart, a random subset of the constraints,
 // cusps and inflections where allowed, both conventions, open or closed. Fixed seed.
 class RandomFrames {
  public:
   explicit RandomFrames(std::uint64_t seed) : rng_(seed) {}
 
-  PathSpec next() {
+  PathSpec next(Reading reading = Reading::kLowestDegree) {
     PathSpec spec;
-    spec.unspecified = core::UnspecifiedConstraints::kLowestDegree;  // the optimiser's model
+    spec.unspecified = reading;
     const int count = uniform_int(3, 5);
     spec.closed = chance(0.25);
     spec.convention = chance(0.5) ? core::DerivativeConvention::kPerArcLength : core::DerivativeConvention::kPerParameter;
@@ -434,13 +575,15 @@ int property_cases() {
   return env ? std::max(1, std::atoi(env) / 50) : 20;
 }
 
-TEST(TangentScalesProperty, RandomFrameSetsImproveAndStayMet) {
+class TangentScalesProperty : public ::testing::TestWithParam<Reading> {};
+
+TEST_P(TangentScalesProperty, RandomFrameSetsImproveAndStayMet) {
   for (Objective objective : kAllObjectives) {
     RandomFrames gen(20240611);
     const int cases = property_cases();
     int improved = 0;
     for (int c = 0; c < cases; ++c) {
-      const PathSpec spec = gen.next();
+      const PathSpec spec = gen.next(GetParam());
       ASSERT_TRUE(core::validate_path(spec).has_value()) << describe(spec);
       TangentScaleOptions options;
       options.objective = objective;
@@ -456,6 +599,13 @@ TEST(TangentScalesProperty, RandomFrameSetsImproveAndStayMet) {
     EXPECT_GE(improved, cases * 3 / 4) << objective_name(objective);
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(Readings, TangentScalesProperty, ::testing::ValuesIn(kAllReadings),
+                         [](const ::testing::TestParamInfo<Reading>& param) {
+                           std::string name = reading_name(param.param);
+                           std::replace(name.begin(), name.end(), ' ', '_');
+                           return name;
+                         });
 
 }  // namespace
 }  // namespace geotraj::optim

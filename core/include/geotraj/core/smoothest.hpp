@@ -5,7 +5,7 @@
 // the request fixes some of them through the rows of Chapter 5:
 //   p'    = scale T                                        (5.3)   always
 //   p''   = scale^2 kappa N                                (5.10)  kappa given
-//   B . p''  = 0                                                   a normal without kappa
+//   B . p''  = 0,  B . p''' = 0                                    a normal without kappa
 //   tau   = a0 . p'''                                      (5.14)  tau given
 //   kappa' kappa |p'|^6 = a1 . p'''                        (5.19)  kappa' given
 //   tau' |C|^2 + 2 tau C . (p' x p''') = C . p''''         (5.22)  tau' given (linear in p''')
@@ -30,6 +30,11 @@
 //   bilinear: they are fixed at 0; beta4 multiplies p'_A, a tangential part, so it is 0 too.
 //   The curve is then G4 at the frame (C4 after the linear change of parameter
 //   u_L = beta1 u_A), for any two tangent scales.
+// - A normal given without a curvature fixes the osculating plane at the frame: the curve
+//   bends in it (B . p'' = 0) and the plane does not turn there (B . p''' = 0, so tau = 0
+//   at the frame). With B . p''' free, the curvature, free too, can be small at such a frame
+//   and tau = B . p''' / (kappa |p'|^3) large: path C's last frame had kappa 0.98 and tau
+//   1244 1/m (a FRENET tool spins with it); with the row its segment's peak |tau| is 113 1/m.
 // - At a cusp, an inflection or a stop the sides are independent (the tangent, the normal,
 //   or the motion breaks there anyway).
 #pragma once

@@ -49,11 +49,25 @@
 // segment already loops at a scale of about 3 chords; 10 leaves room on higher-order blends).
 // Both are clamped into core::PathLimits' [min_tangent_scale, max_tangent_scale].
 //
+// Readings (PathSpec::unspecified). Lowest degree and the thesis's zeros (every side of order
+// 4, zeros above what the frame gives): each segment depends on its two scales, as above.
+// The smoothest reading (the default): the free derivatives come from one solve over the
+// whole path (core::fill_smoothest), so each segment depends on every scale. Each evaluation
+// runs that solve, NLopt's SLSQP minimises with bounds and the regularity rows as
+// inequality constraints, and the derivatives are central differences in y of the whole
+// evaluation (step 1e-5), 2 n + 1 solves per gradient for n scales; iterations count
+// evaluations with a gradient. The curve stays G4 at frames that nothing breaks, for any
+// two scales (core/smoothest.hpp). The verification below is the same.
+//
+// Length. The bending energy alone is lowered by longer, gentler curves: the default length
+// weight is E0 / L0 at the start (both terms weigh the same there). The peak objectives keep
+// the arc length within kPeakLengthGrowth of their start (one more NLP row).
+//
 // Cusps: the thesis has one scale per frame. At a cusp (the tangent inverts, the curve is
 // not C1 there) both sides are free separately: the approach side is KeyFrame::tangent_scale
 // and the leaving side KeyFrame::leave_tangent_scale; so has a frame whose sides have scales
 // of their own (given, or the chord-length defaults of validate_path). Elsewhere both sides
-// share one scale. Only lowest-degree segments (PathSpec::unspecified) are modelled.
+// share one scale. Every reading of unspecified constraints is modelled (see "Readings" above).
 //
 // Time: the solver stops at `deadline`, at `budget_seconds` after the call, or when `stop`
 // is requested, whichever is first (checked every iteration), and returns the best verified
@@ -93,6 +107,12 @@ inline constexpr double kMinSpeedFraction = 0.1;
 /// kPeakTorsion leaves out the points of a segment where kappa < kTorsionCurvatureFraction /
 /// chord [1/m] (nearly straight: the osculating plane, and so tau, is ill-conditioned).
 inline constexpr double kTorsionCurvatureFraction = 0.5;
+/// The peak objectives keep the arc length within kPeakLengthGrowth x its length at the
+/// solve's start (an NLP row): a peak of curvature is lowered by ever larger loops, which the
+/// operator did not ask for and which sampled peaks no longer resolve (thesis path B under
+/// the smoothest reading without the row: 974 m of curve, a sampled peak of 14 1/m and a
+/// true one of 38 1/m).
+inline constexpr double kPeakLengthGrowth = 1.5;
 
 struct TangentScaleOptions {
   TangentScaleObjective objective = TangentScaleObjective::kBendingEnergy;
@@ -100,8 +120,10 @@ struct TangentScaleOptions {
   std::optional<double> min_scale;
   /// Largest scale [m], >= min_scale; default 10 x each frame's largest chord to a neighbour.
   std::optional<double> max_scale;
-  /// Weight of the arc length in kBendingEnergy [1/m^2], >= 0.
-  double length_weight = 0.0;
+  /// Weight of the arc length in kBendingEnergy [1/m^2], >= 0. Absent: E0 / L0, the bending
+  /// energy over the arc length at the start, so that both terms weigh the same there (the
+  /// energy alone is lowered by ever longer, gentler curves); 0: the energy alone.
+  std::optional<double> length_weight;
   /// The RPC's deadline: the solver returns its best point by then.
   std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
   /// Optional time budget from the call [s], >= 0.
@@ -119,6 +141,8 @@ struct TangentScaleResult {
   /// The scales [m] in variable order: for each frame i in order, its tangent scale, then,
   /// if frame i is a cusp or has a leaving scale of its own, that scale right after it.
   std::vector<double> scales;
+  /// The length weight used [1/m^2] (kBendingEnergy: the given one or the default E0 / L0).
+  double length_weight = 0.0;
   /// objective_before at the start (the request's scales, default 1, clamped into the
   /// bounds), objective_after at the result, both in the objective's unit.
   OptimizerReport report;

@@ -23,12 +23,8 @@ for path in a b c; do
   echo "=== Thesis demonstration, path $P (Tables 7.8 and 7.18)"
   "$cli" plan "$requests/plan_demo_path_$path.json"
   # The profile for the picture: 600 points along the path.
-  /usr/bin/python3 - "$requests/plan_demo_path_$path.json" "$out/request_$path.json" <<'PY'
-import json, sys
-req = json.load(open(sys.argv[1]))
-req["analysisPoints"] = 600
-json.dump(req, open(sys.argv[2], "w"))
-PY
+  /usr/bin/python3 scripts/request_with.py "$requests/plan_demo_path_$path.json" "$out/request_$path.json" \
+    analysisPoints=600
   "$cli" --json analyze "$out/request_$path.json" > "$out/profile_$path.json"
 done
 
@@ -51,12 +47,8 @@ echo "Wrote $out/thesis_paths.svg (top and side views of paths A, B, C; key fram
 # frames, length, peak speed, the PA-10's limit usage at 10 s, the time-optimal duration).
 /usr/bin/python3 scripts/readings_demo.py "$cli"
 for reading in smoothest thesis_zeros lowest_degree; do
-  /usr/bin/python3 - "$out/request_c.json" "$out/request_c_$reading.json" "$reading" <<'PY'
-import json, sys
-req = json.load(open(sys.argv[1]))
-req["path"]["unspecified"] = "UNSPECIFIED_CONSTRAINTS_" + sys.argv[3].upper()
-json.dump(req, open(sys.argv[2], "w"))
-PY
+  /usr/bin/python3 scripts/request_with.py "$out/request_c.json" "$out/request_c_$reading.json" \
+    "path.unspecified=UNSPECIFIED_CONSTRAINTS_${reading^^}"
   "$cli" --json analyze "$out/request_c_$reading.json" > "$out/profile_c_$reading.json"
 done
 /usr/bin/python3 scripts/plot_paths.py "$out/readings_path_c.svg" \
@@ -69,23 +61,16 @@ echo "Wrote $out/readings_path_c.svg (path C under the three readings of unspeci
 # bending energy (the thesis's 0.25 against the optimised ones, SVG), and Appendix B.3's
 # breakpoint table (uniform, the thesis's hand-tuned B.11 and B.13, optimised).
 echo
-echo "=== Tangent scales of path A (lowest-degree segments, the optimiser's model): the thesis's 0.25 at every frame against the optimised ones"
-# Bending energy plus 100 1/m^2 times the length: without the length term the least bent
-# curve through these frames is a long loop.
-/usr/bin/python3 - "$out/request_a.json" "$out/request_a_lowest.json" "$out/request_a_optimised.json" <<'PY'
-import json, sys
-req = json.load(open(sys.argv[1]))
-req["path"]["unspecified"] = "UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE"
-json.dump(req, open(sys.argv[2], "w"))
-req["optimize"] = {"tangentScales": {"objective": "TANGENT_SCALE_OBJECTIVE_BENDING_ENERGY", "lengthWeight": 100}}
-json.dump(req, open(sys.argv[3], "w"))
-PY
+echo "=== Tangent scales of path A (the default reading): the thesis's 0.25 at every frame against the optimised ones"
+# Bending energy plus the default length weight E0 / L0 times the length: without the length
+# term the least bent curve through these frames is a long loop.
+/usr/bin/python3 scripts/request_with.py "$out/request_a.json" "$out/request_a_optimised.json" \
+  'optimize={"tangentScales": {"objective": "TANGENT_SCALE_OBJECTIVE_BENDING_ENERGY"}}'
 "$cli" plan "$out/request_a_optimised.json" | sed -n '/^optimisation/,$p'
-"$cli" --json analyze "$out/request_a_lowest.json" > "$out/profile_a_lowest.json"
 "$cli" --json analyze "$out/request_a_optimised.json" > "$out/profile_a_optimised.json"
 /usr/bin/python3 scripts/plot_paths.py "$out/tangent_scales_path_a.svg" \
-  "path A, tangent scale 0.25 (thesis)=$out/request_a_lowest.json:$out/profile_a_lowest.json" \
-  "path A, tangent scales for the least bending energy + 100 x length=$out/request_a_lowest.json:$out/profile_a_optimised.json"
+  "path A, tangent scale 0.25 (thesis)=$out/request_a.json:$out/profile_a.json" \
+  "path A, tangent scales for the least bending energy + E0/L0 x length=$out/request_a.json:$out/profile_a_optimised.json"
 echo "Wrote $out/tangent_scales_path_a.svg"
 echo
 echo "=== Appendix B.3 (Table B.1's path): peak torsion and curvature by breakpoints"

@@ -12,7 +12,7 @@ packages=(
   libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   liborocos-kdl-dev                   # Orocos KDL: the kinematics cross-check (tests only)
-  coinor-libipopt-dev libceres-dev libnlopt-cxx-dev   # the optimisers (optim/)
+  coinor-libipopt-dev libnlopt-cxx-dev   # the optimisers (optim/)
   python3 python3-grpcio python3-protobuf   # the cross-language client test
   openssl libssl-dev                  # test certificates for TLS and mutual TLS; the certificate checks
   prometheus                          # promtool checks the metrics exposition and alert rules

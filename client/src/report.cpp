@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <string>
 
+#include "geotraj/server/status_codes.hpp"
 #include "google/rpc/error_details.pb.h"
 #include "google/rpc/status.pb.h"
 
@@ -37,29 +38,6 @@ void print_geometry_row(const std::string& label, const v1::FrenetGeometry& g, s
       << (g.has_curvature_derivative() ? num(g.curvature_derivative()) : absent())
       << (g.has_torsion_derivative() ? num(g.torsion_derivative()) : absent()) << "  "
       << vec_or_absent(g.has_tangent(), g.tangent()) << '\n';
-}
-
-const char* code_name(grpc::StatusCode code) {
-  switch (code) {
-    case grpc::StatusCode::OK: return "OK";
-    case grpc::StatusCode::CANCELLED: return "CANCELLED";
-    case grpc::StatusCode::UNKNOWN: return "UNKNOWN";
-    case grpc::StatusCode::INVALID_ARGUMENT: return "INVALID_ARGUMENT";
-    case grpc::StatusCode::DEADLINE_EXCEEDED: return "DEADLINE_EXCEEDED";
-    case grpc::StatusCode::NOT_FOUND: return "NOT_FOUND";
-    case grpc::StatusCode::ALREADY_EXISTS: return "ALREADY_EXISTS";
-    case grpc::StatusCode::PERMISSION_DENIED: return "PERMISSION_DENIED";
-    case grpc::StatusCode::UNAUTHENTICATED: return "UNAUTHENTICATED";
-    case grpc::StatusCode::RESOURCE_EXHAUSTED: return "RESOURCE_EXHAUSTED";
-    case grpc::StatusCode::FAILED_PRECONDITION: return "FAILED_PRECONDITION";
-    case grpc::StatusCode::ABORTED: return "ABORTED";
-    case grpc::StatusCode::OUT_OF_RANGE: return "OUT_OF_RANGE";
-    case grpc::StatusCode::UNIMPLEMENTED: return "UNIMPLEMENTED";
-    case grpc::StatusCode::INTERNAL: return "INTERNAL";
-    case grpc::StatusCode::UNAVAILABLE: return "UNAVAILABLE";
-    case grpc::StatusCode::DATA_LOSS: return "DATA_LOSS";
-    default: return "UNKNOWN_CODE";
-  }
 }
 
 }  // namespace
@@ -269,7 +247,7 @@ void print_table(const v1::PathProfile& profile, std::ostream& out) {
 }
 
 void print_error(const grpc::Status& status, std::ostream& err) {
-  err << "geotraj: " << code_name(status.error_code()) << ": " << status.error_message() << '\n';
+  err << "geotraj: " << server::status_code_name(status.error_code()) << ": " << status.error_message() << '\n';
   google::rpc::Status details;
   if (status.error_details().empty() || !details.ParseFromString(status.error_details())) return;
   for (const auto& any : details.details()) {

@@ -191,7 +191,7 @@ void default_tangent_scales(Collector& c, PathSpec& spec, const PathLimits& limi
   const std::size_t m = segment_count(n, spec.closed);
   const auto chord = [&](std::size_t seg) -> std::optional<double> {
     if (seg >= m) return std::nullopt;
-    const double len = (spec.frames[(seg + 1) % n].p_W - spec.frames[seg].p_W).norm();
+    const double len = segment_chord(spec, seg);
     return len >= limits.min_tangent_scale ? std::optional<double>(len) : std::nullopt;
   };
   for (std::size_t i = 0; i < n; ++i) {

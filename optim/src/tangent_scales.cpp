@@ -22,118 +22,7 @@
 #include "geotraj/core/smoothest.hpp"
 #include "geotraj/core/validate.hpp"
 #include "ipopt_lock.hpp"
-
-namespace geotraj::optim {
-namespace {
-
-// Second-order forward-mode automatic differentiation in two variables: a value with its
-// exact gradient and Hessian. Each segment depends on two scales, so its control points, rows
-// and integrals carry their derivatives with respect to the segment's two variables. (Ceres's
-// nested Jet<Jet<double, 2>, 2> would do the same, but core's templates mix the scalar with
-// double, e.g. S(1.0) and S * double, which a nested Jet does not accept.)
-struct Taylor2 {
-  double a = 0.0;                // value
-  std::array<double, 2> g{};     // gradient
-  std::array<double, 3> h{};     // Hessian: d2/dx0^2, d2/dx0 dx1, d2/dx1^2
-
-  Taylor2() = default;
-  Taylor2(double value) : a(value) {}  // NOLINT(google-explicit-constructor): constants
-
-  // f(x) from f, f', f'' at x.a (chain rule to second order).
-  Taylor2 chain(double f0, double f1, double f2) const {
-    Taylor2 r(f0);
-    r.g = {f1 * g[0], f1 * g[1]};
-    r.h = {f1 * h[0] + f2 * g[0] * g[0], f1 * h[1] + f2 * g[0] * g[1], f1 * h[2] + f2 * g[1] * g[1]};
-    return r;
-  }
-
-  friend Taylor2 operator+(const Taylor2& x, const Taylor2& y) {
-    Taylor2 r(x.a + y.a);
-    r.g = {x.g[0] + y.g[0], x.g[1] + y.g[1]};
-    r.h = {x.h[0] + y.h[0], x.h[1] + y.h[1], x.h[2] + y.h[2]};
-    return r;
-  }
-  friend Taylor2 operator-(const Taylor2& x) {
-    Taylor2 r(-x.a);
-    r.g = {-x.g[0], -x.g[1]};
-    r.h = {-x.h[0], -x.h[1], -x.h[2]};
-    return r;
-  }
-  friend Taylor2 operator-(const Taylor2& x, const Taylor2& y) { return x + (-y); }
-  friend Taylor2 operator*(const Taylor2& x, const Taylor2& y) {
-    Taylor2 r(x.a * y.a);
-    r.g = {x.a * y.g[0] + y.a * x.g[0], x.a * y.g[1] + y.a * x.g[1]};
-    r.h = {x.a * y.h[0] + y.a * x.h[0] + 2.0 * x.g[0] * y.g[0],
-           x.a * y.h[1] + y.a * x.h[1] + x.g[0] * y.g[1] + x.g[1] * y.g[0],
-           x.a * y.h[2] + y.a * x.h[2] + 2.0 * x.g[1] * y.g[1]};
-    return r;
-  }
-  friend Taylor2 operator/(const Taylor2& x, const Taylor2& y) {
-    const double inv = 1.0 / y.a;
-    return x * y.chain(inv, -inv * inv, 2.0 * inv * inv * inv);
-  }
-  Taylor2& operator+=(const Taylor2& y) { return *this = *this + y; }
-  Taylor2& operator-=(const Taylor2& y) { return *this = *this - y; }
-  Taylor2& operator*=(const Taylor2& y) { return *this = *this * y; }
-  Taylor2& operator/=(const Taylor2& y) { return *this = *this / y; }
-  friend bool operator<(const Taylor2& x, const Taylor2& y) { return x.a < y.a; }
-  [[maybe_unused]] friend bool operator>(const Taylor2& x, const Taylor2& y) { return x.a > y.a; }
-  [[maybe_unused]] friend bool operator<=(const Taylor2& x, const Taylor2& y) { return x.a <= y.a; }
-  [[maybe_unused]] friend bool operator>=(const Taylor2& x, const Taylor2& y) { return x.a >= y.a; }
-  [[maybe_unused]] friend bool operator==(const Taylor2& x, const Taylor2& y) { return x.a == y.a; }
-  [[maybe_unused]] friend bool operator!=(const Taylor2& x, const Taylor2& y) { return x.a != y.a; }
-
-  friend Taylor2 sqrt(const Taylor2& x) {
-    const double r = std::sqrt(x.a);
-    return x.chain(r, 0.5 / r, -0.25 / (r * x.a));
-  }
-  friend Taylor2 pow(const Taylor2& x, double p) {
-    const double r = std::pow(x.a, p - 2.0);
-    return x.chain(r * x.a * x.a, p * r * x.a, p * (p - 1.0) * r);
-  }
-  friend Taylor2 exp(const Taylor2& x) {
-    const double e = std::exp(x.a);
-    return x.chain(e, e, e);
-  }
-  friend Taylor2 log(const Taylor2& x) { return x.chain(std::log(x.a), 1.0 / x.a, -1.0 / (x.a * x.a)); }
-  [[maybe_unused]] friend Taylor2 abs(const Taylor2& x) { return x.a < 0.0 ? -x : x; }
-};
-
-}  // namespace
-}  // namespace geotraj::optim
-
-// Eigen vectors of Taylor2 (as ceres does for its Jet).
-namespace Eigen {
-template <>
-struct NumTraits<geotraj::optim::Taylor2> : GenericNumTraits<double> {
-  using Real = geotraj::optim::Taylor2;
-  using NonInteger = geotraj::optim::Taylor2;
-  using Nested = geotraj::optim::Taylor2;
-  using Literal = geotraj::optim::Taylor2;
-  static Real dummy_precision() { return Real(1e-12); }
-  static Real epsilon() { return Real(std::numeric_limits<double>::epsilon()); }
-  static Real highest() { return Real(std::numeric_limits<double>::max()); }
-  static Real lowest() { return Real(std::numeric_limits<double>::lowest()); }
-  static int digits10() { return NumTraits<double>::digits10(); }
-  enum {
-    IsComplex = 0,
-    IsInteger = 0,
-    IsSigned = 1,
-    ReadCost = 6,
-    AddCost = 6,
-    MulCost = 18,
-    RequireInitialization = 1
-  };
-};
-template <typename BinaryOp>
-struct ScalarBinaryOpTraits<geotraj::optim::Taylor2, double, BinaryOp> {
-  using ReturnType = geotraj::optim::Taylor2;
-};
-template <typename BinaryOp>
-struct ScalarBinaryOpTraits<double, geotraj::optim::Taylor2, BinaryOp> {
-  using ReturnType = geotraj::optim::Taylor2;
-};
-}  // namespace Eigen
+#include "second_order.hpp"
 
 namespace geotraj::optim {
 namespace {
@@ -143,11 +32,12 @@ using Eigen::Vector3d;
 template <class S>
 using Vec3 = Eigen::Matrix<S, 3, 1>;
 // Each segment depends on two scales: second-order forward mode in its two variables
-// y = ln(scale) (x0: the start frame's leaving side, x1: the end frame's approach side).
-using AD = Taylor2;
+// y = ln(scale) (x0: the start frame's leaving side, x1: the end frame's approach side);
+// the Hessian's lower triangle is (x0 x0, x1 x0, x1 x1).
+using AD = detail::SecondOrder<2>;
 
 double value_of(double x) { return x; }
-double value_of(const AD& x) { return x.a; }
+double value_of(const AD& x) { return x.f; }
 
 // The scale s = exp(y) as a function of its log-scale y, variable k of the segment:
 // ds/dy = d2s/dy2 = s.
@@ -524,7 +414,7 @@ void evaluate(const Problem& pb, const double* scales, Evaluation& ev, double v0
       segment_peaks(pb, sg, b, sg.tables->peak, false, rows.data());
       for (int j = 0; j < kPeakSamples; ++j) {
         ev.peak[i * kPeakSamples + j] = rows[j];
-        ev.largest = std::max(ev.largest, rows[j].a);
+        ev.largest = std::max(ev.largest, rows[j].f);
       }
       if (pb.length_row()) {
         AD e;
@@ -536,7 +426,7 @@ void evaluate(const Problem& pb, const double* scales, Evaluation& ev, double v0
       AD e, l;
       segment_integrals(pb, b, sg.tables->quad, pb.rule, e, l);
       const AD f = pb.objective == TangentScaleObjective::kArcLength ? l : e + l * pb.length_weight;
-      value += f.a;
+      value += f.f;
       ev.grad[sg.var0] += f.g[0];
       ev.grad[sg.var1] += f.g[1];
       add_hessian(ev.hess, n, sg, f, 1.0);
@@ -551,7 +441,7 @@ void evaluate(const Problem& pb, const double* scales, Evaluation& ev, double v0
   }
   if (pb.length_row()) {
     double total = 0.0;
-    for (const AD& l : ev.length) total += l.a;
+    for (const AD& l : ev.length) total += l.f;
     ev.length_row = 1.0 - total / pb.max_length;
     if (!(ev.length_row >= 0.0)) ev.regular = false;
   }
@@ -564,10 +454,10 @@ void evaluate(const Problem& pb, const double* scales, Evaluation& ev, double v0
   const double eps = kPeakEps * v0;
   const double top = q * std::log((ev.largest + eps) / v0);
   double sum = 0.0;
-  for (std::size_t row = 0; row < ev.peak.size(); ++row) sum += std::exp(q * std::log((ev.peak[row].a + eps) / v0) - top);
+  for (std::size_t row = 0; row < ev.peak.size(); ++row) sum += std::exp(q * std::log((ev.peak[row].f + eps) / v0) - top);
   for (std::size_t row = 0; row < ev.peak.size(); ++row) {
     const AD& v = ev.peak[row];
-    const double c = v.a + eps;
+    const double c = v.f + eps;
     const double p = std::exp(q * std::log(c / v0) - top) / sum;
     if (p == 0.0) continue;
     const auto& sg = pb.segments[row / kPeakSamples];
@@ -587,14 +477,14 @@ void evaluate(const Problem& pb, const double* scales, Evaluation& ev, double v0
 double reported(const Problem& pb, const Evaluation& ev) { return pb.peak() ? std::sqrt(ev.largest) : ev.f; }
 
 bool finite(const AD& x) {
-  return std::isfinite(x.a) && std::isfinite(x.g[0]) && std::isfinite(x.g[1]) && std::isfinite(x.h[0]) &&
+  return std::isfinite(x.f) && std::isfinite(x.g[0]) && std::isfinite(x.g[1]) && std::isfinite(x.h[0]) &&
          std::isfinite(x.h[1]) && std::isfinite(x.h[2]);
 }
 
 bool finite(const Evaluation& ev) {
   if (!std::isfinite(ev.f)) return false;
   for (const AD& v : ev.peak)
-    if (!std::isfinite(v.a)) return false;
+    if (!std::isfinite(v.f)) return false;
   for (double v : ev.grad)
     if (!std::isfinite(v)) return false;
   for (double v : ev.hess)
@@ -835,9 +725,10 @@ core::Expected<Problem> make_problem(const core::PathSpec& raw, const TangentSca
   pb.leave_var.resize(count);
   for (std::size_t i = 0; i < count; ++i) {
     const auto& f = frames[i];
+    const std::size_t segments = core::segment_count(count, closed);
     double chord = 0.0;
-    if (closed || i > 0) chord = std::max(chord, (f.p_W - frames[(i + count - 1) % count].p_W).norm());
-    if (closed || i + 1 < count) chord = std::max(chord, (f.p_W - frames[(i + 1) % count].p_W).norm());
+    if (closed || i > 0) chord = std::max(chord, core::segment_chord(pb.spec, (i + segments - 1) % segments));
+    if (closed || i + 1 < count) chord = std::max(chord, core::segment_chord(pb.spec, i));
     const double reference = chord > 0.0 ? chord : f.tangent_scale.value_or(1.0);
     double hi = options.max_scale.value_or(10.0 * reference);
     double lo = options.min_scale.value_or(0.1 * reference);
@@ -880,7 +771,7 @@ core::Expected<Problem> make_problem(const core::PathSpec& raw, const TangentSca
     sg.T1 = c1.approach.T;
     sg.N1 = c1.approach.N;
     // Coincident frames (chord 0): the floors follow the smaller starting scale instead.
-    double chord = (frames[sg.to].p_W - frames[sg.from].p_W).norm();
+    double chord = core::segment_chord(pb.spec, i);
     if (!(chord > 0.0)) chord = std::min(pb.start[sg.var0], pb.start[sg.var1]);
     sg.speed_floor2 = std::pow(kMinSpeedFraction * chord, 2);
     sg.kappa_floor2 = std::pow(kTorsionCurvatureFraction / chord, 2);
@@ -1022,7 +913,7 @@ class ScaleNlp : public Ipopt::TNLP {
   bool eval_g(Ipopt::Index, const Ipopt::Number* x, bool, Ipopt::Index m, Ipopt::Number* g) override {
     if (!update(x)) return false;
     const int reg = static_cast<int>(pb_.regularity_count());
-    for (int j = 0; j < reg; ++j) g[j] = ev_.g[j].a;
+    for (int j = 0; j < reg; ++j) g[j] = ev_.g[j].f;
     if (m > reg) g[reg] = ev_.length_row;
     return true;
   }

@@ -14,6 +14,7 @@
 
 #include "banded_ipm.hpp"
 #include "ipopt_lock.hpp"
+#include "second_order.hpp"
 
 namespace geotraj::optim {
 
@@ -30,56 +31,13 @@ constexpr double kImpliedMargin = 1e-6;
 double finite_or(double x) { return std::isfinite(x) ? x : kIpoptInf; }
 
 /// A value with its gradient and Hessian in the three local variables (b_{i-1}, b_i,
-/// b_{i+1}) of grid point i: forward-mode second derivatives of the per-point terms.
-struct D3 {
-  double f = 0.0;
-  std::array<double, 3> g{};
-  std::array<double, 6> h{};  ///< lower triangle, (r, c) at r (r + 1) / 2 + c
-};
+/// b_{i+1}) of grid point i: forward-mode second derivatives of the per-point terms
+/// (second_order.hpp; the Hessian's lower triangle at tri(r, c)).
+using D3 = detail::SecondOrder<3>;
+using detail::tri;
 
-constexpr int tri(int r, int c) { return r * (r + 1) / 2 + c; }
-
-D3 constant(double c) { return D3{c, {}, {}}; }
-D3 variable(double x, int l) {
-  D3 d{x, {}, {}};
-  d.g[static_cast<std::size_t>(l)] = 1.0;
-  return d;
-}
-D3 operator+(D3 a, const D3& b) {
-  a.f += b.f;
-  for (int k = 0; k < 3; ++k) a.g[k] += b.g[k];
-  for (int k = 0; k < 6; ++k) a.h[k] += b.h[k];
-  return a;
-}
-D3 operator*(double c, D3 a) {
-  a.f *= c;
-  for (double& x : a.g) x *= c;
-  for (double& x : a.h) x *= c;
-  return a;
-}
-D3 operator-(const D3& a, const D3& b) { return a + (-1.0) * b; }
-D3 operator*(const D3& a, const D3& b) {
-  D3 r{a.f * b.f, {}, {}};
-  for (int k = 0; k < 3; ++k) r.g[k] = a.f * b.g[k] + b.f * a.g[k];
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j <= i; ++j)
-      r.h[tri(i, j)] = a.f * b.h[tri(i, j)] + b.f * a.h[tri(i, j)] + a.g[i] * b.g[j] + b.g[i] * a.g[j];
-  return r;
-}
-/// phi(a) from phi, phi', phi'' at a.f (chain rule to second order).
-D3 chain(const D3& a, double f0, double f1, double f2) {
-  D3 r{f0, {}, {}};
-  for (int k = 0; k < 3; ++k) r.g[k] = f1 * a.g[k];
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j <= i; ++j) r.h[tri(i, j)] = f1 * a.h[tri(i, j)] + f2 * a.g[i] * a.g[j];
-  return r;
-}
-D3 reciprocal(const D3& a) { return chain(a, 1.0 / a.f, -1.0 / (a.f * a.f), 2.0 / (a.f * a.f * a.f)); }
-D3 operator/(const D3& a, const D3& b) { return a * reciprocal(b); }
-D3 sqrt(const D3& a) {
-  const double r = std::sqrt(a.f);
-  return chain(a, r, 0.5 / r, -0.25 / (r * a.f));
-}
+D3 constant(double c) { return D3(c); }
+D3 variable(double x, int l) { return D3::variable(x, l); }
 
 /// The NLP of time_optimal_jerk.hpp. Variables x_k = b_{k+1}, k = 0 .. N - 2.
 class JerkTimingNlp : public Ipopt::TNLP {

@@ -10,6 +10,7 @@
 #include <grpcpp/support/status.h>
 
 #include "geotraj/core/error.hpp"
+#include "geotraj/server/status_codes.hpp"
 
 namespace geotraj::server {
 
@@ -40,7 +41,5 @@ grpc::Status bounded(const grpc::Status& status);
 inline constexpr std::size_t kMaxStatusMessageBytes = 1024;
 inline constexpr std::size_t kMaxStatusDetailsBytes = 4096;
 
-/// The canonical name of a status code ("OK", "INVALID_ARGUMENT", ...), as gRPC documents it.
-std::string_view status_code_name(grpc::StatusCode code);
 
 }  // namespace geotraj::server

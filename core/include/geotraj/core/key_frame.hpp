@@ -102,4 +102,11 @@ constexpr std::size_t segment_count(std::size_t frame_count, bool closed) {
   return frame_count < 2 ? 0 : (closed ? frame_count : frame_count - 1);
 }
 
+/// The chord |p_(i+1) - p_i| [m] of segment i (from frame i to the next, the first after the
+/// last on a closed path). Precondition: i < segment_count.
+inline double segment_chord(const PathSpec& spec, std::size_t i) {
+  const std::size_t n = spec.frames.size();
+  return (spec.frames[(i + 1) % n].p_W - spec.frames[i].p_W).norm();
+}
+
 }  // namespace geotraj::core

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <memory>
 #include <set>
 #include <sstream>
 #include <string>
@@ -540,10 +541,11 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
   for (double q : model.home) out.add_home(q);
 }
 
-core::Expected<RobotRequest> robot_from_request(const v1::PlanRequest& request, const RobotCatalog& catalog) {
+core::Expected<planner::Robot> robot_from_request(const v1::PlanRequest& request, const RobotCatalog& catalog) {
   const auto& spec = request.robot();
   core::Violations out;
-  RobotRequest resolved;
+  planner::Robot resolved;
+  resolved.inline_model = spec.has_model();
   switch (spec.model_source_case()) {
     case v1::RobotSpec::kName: {
       const auto* model = catalog.find(spec.name());
@@ -699,7 +701,7 @@ core::Expected<core::JointMoveSpec> joint_move_from_request(const v1::PlanReques
 }
 
 core::Expected<core::LinearMoveSpec> linear_move_from_request(const v1::PlanRequest& request,
-                                                               const RobotRequest* robot) {
+                                                               const planner::Robot* robot) {
   const auto& move = request.linear_move();
   core::Violations out;
   core::LinearMoveSpec spec;
@@ -880,6 +882,115 @@ void to_proto(const optim::BreakpointResult& result, v1::BreakpointReport& out) 
     for (double x : b.y) seg->add_y(x);
     for (double x : b.z) seg->add_z(x);
   }
+}
+
+namespace {
+
+core::Violations joined(core::Violations a, const core::Violations& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+// The path of a request and its optimisers (optimize.*), every violation of both together.
+core::Expected<planner::Request> path_request(const v1::PlanRequest& request, double max_optimize_seconds,
+                                              planner::Request out) {
+  auto spec = path_from_request(request);
+  core::Violations violations = spec ? core::Violations{} : spec.error();
+  if (request.has_optimize()) {
+    planner::Optimize optimize;
+    const auto& o = request.optimize();
+    if (auto budget = optimize_budget(request, max_optimize_seconds)) {
+      optimize.budget_s = *budget;
+    } else {
+      violations = joined(std::move(violations), budget.error());
+    }
+    if (o.has_tangent_scales()) {
+      auto options = tangent_scale_options(request);
+      if (options) {
+        optimize.tangent_scales = std::move(*options);
+      } else {
+        violations = joined(std::move(violations), options.error());
+      }
+    }
+    if (o.has_breakpoints()) {
+      auto options = breakpoint_options(request);
+      if (options) {
+        optimize.breakpoints = std::move(*options);
+      } else {
+        violations = joined(std::move(violations), options.error());
+      }
+    }
+    optimize.time_optimal = o.timing().time_optimal();
+    optimize.jerk_limited = o.timing().jerk_limited();
+    out.optimize = std::move(optimize);
+  }
+  if (!violations.empty()) return tl::unexpected(std::move(violations));
+  out.geometry = std::move(*spec);
+  return out;
+}
+
+}  // namespace
+
+core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
+                                                     double max_optimize_seconds, bool with_motion) {
+  planner::Request out;
+  if (!with_motion) return path_request(request, max_optimize_seconds, std::move(out));
+  const int kinds = int(request.has_path()) + int(request.has_joint_move()) + int(request.has_linear_move());
+  if (kinds != 1) {
+    return tl::unexpected(core::Violations{
+        {"path", kinds == 0 ? "is required: give the key frames of a `path`, or a `jointMove` or a `linearMove`"
+                            : "give exactly one of `path`, `jointMove` and `linearMove`"}});
+  }
+  core::Violations violations;
+  if (request.has_optimize() && !request.has_path()) {
+    violations.push_back({"optimize", "applies to a `path`: a jointMove or linearMove has nothing to optimise"});
+  }
+  if (auto motion = motion_from_request(request)) {
+    out.motion = std::move(*motion);
+  } else {
+    violations = joined(std::move(violations), motion.error());
+  }
+  if (request.has_robot()) {
+    if (auto resolved = robot_from_request(request, catalog)) {
+      out.robot = std::make_shared<const planner::Robot>(std::move(*resolved));
+    } else {
+      violations = joined(std::move(violations), resolved.error());
+    }
+  }
+  if (request.has_joint_move()) {
+    if (!request.has_robot()) {
+      violations.push_back({"robot", "is required by a jointMove: the joints belong to a robot model"});
+    }
+    if (!violations.empty()) return tl::unexpected(std::move(violations));
+    auto move = joint_move_from_request(request, out.robot->model, out.robot->seed);
+    if (!move) return tl::unexpected(std::move(move.error()));
+    out.geometry = std::move(*move);
+    return out;
+  }
+  // Following a Cartesian pose (a path or a straight line) takes six joints at least.
+  if (out.robot && out.robot->model.dof() < 6) {
+    violations.push_back({out.robot->inline_model ? "robot.model.links" : "robot",
+                          "the robot has " + std::to_string(out.robot->model.dof()) +
+                              " joints; following a tool pose (position and orientation) needs at least 6"});
+  }
+  if (request.has_linear_move()) {
+    if (!violations.empty()) return tl::unexpected(std::move(violations));
+    auto move = linear_move_from_request(request, out.robot.get());
+    if (!move) return tl::unexpected(std::move(move.error()));
+    out.geometry = std::move(*move);
+    return out;
+  }
+  if (!violations.empty()) {  // with the path's own violations, so that one answer lists all
+    const auto spec = path_from_request(request);
+    return tl::unexpected(spec ? std::move(violations) : joined(spec.error(), violations));
+  }
+  return path_request(request, max_optimize_seconds, std::move(out));
+}
+
+void to_proto(const planner::OptimizerReports& reports, v1::OptimizationReport& out) {
+  if (reports.tangent_scales) to_proto(*reports.tangent_scales, *out.mutable_tangent_scales());
+  if (reports.breakpoints) to_proto(*reports.breakpoints, *out.mutable_breakpoints());
+  if (reports.timing) to_proto(reports.timing->report, reports.timing->binding, *out.mutable_timing());
 }
 
 }  // namespace geotraj::server

@@ -24,6 +24,7 @@
 #include "geotraj/optim/breakpoints.hpp"
 #include "geotraj/optim/tangent_scales.hpp"
 #include "geotraj/core/time_optimal.hpp"
+#include "geotraj/planner/planner.hpp"
 #include "geotraj/v1/geotraj.pb.h"
 
 namespace geotraj::server {
@@ -97,21 +98,15 @@ core::Expected<core::RobotModel> robot_model_from_json(std::string_view json);
 /// The full model in its wire form (ListRobots, `geotraj robots`).
 void to_proto(const core::RobotModel& model, v1::RobotModel& out);
 
-/// What PlanRequest.robot asks for, resolved.
-struct RobotRequest {
-  core::RobotModel model;    ///< with the request's base and tool applied
-  core::JointVector seed;    ///< initialJoints, or the model's home
-  bool report_only = false;
-  double branch_tolerance = 1e-3;  ///< [m]
-};
 
 /// Default RobotSpec.branchTolerance [m].
 inline constexpr double kDefaultBranchTolerance = 1e-3;
 
-/// PlanRequest.robot resolved against `catalog`, or every violation (`robot.name` unknown,
+/// PlanRequest.robot resolved against `catalog` (the model with the request's base and tool
+/// applied, the seed from initialJoints or the home), or every violation (`robot.name` unknown,
 /// `robot.model...`, `robot.base.orientation`, `robot.initialJoints` size or limits,
 /// `robot.branchTolerance`). Precondition: request.has_robot().
-core::Expected<RobotRequest> robot_from_request(const v1::PlanRequest& request, const RobotCatalog& catalog);
+core::Expected<planner::Robot> robot_from_request(const v1::PlanRequest& request, const RobotCatalog& catalog);
 
 /// PlanTrajectory's joint-space report.
 void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out);
@@ -134,7 +129,7 @@ core::Expected<core::JointMoveSpec> joint_move_from_request(const v1::PlanReques
 /// PlanRequest.linearMove as a core spec: an absent start takes the pose of the robot's
 /// seed configuration (with a robot); poses are checked (`linearMove.goal.orientation`).
 core::Expected<core::LinearMoveSpec> linear_move_from_request(const v1::PlanRequest& request,
-                                                               const RobotRequest* robot);
+                                                               const planner::Robot* robot);
 
 // --- optimisation --------------------------------------------------------------------------
 
@@ -155,9 +150,22 @@ core::Expected<optim::TangentScaleOptions> tangent_scale_options(const v1::PlanR
 /// `optimize.breakpoints.*`. Precondition: the request has optimize.breakpoints.
 core::Expected<optim::BreakpointOptions> breakpoint_options(const v1::PlanRequest& request);
 
+// --- the planner's request -------------------------------------------------------------------
+
+/// A PlanRequest as the planner's request, converted once: the geometry (a path, or a move
+/// with its robot), the motion, the robot and the optimisers, or every violation of the
+/// request together (field paths absolute). `with_motion`: the request plans a motion
+/// (PlanTrajectory with `motion`, StreamSamples; the caller has checked that it has one);
+/// else only its path is read (the geometry of PlanTrajectory, AnalyzePath).
+/// `max_optimize_seconds`: the server's bound on optimize.timeBudgetS.
+core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
+                                                     double max_optimize_seconds, bool with_motion);
+
 /// The optimisers' reports.
 void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out);
 void to_proto(const optim::BreakpointResult& result, v1::BreakpointReport& out);
+/// The reports of the optimisers that ran (PlanResponse.optimization).
+void to_proto(const planner::OptimizerReports& reports, v1::OptimizationReport& out);
 /// The timing optimiser's report with which limit binds where.
 void to_proto(const optim::OptimizerReport& report, const std::vector<core::BindingStretch>& binding,
               v1::TimingReport& out);

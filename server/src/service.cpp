@@ -25,9 +25,7 @@
 #include "geotraj/core/orientation.hpp"
 #include "geotraj/core/path.hpp"
 #include "geotraj/core/trajectory.hpp"
-#include "geotraj/optim/breakpoints.hpp"
-#include "geotraj/optim/tangent_scales.hpp"
-#include "geotraj/optim/time_optimal_jerk.hpp"
+#include "geotraj/planner/planner.hpp"
 #include "geotraj/core/time_optimal.hpp"
 #include "runtime.hpp"
 #include "status.hpp"
@@ -35,13 +33,6 @@
 
 namespace geotraj::server {
 namespace {
-
-// The path part of a PlanResponse: segments with the geometry between frames, the achieved
-// frames, the closed loop and the warnings.
-void report_path(const core::Path& path, v1::PlanResponse& response) {
-  const auto achieved = core::achieved_geometry(path);
-  to_proto(path, achieved, core::closed_loop_error(path, achieved), core::geometry_report(path), response);
-}
 
 std::string format_seconds(double s) {
   char buffer[32];
@@ -125,79 +116,12 @@ std::optional<grpc::Status> analysis_limit(const v1::PlanRequest& request, const
                              " (geotrajd --max-analysis-points)"}});
 }
 
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 // INVALID_ARGUMENT when a path has more key frames than the server accepts.
 std::optional<grpc::Status> frame_limit(const v1::PathSpec& path, const ServiceLimits& limits) {
   if (path.frames_size() <= limits.max_frames) return std::nullopt;
   return invalid_argument(core::Violations{
       {"path.frames", "has " + std::to_string(path.frames_size()) + " key frames; this server accepts at most " +
                           std::to_string(limits.max_frames) + " (geotrajd --max-frames)"}});
-}
-
-// The request's path spec after the optimisers it asks for (tangent scales, then
-// breakpoints; both within the RPC's deadline and optimize.timeBudgetS), their reports in
-// `report`; or the status to finish with (every violation of the request together).
-tl::expected<core::PathSpec, grpc::Status> optimized_path(const Abandon& abandon, const Services& services,
-                                                          const v1::PlanRequest& request,
-                                                          v1::OptimizationReport* report) {
-  auto spec = path_from_request(request);
-  if (!request.has_optimize()) {
-    if (!spec) return tl::unexpected(invalid_argument(spec.error()));
-    return std::move(*spec);
-  }
-  core::Violations violations = spec ? core::Violations{} : spec.error();
-  const auto budget = optimize_budget(request, services.limits.max_optimize_seconds);
-  if (!budget) violations.insert(violations.end(), budget.error().begin(), budget.error().end());
-  const auto& optimize = request.optimize();
-  std::optional<optim::TangentScaleOptions> scales;
-  std::optional<optim::BreakpointOptions> breakpoints;
-  if (optimize.has_tangent_scales()) {
-    auto options = tangent_scale_options(request);
-    if (options) {
-      scales = std::move(*options);
-    } else {
-      violations.insert(violations.end(), options.error().begin(), options.error().end());
-    }
-  }
-  if (optimize.has_breakpoints()) {
-    auto options = breakpoint_options(request);
-    if (options) {
-      breakpoints = std::move(*options);
-    } else {
-      violations.insert(violations.end(), options.error().begin(), options.error().end());
-    }
-  }
-  if (!violations.empty()) return tl::unexpected(invalid_argument(violations));
-  // One deadline for all the optimisers: the earlier of the RPC's and the budget's.
-  const auto deadline = std::min(abandon.deadline(), std::chrono::steady_clock::now() +
-                                                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                             std::chrono::duration<double>(*budget)));
-  core::PathSpec path = std::move(*spec);
-  if (scales) {
-    scales->deadline = deadline;
-    scales->stop = abandon.stop();
-    const auto started = std::chrono::steady_clock::now();
-    auto result = optim::optimize_tangent_scales(path, *scales);
-    services.metrics.optimization("tangent_scales", seconds_since(started));
-    if (!result) return tl::unexpected(invalid_argument(result.error()));
-    path = result->spec;
-    if (report != nullptr) to_proto(*result, *report->mutable_tangent_scales());
-  }
-  if (breakpoints) {
-    breakpoints->deadline = deadline;
-    breakpoints->stop = abandon.stop();
-    const auto started = std::chrono::steady_clock::now();
-    auto result = optim::optimize_breakpoints(path, *breakpoints);
-    services.metrics.optimization("breakpoints", seconds_since(started));
-    if (!result) return tl::unexpected(invalid_argument(core::prefixed(result.error(), "path.")));
-    path = result->spec;
-    if (report != nullptr) to_proto(*result, *report->mutable_breakpoints());
-  }
-  if (auto stop = abandon.check()) return tl::unexpected(*stop);
-  return path;
 }
 
 grpc::Status convert_constraints(const Abandon& abandon, const Services& services, const v1::ConvertRequest& request,
@@ -279,272 +203,77 @@ class UnaryReactor final : public grpc::ServerUnaryReactor {
   std::stop_source stop_;
 };
 
-// Everything a request plans: the trajectory (along the path, or a move) and, with a
-// robot, the resolved robot. Used by PlanTrajectory (with `motion`) and StreamSamples.
-// The robot is shared so that its model keeps one address: a joint move's plan points to it.
-struct Planned {
-  core::Trajectory trajectory;
-  std::shared_ptr<const RobotRequest> robot;
-};
-
-core::Violations joined(core::Violations a, const core::Violations& b) {
-  a.insert(a.end(), b.begin(), b.end());
-  return a;
-}
-
-// A time-optimal planner's error: FAILED_PRECONDITION when the path cannot be followed at
-// any speed (the field is `motion`: where, and which limit), INVALID_ARGUMENT for bad fields.
-grpc::Status failed_precondition_or_invalid(const core::Violations& violations) {
-  // `motion` names where the path cannot be followed; `motion.durationS` that the motion
-  // the limits allow is too long to sample (the request's own durationS is 0 here).
-  const bool precondition = std::all_of(violations.begin(), violations.end(), [](const core::FieldViolation& v) {
-    return v.field == "motion" || v.field == "motion.durationS";
-  });
-  if (!precondition) return invalid_argument(violations);
-  std::vector<PreconditionViolation> details;
-  std::string message = "the path cannot be followed: ";
-  for (std::size_t i = 0; i < violations.size(); ++i) {
-    details.push_back({"TIME_OPTIMAL", "motion", violations[i].description});
-    message += (i ? "; " : "") + violations[i].description;
-  }
-  return failed_precondition(message, details);
-}
-
-// The fastest timing along the path within the joint limits (with a robot) and the
-// Cartesian ones given (thesis 6.4, TOPP in b = s_dot^2: core/time_optimal.hpp), with jerk
-// limits by the NLP warm-started from it (optim/time_optimal_jerk.hpp). Its report, with
-// which limit binds where, goes to `report` (PlanTrajectory). A path that no positive speed
-// can follow is FAILED_PRECONDITION naming where.
-tl::expected<core::MotionPlan, grpc::Status> time_optimal_timing(const Abandon& abandon, const Services& services,
-                                                                  const core::Path& path,
-                                                                  const core::OrientationPlan& orientation,
-                                                                  const core::MotionSpec& motion,
-                                                                  const RobotRequest* robot, bool jerk_limited,
-                                                                  v1::OptimizationReport* report) {
-  if (robot == nullptr && !motion.max_acceleration) {
-    return tl::unexpected(invalid_argument(core::Violations{
-        {"motion.maxAcceleration", "is needed for a time-optimal motion without a robot (and maxSpeed, optional)"}}));
-  }
-  const auto started = std::chrono::steady_clock::now();
-  const core::RobotModel* model = robot ? &robot->model : nullptr;
-  const core::JointVector seed = robot ? robot->seed : core::JointVector();
-  core::MotionPlan plan;
-  std::vector<core::BindingStretch> binding;
-  optim::OptimizerReport solver;
-  if (jerk_limited) {
-    optim::JerkTimingOptions options;
-    const auto left = std::chrono::duration<double>(abandon.deadline() - started).count();
-    options.time_budget_s = std::clamp(left, 0.0, std::min(kDefaultOptimizeBudgetS, services.limits.max_optimize_seconds));
-    options.stop = abandon.stop();
-    auto result = optim::plan_time_optimal_jerk(path, orientation, motion, model, seed, {}, options);
-    if (!result) return tl::unexpected(failed_precondition_or_invalid(result.error()));
-    plan = std::move(result->motion);
-    binding = result->exact.binding;
-    solver = result->report;
-  } else {
-    auto result = core::plan_time_optimal(path, orientation, motion, model, seed);
-    if (!result) return tl::unexpected(failed_precondition_or_invalid(result.error()));
-    plan = std::move(result->motion);
-    binding = std::move(result->binding);
-    solver.status = optim::OptimizerStatus::kConverged;
-    solver.iterations = result->refinements + 1;
-    solver.objective_after = plan.duration_s;
-  }
-  services.metrics.optimization(jerk_limited ? "time_optimal_jerk" : "time_optimal", seconds_since(started));
-  if (auto stop = abandon.check()) return tl::unexpected(*stop);
-  if (report != nullptr) {
-    solver.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-    // Before: the move time the request would have had without the optimiser.
-    double before = motion.duration_s;
-    if (before == 0.0) {
-      if (auto conservative = core::plan_motion(path, motion)) before = conservative->duration_s;
+// The planner's error as the status to finish with: its kind mapped once. A stopped or
+// expired budget is the call's own cancellation or deadline (Abandon says which, and why).
+grpc::Status to_status(const planner::Error& error, const Abandon& abandon) {
+  switch (error.kind) {
+    case planner::ErrorKind::kInvalidArgument: return invalid_argument(error.violations);
+    case planner::ErrorKind::kTimingImpossible: {
+      // `motion` names where the path cannot be followed; `motion.durationS` that the motion
+      // the limits allow is too long to sample (the request's own durationS is 0 here).
+      std::vector<PreconditionViolation> details;
+      std::string message = "the path cannot be followed: ";
+      for (std::size_t i = 0; i < error.violations.size(); ++i) {
+        details.push_back({"TIME_OPTIMAL", "motion", error.violations[i].description});
+        message += (i ? "; " : "") + error.violations[i].description;
+      }
+      return failed_precondition(message, details);
     }
-    solver.objective_before = before;
-    solver.objective_after = plan.duration_s;
-    to_proto(solver, binding, *report->mutable_timing());
-  }
-  return plan;
-}
-
-// Plans the trajectory of a request with `motion`, or the status to finish with (every
-// violation of the request's parts together).
-tl::expected<Planned, grpc::Status> plan_request(const Abandon& abandon, const Services& services,
-                                                 const v1::PlanRequest& request, v1::OptimizationReport* optimization) {
-  const int kinds = int(request.has_path()) + int(request.has_joint_move()) + int(request.has_linear_move());
-  if (kinds != 1) {
-    return tl::unexpected(invalid_argument(core::Violations{
-        {"path", kinds == 0 ? "is required: give the key frames of a `path`, or a `jointMove` or a `linearMove`"
-                            : "give exactly one of `path`, `jointMove` and `linearMove`"}}));
-  }
-  core::Violations violations;
-  if (request.has_optimize() && !request.has_path()) {
-    violations.push_back({"optimize", "applies to a `path`: a jointMove or linearMove has nothing to optimise"});
-  }
-  auto motion = motion_from_request(request);
-  if (!motion) violations = joined(std::move(violations), motion.error());
-  std::shared_ptr<const RobotRequest> robot;
-  if (request.has_robot()) {
-    auto resolved = robot_from_request(request, services.robots);
-    if (resolved) {
-      robot = std::make_shared<const RobotRequest>(std::move(*resolved));
-    } else {
-      violations = joined(std::move(violations), resolved.error());
+    case planner::ErrorKind::kRobotCannotFollow: {
+      // The first broken limit (time, sample, joint) in the message and every one in the details.
+      std::vector<PreconditionViolation> details;
+      for (const auto& v : error.limits) {
+        v1::LimitEvent event;
+        to_proto(v, event);
+        const bool per_joint = v.kind != core::LimitKind::kIk && v.kind != core::LimitKind::kBranch;
+        details.push_back({v1::LimitKind_Name(event.kind()),
+                           per_joint ? "joint " + std::to_string(v.joint) : "sample " + std::to_string(v.sample),
+                           describe(v)});
+      }
+      std::string message = "robot '" + error.robot + "' cannot follow the plan: " + describe(error.limits.front());
+      if (error.limits.size() > 1) {
+        message += "; and " + std::to_string(error.limits.size() - 1) +
+                   " more in the PreconditionFailure details (set robot.reportOnly for the full report)";
+      }
+      return failed_precondition(message, details);
     }
+    case planner::ErrorKind::kStopped:
+      return abandon.check().value_or(grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled"));
+    case planner::ErrorKind::kDeadlineExceeded:
+      return abandon.check().value_or(
+          grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, "the deadline passed before the work was done"));
   }
-  if (request.has_joint_move()) {
-    if (!request.has_robot()) {
-      violations.push_back({"robot", "is required by a jointMove: the joints belong to a robot model"});
-    }
-    if (!violations.empty()) return tl::unexpected(invalid_argument(violations));
-    auto move = joint_move_from_request(request, robot->model, robot->seed);
-    if (!move) return tl::unexpected(invalid_argument(move.error()));
-    auto plan = core::plan_joint_move(robot->model, *move, *motion);
-    if (!plan) return tl::unexpected(invalid_argument(plan.error()));
-    return Planned{core::Trajectory(std::in_place_type<core::JointMovePlan>, std::move(*plan)), std::move(robot)};
-  }
-  // Following a Cartesian pose (a path or a straight line) takes six joints at least.
-  if (robot && !request.has_joint_move() && robot->model.dof() < 6) {
-    violations.push_back({request.robot().has_model() ? "robot.model.links" : "robot",
-                          "the robot has " + std::to_string(robot->model.dof()) +
-                              " joints; following a tool pose (position and orientation) needs at least 6"});
-  }
-  if (request.has_linear_move()) {
-    if (!violations.empty()) return tl::unexpected(invalid_argument(violations));
-    auto move = linear_move_from_request(request, robot.get());
-    if (!move) return tl::unexpected(invalid_argument(move.error()));
-    auto plan = core::plan_linear_move(*move, *motion);
-    if (!plan) return tl::unexpected(invalid_argument(plan.error()));
-    return Planned{core::Trajectory(std::in_place_type<core::LinearMovePlan>, std::move(*plan)), std::move(robot)};
-  }
-  if (!violations.empty()) {  // with the path's own violations, so that one answer lists all
-    const auto spec = path_from_request(request);
-    return tl::unexpected(invalid_argument(spec ? violations : joined(spec.error(), violations)));
-  }
-  auto spec = optimized_path(abandon, services, request, optimization);
-  if (!spec) return tl::unexpected(spec.error());
-  auto path = core::build_path(*spec);
-  if (!path) return tl::unexpected(invalid_argument(core::prefixed(path.error(), "path.")));
-  // A straight start keeps the tool as the robot holds it at its initial joints (or the
-  // world axes without a robot): see plan_orientation.
-  const Eigen::Quaterniond start_W =
-      robot ? Eigen::Quaterniond(core::forward_kinematics(robot->model, robot->seed).rotation())
-            : Eigen::Quaterniond::Identity();
-  auto orientation = core::plan_orientation(*path, start_W);
-  if (!orientation) return tl::unexpected(invalid_argument(core::prefixed(orientation.error(), "path.")));
-  const auto& timing_request = request.optimize().timing();
-  // As fast as the limits allow: the time-optimal timing, with a robot (joint limits) or
-  // without (Cartesian limits; the S-curve keeps its minimum-time double S, whose jerk bound
-  // the sweep does not model, unless jerkLimited asks for the NLP).
-  const bool minimum_time = motion->duration_s == 0.0 &&
-                            (robot || motion->profile == core::ProfileShape::kTrapezoidal);
-  const bool time_optimal = timing_request.time_optimal() || timing_request.jerk_limited() || minimum_time;
-  if (time_optimal) {
-    auto timing = time_optimal_timing(abandon, services, *path, *orientation, *motion, robot.get(), timing_request.jerk_limited(),
-                                      optimization);
-    if (!timing) return tl::unexpected(timing.error());
-    return Planned{core::Trajectory(std::in_place_type<core::PathMotion>,
-                                    core::PathMotion{std::move(*path), std::move(*timing), std::move(*orientation)}),
-                   std::move(robot)};
-  }
-  auto timing = core::plan_motion(*path, *motion);
-  if (!timing) return tl::unexpected(invalid_argument(timing.error()));
-  return Planned{core::Trajectory(std::in_place_type<core::PathMotion>,
-                                  core::PathMotion{std::move(*path), std::move(*timing), std::move(*orientation)}),
-                 std::move(robot)};
+  return grpc::Status(grpc::StatusCode::INTERNAL, "unknown planner error");
 }
 
-// Samples between two checks of cancellation and deadline in the joint-space pass: an IK
-// sample costs about a microsecond when the pose is within reach and milliseconds when the
-// solver fails on one out of reach, so a check (two clock reads) every 16 keeps an
-// abandoned call's overrun to tens of milliseconds at a cost below 0.5 %.
-constexpr std::size_t kSamplesPerCheck = 16;
-
-// The tool's peaks over the samples that StreamSamples sends: speed, whole acceleration
-// (tangential and centripetal) and angular speed.
-struct ToolPeaks {
-  double speed = 0.0;          ///< [m/s]
-  double acceleration = 0.0;   ///< |a_WT| [m/s^2]
-  double angular_speed = 0.0;  ///< |omega_WT| [rad/s]
-  void add(const core::TrajectorySample& sample) {
-    speed = std::max(speed, sample.speed);
-    acceleration = std::max(acceleration, sample.tool.a_WT.norm());
-    angular_speed = std::max(angular_speed, sample.tool.omega_WT.norm());
-  }
-};
-
-// The joint-space pass over every sample: the report, or the status when the call was
-// abandoned. Also measures the tool's peaks.
-struct RobotPass {
-  core::JointMotionReport report;
-  ToolPeaks tool;
-};
-
-// INVALID_ARGUMENT when a motion has more samples than the server allows: it is streamed,
-// followed by a robot (the IK runs at every sample) or summarised from its samples.
-std::optional<grpc::Status> sample_limit(const Planned& planned, const ServiceLimits& limits) {
-  const auto count = core::sample_count(planned.trajectory);
-  if (count <= limits.max_stream_samples) return std::nullopt;
-  return invalid_argument(core::Violations{
-      {"motion.durationS", "the motion has " + std::to_string(count) + " samples (" +
-                               std::to_string(core::duration(planned.trajectory)) +
-                               " s at the cycle rate); this server streams and checks at most " +
-                               std::to_string(limits.max_stream_samples) +
-                               " per call (geotrajd --max-stream-samples): shorten it or lower cycleRateHz"}});
+// The planner's budget of a call: its deadline and cancellation, and the optimisers' metrics.
+planner::Budget budget_of(const Abandon& abandon, const Services& services) {
+  planner::Budget budget;
+  budget.deadline = abandon.deadline();
+  budget.stop = abandon.stop();
+  Metrics* metrics = &services.metrics;
+  budget.on_optimizer = [metrics](std::string_view name, double seconds) {
+    metrics->optimization(std::string(name), seconds);
+  };
+  return budget;
 }
 
-tl::expected<RobotPass, grpc::Status> robot_pass(const Abandon& abandon, const Planned& planned) {
-  const RobotRequest& robot = *planned.robot;
-  core::TrajectorySampler sampler(planned.trajectory, &robot.model, robot.seed);
-  core::JointReportBuilder builder(robot.model, robot.branch_tolerance);
-  core::TrajectorySample sample;
-  RobotPass pass;
-  while (sampler.next(sample)) {
-    const std::size_t k = sampler.index() - 1;
-    builder.add(k, sample.t, sample.s, sample.joints);
-    pass.tool.add(sample);
-    if (k % kSamplesPerCheck == 0) {
-      if (auto stop = abandon.check()) return tl::unexpected(*stop);
-    }
-  }
-  pass.report = builder.report();
-  return pass;
+planner::Limits limits_of(const Services& services) {
+  return planner::Limits{services.limits.max_stream_samples, "geotrajd --max-stream-samples"};
 }
 
-// The tool's peaks without a robot: the samples without IK (about a microsecond each).
-tl::expected<ToolPeaks, grpc::Status> tool_pass(const Abandon& abandon, const core::Trajectory& trajectory) {
-  core::TrajectorySampler sampler(trajectory, nullptr, {});
-  core::TrajectorySample sample;
-  ToolPeaks peaks;
-  while (sampler.next(sample)) {
-    peaks.add(sample);
-    if (sampler.index() % 1024 == 0) {
-      if (auto stop = abandon.check()) return tl::unexpected(*stop);
-    }
-  }
-  return peaks;
+// Converts the request (once) and plans it; the status to finish with on any error.
+tl::expected<planner::Plan, grpc::Status> plan_call(const Abandon& abandon, const Services& services,
+                                                    const v1::PlanRequest& request, bool with_motion,
+                                                    planner::Purpose purpose) {
+  auto input = request_from_proto(request, services.robots, services.limits.max_optimize_seconds, with_motion);
+  if (!input) return tl::unexpected(invalid_argument(input.error()));
+  auto plan = planner::plan(*input, budget_of(abandon, services), limits_of(services), purpose);
+  if (!plan) return tl::unexpected(to_status(plan.error(), abandon));
+  return std::move(*plan);
 }
 
-// FAILED_PRECONDITION naming the first broken limit (time, sample, joint) in the message
-// and every one in the details.
-grpc::Status robot_cannot_follow(const std::string& robot_name, const core::JointMotionReport& report) {
-  std::vector<PreconditionViolation> details;
-  for (const auto& v : report.violations) {
-    v1::LimitEvent event;
-    to_proto(v, event);
-    const bool per_joint = v.kind != core::LimitKind::kIk && v.kind != core::LimitKind::kBranch;
-    details.push_back({v1::LimitKind_Name(event.kind()),
-                       per_joint ? "joint " + std::to_string(v.joint) : "sample " + std::to_string(v.sample),
-                       describe(v)});
-  }
-  std::string message = "robot '" + robot_name + "' cannot follow the plan: " + describe(report.violations.front());
-  if (report.violations.size() > 1) {
-    message += "; and " + std::to_string(report.violations.size() - 1) +
-               " more in the PreconditionFailure details (set robot.reportOnly for the full report)";
-  }
-  return failed_precondition(message, details);
-}
-
-void summarize(const core::Trajectory& trajectory, const ToolPeaks& tool, v1::MotionSummary& summary) {
+void summarize(const core::Trajectory& trajectory, const planner::ToolPeaks& tool, v1::MotionSummary& summary) {
   summary.set_duration_s(core::duration(trajectory));
   summary.set_sample_count(core::sample_count(trajectory));
   summary.set_peak_speed(tool.speed);
@@ -557,6 +286,7 @@ void summarize(const core::Trajectory& trajectory, const ToolPeaks& tool, v1::Mo
   }
 }
 
+
 // PlanTrajectory: the geometry; with `motion`, the motion summary; with a robot, the joint
 // report (or FAILED_PRECONDITION when the robot cannot follow, unless reportOnly).
 grpc::Status plan_trajectory(const Abandon& abandon, const Services& services, const v1::PlanRequest& request,
@@ -564,48 +294,19 @@ grpc::Status plan_trajectory(const Abandon& abandon, const Services& services, c
   if (auto stop = abandon.check()) return *stop;
   if (auto refused = frame_limit(request.path(), services.limits)) return *refused;
   const bool motion_needed = request.has_robot() || request.has_joint_move() || request.has_linear_move();
-  if (request.has_motion() || motion_needed) {
-    if (!request.has_motion()) {
-      return invalid_argument(core::Violations{
-          {"motion", "is required with a robot or a move: give durationS (s), or the limits for a minimum-time move"}});
-    }
-    auto planned = plan_request(abandon, services, request,
-                                request.has_optimize() ? response.mutable_optimization() : nullptr);
-    if (!planned) return planned.error();
-    if (auto stop = abandon.check()) return *stop;
-    if (const auto* path = std::get_if<core::PathMotion>(&planned->trajectory)) {
-      report_path(path->path, response);
-    }
-    // The summary's peaks are those of the samples (tool_pass, robot_pass): bounded like a stream.
-    if (auto refused = sample_limit(*planned, services.limits)) return *refused;
-    std::optional<RobotPass> pass;
-    if (planned->robot) {
-      auto result = robot_pass(abandon, *planned);
-      if (!result) return result.error();
-      pass = std::move(*result);
-      if (!pass->report.feasible() && !planned->robot->report_only) {
-        return robot_cannot_follow(planned->robot->model.name, pass->report);
-      }
-      to_proto(planned->robot->model.name, pass->report, *response.mutable_robot());
-    }
-    ToolPeaks tool;
-    if (pass) {
-      tool = pass->tool;
-    } else {
-      auto peaks = tool_pass(abandon, planned->trajectory);
-      if (!peaks) return peaks.error();
-      tool = *peaks;
-    }
-    summarize(planned->trajectory, tool, *response.mutable_motion());
-    return grpc::Status::OK;
+  if (motion_needed && !request.has_motion()) {
+    return invalid_argument(core::Violations{
+        {"motion", "is required with a robot or a move: give durationS (s), or the limits for a minimum-time move"}});
   }
-  const auto spec =
-      optimized_path(abandon, services, request, request.has_optimize() ? response.mutable_optimization() : nullptr);
-  if (!spec) return spec.error();
-  const auto path = core::build_path(*spec);
-  if (!path) return invalid_argument(core::prefixed(path.error(), "path."));
-  if (auto stop = abandon.check()) return *stop;
-  report_path(*path, response);
+  auto plan = plan_call(abandon, services, request, request.has_motion(), planner::Purpose::kPlan);
+  if (!plan) return plan.error();
+  if (plan->path_report) {
+    const auto& r = *plan->path_report;
+    to_proto(*plan->followed_path(), r.achieved, r.closed_loop, r.geometry, response);
+  }
+  if (request.has_optimize()) to_proto(plan->optimizers, *response.mutable_optimization());
+  if (plan->joints) to_proto(plan->robot->model.name, *plan->joints, *response.mutable_robot());
+  if (plan->trajectory) summarize(*plan->trajectory, plan->tool.value_or(planner::ToolPeaks{}), *response.mutable_motion());
   return grpc::Status::OK;
 }
 
@@ -625,10 +326,10 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
   /// Ends the call with `status` before any sample (refusals, bad requests, planning errors).
   void fail(const grpc::Status& status) { End(status); }
 
-  /// Streams `planned` (from the worker that planned it).
-  void start(Planned planned, std::size_t batch_size, bool real_time) {
-    planned_ = std::make_unique<Planned>(std::move(planned));
-    sampler_.emplace(planned_->trajectory, planned_->robot ? &planned_->robot->model : nullptr,
+  /// Streams `planned` (from the worker that planned it; it has a trajectory).
+  void start(planner::Plan planned, std::size_t batch_size, bool real_time) {
+    planned_ = std::make_unique<planner::Plan>(std::move(planned));
+    sampler_.emplace(*planned_->trajectory, planned_->robot ? &planned_->robot->model : nullptr,
                      planned_->robot ? planned_->robot->seed : core::JointVector());
     batch_size_ = batch_size;
     real_time_ = real_time;
@@ -735,7 +436,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
   Call call_;
   std::uint64_t sent_ = 0;  // samples written
   Abandon abandon_;         // the client's deadline: a stream may last as long as its motion
-  std::unique_ptr<Planned> planned_;  // stable address: the sampler refers to it
+  std::unique_ptr<planner::Plan> planned_;  // stable address: the sampler refers to it
   std::optional<core::TrajectorySampler> sampler_;
   std::size_t batch_size_ = 0;
   bool real_time_ = false;
@@ -752,8 +453,9 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
 };
 
 // The planning of a stream (on a worker): the planned motion, or the status to end with.
-tl::expected<Planned, grpc::Status> plan_stream(const Abandon& abandon, const Services& services,
-                                                const v1::PlanRequest& request) {
+// With a robot the whole motion is checked before the first sample is sent.
+tl::expected<planner::Plan, grpc::Status> plan_stream(const Abandon& abandon, const Services& services,
+                                                      const v1::PlanRequest& request) {
   if (auto stop = abandon.check()) return tl::unexpected(*stop);
   if (auto refused = frame_limit(request.path(), services.limits)) return tl::unexpected(*refused);
   if (!request.has_motion()) {
@@ -765,24 +467,7 @@ tl::expected<Planned, grpc::Status> plan_stream(const Abandon& abandon, const Se
         core::Violations{{"pacing", "unknown value " + std::to_string(request.pacing()) +
                                         "; use STREAM_PACING_AS_FAST_AS_POSSIBLE or STREAM_PACING_REAL_TIME"}}));
   }
-  auto planned = plan_request(abandon, services, request, nullptr);
-  if (!planned) return tl::unexpected(planned.error());
-  if (auto refused = sample_limit(*planned, services.limits)) return tl::unexpected(*refused);
-  if (planned->robot) {
-    auto pass = robot_pass(abandon, *planned);
-    if (!pass) return tl::unexpected(pass.error());
-    // reportOnly streams a motion that breaks joint limits (for simulation and analysis),
-    // never one whose IK failed or jumped branches: those joints would be meaningless.
-    const auto& violations = pass->report.violations;
-    const bool only_limits = std::all_of(violations.begin(), violations.end(), [](const core::LimitEvent& e) {
-      return e.kind != core::LimitKind::kIk && e.kind != core::LimitKind::kBranch;
-    });
-    if (!pass->report.feasible() && !(planned->robot->report_only && only_limits)) {
-      return tl::unexpected(robot_cannot_follow(planned->robot->model.name, pass->report));
-    }
-  }
-  if (auto stop = abandon.check()) return tl::unexpected(*stop);
-  return planned;
+  return plan_call(abandon, services, request, /*with_motion=*/true, planner::Purpose::kStream);
 }
 
 // The analysis is the path's geometry: a robot, when given, does not change it.
@@ -791,12 +476,11 @@ grpc::Status analyze_path(const Abandon& abandon, const Services& services, cons
   if (auto stop = abandon.check()) return *stop;
   if (auto refused = frame_limit(request.path(), services.limits)) return *refused;
   if (auto refused = analysis_limit(request, services.limits)) return *refused;
-  const auto spec = optimized_path(abandon, services, request, nullptr);
-  if (!spec) return spec.error();
-  const auto path = core::build_path(*spec);
-  if (!path) return invalid_argument(core::prefixed(path.error(), "path."));
-  if (auto stop = abandon.check()) return *stop;
-  to_proto(*path, core::analyze(*path, analysis_points(request)), profile);
+  auto input = request_from_proto(request, services.robots, services.limits.max_optimize_seconds, false);
+  if (!input) return invalid_argument(input.error());
+  auto analysis = planner::analyze(*input, analysis_points(request), budget_of(abandon, services));
+  if (!analysis) return to_status(analysis.error(), abandon);
+  to_proto(analysis->path, analysis->points, profile);
   return grpc::Status::OK;
 }
 

@@ -11,6 +11,7 @@ packages=(
   golang-google-grpc-dev              # grpc/health/v1/health.proto
   libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  liblapacke-dev                      # LAPACK's banded Cholesky, compared in bench_banded_cholesky
   liborocos-kdl-dev                   # Orocos KDL: the kinematics cross-check (tests only)
   coinor-libipopt-dev libnlopt-cxx-dev   # the optimisers (optim/)
   python3 python3-grpcio python3-protobuf   # the cross-language client test

@@ -1,6 +1,7 @@
 #include "log.hpp"
 
 #include <grpc/support/log.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <array>
@@ -67,12 +68,6 @@ void append_escaped(std::string& out, std::string_view s, bool quotes) {
   }
 }
 
-void append_json_string(std::string& out, std::string_view s) {
-  out += '"';
-  append_escaped(out, s, true);
-  out += '"';
-}
-
 // Whether a text-format value needs quotes to stay one token.
 bool needs_quotes(std::string_view s) {
   if (s.empty()) return true;
@@ -83,13 +78,10 @@ bool needs_quotes(std::string_view s) {
   return false;
 }
 
-void append_double(std::string& out, double value, LogFormat format) {
+// Text format only (JSON numbers are nlohmann-json's).
+void append_double(std::string& out, double value) {
   if (!std::isfinite(value)) {
-    if (format == LogFormat::kJson) {
-      out += "null";
-    } else {
-      out += std::isnan(value) ? "NaN" : (value > 0 ? "+Inf" : "-Inf");
-    }
+    out += std::isnan(value) ? "NaN" : (value > 0 ? "+Inf" : "-Inf");
     return;
   }
   char buffer[32];
@@ -112,38 +104,23 @@ void append_timestamp(std::string& out) {
   if (n > 0) out.append(buffer, static_cast<std::size_t>(n));
 }
 
+// JSON lines through nlohmann-json: the envelope first (ordered_json keeps insertion order),
+// strings escaped by the library (control characters as \u00XX), invalid UTF-8 replaced by
+// U+FFFD (error_handler_t::replace), non-finite doubles written as null.
 std::string format_json(LogLevel level, std::string_view message, const std::vector<LogField>& fields) {
-  std::string out = "{\"ts\":\"";
-  append_timestamp(out);
-  out += "\",\"level\":\"";
-  out += level_name(level, LogFormat::kJson);
-  out += "\",\"msg\":";
-  append_json_string(out, message);
+  std::string ts;
+  append_timestamp(ts);
+  nlohmann::ordered_json line;
+  line["ts"] = std::move(ts);
+  line["level"] = level_name(level, LogFormat::kJson);
+  line["msg"] = message;
   for (const auto& field : fields) {
-    out += ',';
     // The envelope's keys stay unique: a field cannot shadow ts, level or msg.
-    if (field.key == "ts" || field.key == "level" || field.key == "msg") {
-      append_json_string(out, "_" + field.key);
-    } else {
-      append_json_string(out, field.key);
-    }
-    out += ':';
-    std::visit(
-        [&out](const auto& value) {
-          using T = std::decay_t<decltype(value)>;
-          if constexpr (std::is_same_v<T, std::string>) {
-            append_json_string(out, value);
-          } else if constexpr (std::is_same_v<T, bool>) {
-            out += value ? "true" : "false";
-          } else if constexpr (std::is_same_v<T, double>) {
-            append_double(out, value, LogFormat::kJson);
-          } else {
-            out += std::to_string(value);
-          }
-        },
-        field.value);
+    const bool reserved = field.key == "ts" || field.key == "level" || field.key == "msg";
+    std::visit([&](const auto& value) { line[reserved ? "_" + field.key : field.key] = value; }, field.value);
   }
-  out += "}\n";
+  std::string out = line.dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace);
+  out += '\n';
   return out;
 }
 
@@ -178,7 +155,7 @@ std::string format_text(LogLevel level, std::string_view message, const std::vec
           } else if constexpr (std::is_same_v<T, bool>) {
             out += value ? "true" : "false";
           } else if constexpr (std::is_same_v<T, double>) {
-            append_double(out, value, LogFormat::kText);
+            append_double(out, value);
           } else {
             out += std::to_string(value);
           }

@@ -31,9 +31,9 @@ struct LogField {
 /// first, then written with one fwrite under a process-wide mutex and flushed, so lines
 /// never interleave (not even those of two loggers on one stream). Copyable and movable.
 ///
-/// JSON: {"ts":"2026-11-30T16:40:01.123Z","level":"info","msg":"...",<fields>} with strings
-/// escaped (control characters as \u00XX, valid UTF-8 passed through, invalid bytes as
-/// U+FFFD) and non-finite doubles as null; a field named ts, level or msg is written as
+/// JSON (written by nlohmann-json): {"ts":"2026-11-30T16:40:01.123Z","level":"info","msg":"...",
+/// <fields>} with strings escaped (control characters below U+0020 as \u00XX, valid UTF-8
+/// passed through, invalid bytes as U+FFFD) and non-finite doubles as null; a field named ts, level or msg is written as
 /// _ts, _level or _msg so keys stay unique.
 /// Text: 2026-11-30T16:40:01.123Z INFO msg key=value key2="quoted value"; the message has
 /// control characters escaped; values with spaces, quotes, '=' or control characters (and

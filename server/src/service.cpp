@@ -534,6 +534,7 @@ class TrajectoryService final : public RawService {
     Call call(*runtime_, *context, Method::kStreamSamples);
     const std::optional<grpc::Status> refusal = call.refusal();
     auto* stream = new SampleStreamer(std::move(call), *context);
+    handoff_release(stream);  // OnCancel may run on another of gRPC's threads
     if (refusal) {
       stream->fail(*refusal);
       return stream;

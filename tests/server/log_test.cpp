@@ -88,7 +88,8 @@ TEST(Logger, JsonEscapesQuotesNewlinesAndControlCharacters) {
   logger.log(LogLevel::kWarning, nasty, {{"text", nasty}, {"utf8", utf8}, {"bad", std::string("x\xff\xc3y")}, {"k\"ey", std::int64_t{1}}});
   const auto lines = out.lines();
   ASSERT_EQ(lines.size(), 1u);  // newlines inside values do not split the line
-  EXPECT_THAT(lines[0], HasSubstr(R"("msg":"a\"b\\c\nd\re\tf\u0001\u001f\u007f\u0000g")"));
+  // Control characters (below U+0020) are escaped; DEL is a plain character in JSON.
+  EXPECT_THAT(lines[0], HasSubstr(std::string(R"("msg":"a\"b\\c\nd\re\tf\u0001\u001f)") + '\x7f' + R"(\u0000g")"));
   EXPECT_THAT(lines[0], HasSubstr("\"utf8\":\"" + utf8 + "\""));  // UTF-8 passes through unescaped
   const auto json = nlohmann::json::parse(lines[0]);
   EXPECT_EQ(json.at("level"), "warning");

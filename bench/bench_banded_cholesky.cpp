@@ -15,7 +15,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "banded_cholesky.hpp"
+#include "optim/timing/banded_cholesky.hpp"
 
 namespace {
 

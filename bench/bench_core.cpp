@@ -8,11 +8,11 @@
 #include <cmath>
 #include <random>
 
-#include "geotraj/core/analysis.hpp"
-#include "geotraj/core/arc_length.hpp"
-#include "geotraj/core/constraints.hpp"
-#include "geotraj/core/geometry_report.hpp"
-#include "geotraj/core/path.hpp"
+#include "core/geometry/analysis.hpp"
+#include "core/geometry/arc_length.hpp"
+#include "core/geometry/constraints.hpp"
+#include "core/geometry/geometry_report.hpp"
+#include "core/geometry/path.hpp"
 #include "thesis_paths.hpp"
 
 namespace {

@@ -1,4 +1,4 @@
-// Kinematics and IK (core/kinematics.hpp, core/ik.hpp, core/joint_motion.hpp), one thread:
+// Kinematics and IK (core/robot/kinematics.hpp, core/robot/ik.hpp, core/planning/joint_motion.hpp), one thread:
 //  - forward kinematics, FK with the Jacobian, and J_dot q_dot per call, PA-10 and UR5, at
 //    64 random configurations within the limits, cycled;
 //  - the IK of every sample of the thesis's demo path C (10 s, 100 Hz, 1001 samples) on the
@@ -29,12 +29,12 @@
 #include <kdl/jntarray.hpp>
 #endif
 
-#include "geotraj/core/ik.hpp"
-#include "geotraj/core/joint_motion.hpp"
-#include "geotraj/core/kinematics.hpp"
-#include "geotraj/core/motion.hpp"
-#include "geotraj/core/orientation.hpp"
-#include "geotraj/core/path.hpp"
+#include "core/geometry/path.hpp"
+#include "core/motion/motion.hpp"
+#include "core/motion/orientation.hpp"
+#include "core/planning/joint_motion.hpp"
+#include "core/robot/ik.hpp"
+#include "core/robot/kinematics.hpp"
 #include "thesis_paths.hpp"
 
 namespace {

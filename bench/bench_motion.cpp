@@ -1,12 +1,12 @@
-// Motion along a path (core/motion.hpp): samples per second of MotionSampler on the
+// Motion along a path (core/motion/motion.hpp): samples per second of MotionSampler on the
 // thesis's demonstration path C (10 s move, 100 Hz and 1 kHz) for each time
 // parameterization, and the cost of plan_motion (with a duration, and minimum-time, which
 // samples the curvature). Run: build/bench/bench_motion --benchmark_repetitions=5
 // The items-per-second counter is samples per second on one core.
 #include <benchmark/benchmark.h>
 
-#include "geotraj/core/motion.hpp"
-#include "geotraj/core/path.hpp"
+#include "core/geometry/path.hpp"
+#include "core/motion/motion.hpp"
 #include "thesis_paths.hpp"
 
 namespace {

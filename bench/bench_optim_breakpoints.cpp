@@ -1,4 +1,4 @@
-// The trapezoid breakpoint optimiser (optim/breakpoints.hpp): time per optimisation on the
+// The trapezoid breakpoint optimiser (optim/breakpoints/breakpoints.hpp): time per optimisation on the
 // path of thesis Table B.1 (2 segments, 4th-order trapezoids) and on the thesis's 4-frame
 // demonstration path A (Table 7.18) blended with trapezoids, per objective, with the
 // default options (4 runs per block, 12000 evaluations). Counters: objective before and
@@ -6,8 +6,8 @@
 #include <benchmark/benchmark.h>
 
 #include "../tests/optim/breakpoints/appendix_b_paths.hpp"
-#include "geotraj/core/path.hpp"
-#include "geotraj/optim/breakpoints.hpp"
+#include "core/geometry/path.hpp"
+#include "optim/breakpoints/breakpoints.hpp"
 #include "thesis_paths.hpp"
 
 namespace {

@@ -1,4 +1,4 @@
-// Tangent-scale optimisation (optim/tangent_scales.hpp) on the thesis's 4-frame demo
+// Tangent-scale optimisation (optim/tangent_scales/tangent_scales.hpp) on the thesis's 4-frame demo
 // (Section 7.2, paths A, B, C of Table 7.18), one benchmark per objective. Arguments: the
 // path (0 = A, 1 = B, 2 = C) and the reading of unspecified constraints (0 = smoothest, the
 // default, on SLSQP; 1 = the thesis's zeros and 2 = lowest degree, on Ipopt). Counters: solver iterations and the objective before and after
@@ -11,7 +11,7 @@
 
 #include <benchmark/benchmark.h>
 
-#include "geotraj/optim/tangent_scales.hpp"
+#include "optim/tangent_scales/tangent_scales.hpp"
 #include "thesis_paths.hpp"
 
 namespace {

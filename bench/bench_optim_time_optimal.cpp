@@ -11,10 +11,10 @@
 
 #include <benchmark/benchmark.h>
 
-#include "geotraj/core/orientation.hpp"
-#include "geotraj/core/path.hpp"
-#include "geotraj/core/time_optimal.hpp"
-#include "geotraj/optim/time_optimal_jerk.hpp"
+#include "core/geometry/path.hpp"
+#include "core/motion/orientation.hpp"
+#include "core/planning/time_optimal.hpp"
+#include "optim/timing/time_optimal_jerk.hpp"
 #include "thesis_paths.hpp"
 
 namespace {

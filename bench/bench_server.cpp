@@ -13,8 +13,8 @@
 #include <iostream>
 #include <vector>
 
-#include "geotraj/server/server.hpp"
 #include "geotraj/v1/geotraj.grpc.pb.h"
+#include "server/server.hpp"
 
 namespace {
 

@@ -8,7 +8,7 @@
 #include <grpcpp/channel.h>
 #include <tl/expected.hpp>
 
-#include "geotraj/server/server.hpp"
+#include "server/server.hpp"
 
 namespace geotraj::cli {
 

@@ -3,9 +3,9 @@
 #include <cstdio>
 #include <string>
 
-#include "geotraj/server/status_codes.hpp"
 #include "google/rpc/error_details.pb.h"
 #include "google/rpc/status.pb.h"
+#include "server/status_codes.hpp"
 
 namespace geotraj::cli {
 namespace {

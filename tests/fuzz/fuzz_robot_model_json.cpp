@@ -15,9 +15,9 @@
 
 #include <google/protobuf/util/message_differencer.h>
 
-#include "convert.hpp"
-#include "geotraj/core/kinematics.hpp"
-#include "geotraj/core/robot.hpp"
+#include "core/robot/kinematics.hpp"
+#include "core/robot/robot.hpp"
+#include "server/wire/convert.hpp"
 
 namespace {
 

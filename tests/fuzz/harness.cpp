@@ -17,9 +17,9 @@
 #include <grpcpp/server.h>
 #include <grpcpp/support/channel_arguments.h>
 
-#include "convert.hpp"
-#include "geotraj/server/server.hpp"
 #include "google/rpc/status.pb.h"
+#include "server/server.hpp"
+#include "server/wire/convert.hpp"
 
 namespace geotraj::fuzz {
 namespace {

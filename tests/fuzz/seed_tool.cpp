@@ -25,9 +25,9 @@
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/util/json_util.h>
 
-#include "convert.hpp"
-#include "geotraj/core/robot.hpp"
+#include "core/robot/robot.hpp"
 #include "geotraj/v1/geotraj.pb.h"
+#include "server/wire/convert.hpp"
 
 namespace fs = std::filesystem;
 namespace pb = google::protobuf;

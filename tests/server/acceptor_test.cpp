@@ -16,9 +16,9 @@
 
 #include <gmock/gmock.h>
 
-#include "../../server/src/acceptor.hpp"
-#include "../../server/src/health.hpp"
 #include "raw_sockets.hpp"
+#include "server/ops/acceptor.hpp"
+#include "server/rpc/health.hpp"
 
 namespace geotraj::testing {
 namespace {

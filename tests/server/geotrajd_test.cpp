@@ -12,8 +12,8 @@
 
 #include <gmock/gmock.h>
 
-#include "grpc/health/v1/health.grpc.pb.h"
 #include "daemon.hpp"
+#include "grpc/health/v1/health.grpc.pb.h"
 #include "test_server.hpp"
 
 namespace geotraj::testing {

@@ -11,8 +11,8 @@
 #include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/support/byte_buffer.h>
 
-#include "../../server/src/health.hpp"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "server/rpc/health.hpp"
 #include "test_server.hpp"
 
 namespace geotraj::testing {

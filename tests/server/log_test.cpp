@@ -12,7 +12,7 @@
 #include <gmock/gmock.h>
 #include <nlohmann/json.hpp>
 
-#include "../../server/src/log.hpp"
+#include "server/ops/log.hpp"
 
 namespace geotraj::testing {
 namespace {

@@ -19,8 +19,8 @@
 
 #include <gmock/gmock.h>
 
-#include "../../server/src/http_exporter.hpp"
-#include "../../server/src/metrics.hpp"
+#include "server/ops/http_exporter.hpp"
+#include "server/ops/metrics.hpp"
 
 namespace geotraj::testing {
 namespace {

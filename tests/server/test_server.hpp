@@ -14,10 +14,10 @@
 #include <grpcpp/security/credentials.h>
 #include <gtest/gtest.h>
 
-#include "geotraj/server/server.hpp"
 #include "geotraj/v1/geotraj.grpc.pb.h"
 #include "google/rpc/error_details.pb.h"
 #include "google/rpc/status.pb.h"
+#include "server/server.hpp"
 
 namespace geotraj::testing {
 

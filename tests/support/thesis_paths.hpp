@@ -6,7 +6,7 @@
 
 #include <stdexcept>
 
-#include "geotraj/core/key_frame.hpp"
+#include "core/geometry/key_frame.hpp"
 
 namespace geotraj::testing {
 

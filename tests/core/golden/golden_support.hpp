@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "geotraj/core/constraints.hpp"
+#include "core/geometry/constraints.hpp"
 #include "test_support.hpp"
 
 namespace geotraj::test {

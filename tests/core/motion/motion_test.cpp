@@ -11,12 +11,12 @@
 
 #include <gtest/gtest.h>
 
-#include "geotraj/core/arc_length.hpp"
-#include "geotraj/core/differential_geometry.hpp"
-#include "geotraj/core/motion.hpp"
-#include "geotraj/core/path.hpp"
-#include "test_support.hpp"
 #include "allocation_counter.hpp"
+#include "core/geometry/arc_length.hpp"
+#include "core/geometry/differential_geometry.hpp"
+#include "core/geometry/path.hpp"
+#include "core/motion/motion.hpp"
+#include "test_support.hpp"
 #include "thesis_paths.hpp"
 
 namespace geotraj::test {

@@ -6,7 +6,7 @@
 
 #include <gtest/gtest.h>
 
-#include "geotraj/core/speed_profile.hpp"
+#include "core/motion/speed_profile.hpp"
 
 namespace geotraj::test {
 namespace {

@@ -21,9 +21,9 @@
 
 #include <gtest/gtest.h>
 
-#include "geotraj/core/analysis.hpp"
-#include "geotraj/core/arc_length.hpp"
-#include "geotraj/core/path.hpp"
+#include "core/geometry/analysis.hpp"
+#include "core/geometry/arc_length.hpp"
+#include "core/geometry/path.hpp"
 #include "test_support.hpp"
 
 namespace geotraj::test {

@@ -11,8 +11,8 @@
 
 #include <gtest/gtest.h>
 
-#include "geotraj/core/analysis.hpp"
-#include "geotraj/core/path.hpp"
+#include "core/geometry/analysis.hpp"
+#include "core/geometry/path.hpp"
 #include "test_support.hpp"
 
 namespace geotraj::test {

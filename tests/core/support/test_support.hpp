@@ -12,8 +12,8 @@
 #include <Eigen/Core>
 #include <gtest/gtest.h>
 
-#include "geotraj/core/key_frame.hpp"
-#include "geotraj/core/path.hpp"
+#include "core/geometry/key_frame.hpp"
+#include "core/geometry/path.hpp"
 
 namespace geotraj::test {
 

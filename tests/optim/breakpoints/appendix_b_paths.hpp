@@ -14,7 +14,7 @@
 #include <cmath>
 #include <vector>
 
-#include "geotraj/core/key_frame.hpp"
+#include "core/geometry/key_frame.hpp"
 
 namespace geotraj::testing {
 

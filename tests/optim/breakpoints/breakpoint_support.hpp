@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
-#include "geotraj/core/analysis.hpp"
-#include "geotraj/core/path.hpp"
-#include "geotraj/optim/breakpoints.hpp"
+#include "core/geometry/analysis.hpp"
+#include "core/geometry/path.hpp"
+#include "optim/breakpoints/breakpoints.hpp"
 
 namespace geotraj::testing {
 

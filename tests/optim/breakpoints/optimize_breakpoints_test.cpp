@@ -176,16 +176,17 @@ TEST(OptimizeBreakpoints, PolynomialBlendIsANamedError) {
   const auto r = optim::optimize_breakpoints(spec, {});
   ASSERT_FALSE(r);
   ASSERT_EQ(r.error().size(), 1u);
-  EXPECT_EQ(r.error()[0].field, "blend");
+  EXPECT_EQ(r.error()[0].field, "path.blend");
   EXPECT_NE(r.error()[0].description.find("TRAPEZOIDAL"), std::string::npos);
 }
 
+// Two values (a path and options): fields named from the PlanRequest's root (core/error.hpp).
 TEST(OptimizeBreakpoints, InvalidPathReturnsItsViolations) {
   auto spec = testing::table_b1_path();
   spec.frames[1].tau = std::nan("");
   const auto r = optim::optimize_breakpoints(spec, {});
   ASSERT_FALSE(r);
-  EXPECT_EQ(r.error()[0].field, "frames[1].torsion");
+  EXPECT_EQ(r.error()[0].field, "path.frames[1].torsion");
 }
 
 TEST(OptimizeBreakpoints, BadOptionsAreNamedErrors) {
@@ -198,7 +199,8 @@ TEST(OptimizeBreakpoints, BadOptionsAreNamedErrors) {
   ASSERT_FALSE(r);
   std::vector<std::string> fields;
   for (const auto& v : r.error()) fields.push_back(v.field);
-  EXPECT_EQ(fields, (std::vector<std::string>{"max_evaluations", "restarts", "min_ramp", "time_budget_s"}));
+  EXPECT_EQ(fields, (std::vector<std::string>{"optimize.breakpoints.maxEvaluations", "optimize.breakpoints.restarts",
+                                              "optimize.breakpoints.minRamp", "optimize.timeBudgetS"}));
 }
 
 }  // namespace

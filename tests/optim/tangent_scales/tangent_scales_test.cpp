@@ -1,4 +1,4 @@
-// Tangent-scale optimisation (optim/tangent_scales.hpp). Every objective is recomputed here
+// Tangent-scale optimisation (optim/tangent_scales/tangent_scales.hpp). Every objective is recomputed here
 // independently of the optimiser, from core's blended path:
 //  - bending energy: int kappa^2 |p'| du by composite Simpson (2 kDense intervals per
 //    segment) on core::evaluate and core::local_geometry, plus length_weight times core's
@@ -18,12 +18,12 @@
 
 #include <gtest/gtest.h>
 
-#include "geotraj/core/analysis.hpp"
-#include "geotraj/core/constraints.hpp"
-#include "geotraj/core/differential_geometry.hpp"
-#include "geotraj/core/path.hpp"
-#include "geotraj/core/validate.hpp"
-#include "geotraj/optim/tangent_scales.hpp"
+#include "core/geometry/analysis.hpp"
+#include "core/geometry/constraints.hpp"
+#include "core/geometry/differential_geometry.hpp"
+#include "core/geometry/path.hpp"
+#include "core/geometry/validate.hpp"
+#include "optim/tangent_scales/tangent_scales.hpp"
 #include "thesis_paths.hpp"
 
 namespace geotraj::optim {

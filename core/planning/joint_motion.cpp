@@ -1,0 +1,328 @@
+// Joint tracking of a Cartesian motion and its report. See joint_motion.hpp.
+#include "core/planning/joint_motion.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include "core/error.hpp"
+#include "core/robot/dh_chain.hpp"
+
+namespace geotraj::core {
+
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+
+CartesianState cartesian_state(const Path& path, const OrientationPlan& orientation, const MotionSample& sample) {
+  const double u_local = sample.u - static_cast<double>(sample.segment);
+  const OrientationSample o =
+      orientation_at(orientation, path, sample.segment, u_local, sample.s, sample.speed, sample.s_ddot);
+  CartesianState x;
+  x.t = sample.t;
+  x.X_WT.linear() = o.q_WT.toRotationMatrix();
+  x.X_WT.translation() = sample.p_W;
+  x.v_WT = sample.v_W;
+  x.a_WT = sample.a_W;
+  x.omega_WT = o.omega_W;
+  x.alpha_WT = o.alpha_W;
+  return x;
+}
+
+// ---------------------------------------------------------------------------------------
+// JointTracker
+
+struct JointTracker::State {
+  State(const RobotModel& m, const JointVector& seed, const IkOptions& o)
+      : model(&m), options(o), chain(m), bounds(m), seed_q(seed) {}
+
+  const RobotModel* model;
+  IkOptions options;
+  detail::DhChain chain;
+  detail::JointBounds bounds;
+  detail::NewtonWorkspace ws;
+  JointVector seed_q;
+  bool first = true;
+  // The last good sample.
+  double t_prev = 0.0;
+  JointVector q_prev, q_dot_prev, q_ddot_prev;
+  Vector3d p_prev = Vector3d::Zero();
+  // Scratch.
+  JointVector q_guess, z, xi;
+  JointJacobian J_dot;
+};
+
+JointTracker::JointTracker(const RobotModel& model, const JointVector& q_seed, const IkOptions& options)
+    : state_(std::make_unique<State>(model, q_seed, options)) {
+  GEOTRAJ_CHECK(q_seed.size() == static_cast<Eigen::Index>(model.dof()));
+}
+
+JointTracker::~JointTracker() = default;
+JointTracker::JointTracker(JointTracker&&) noexcept = default;
+JointTracker& JointTracker::operator=(JointTracker&&) noexcept = default;
+
+void JointTracker::reset(const JointVector& q_seed) {
+  GEOTRAJ_CHECK(q_seed.size() == state_->chain.dof());
+  state_->seed_q = q_seed;
+  state_->first = true;
+}
+
+bool JointTracker::track(const CartesianState& x, JointSample& out) {
+  State& st = *state_;
+  const Eigen::Index n = st.chain.dof();
+  const Matrix3d R_target = x.X_WT.linear();
+  const Vector3d p_target = x.X_WT.translation();
+  detail::NewtonWorkspace& ws = st.ws;
+  out.midpoint_deviation = 0.0;
+  out.manipulability = 0.0;
+  out.q_dot.setZero(n);
+  out.q_ddot.setZero(n);
+
+  // Positions: a cold solve on the first sample, else the Newton projection of the predictor.
+  detail::NewtonOutcome ik;
+  if (n < 6) {  // a general pose has no solution (ik.hpp)
+    out.q = st.first ? st.seed_q : st.q_prev;
+    st.chain.pose(out.q, ws.R, ws.p);
+    ik.position_error = (p_target - ws.p).norm();
+    ik.orientation_error = detail::rotation_vector(R_target * ws.R.transpose()).norm();
+  } else if (st.first) {
+    ik = detail::solve_cold(st.chain, st.bounds, R_target, p_target, st.seed_q, st.options, out.q, ws);
+  } else {
+    const double dt = x.t - st.t_prev;  // [s]
+    st.q_guess = st.q_prev + st.q_dot_prev * dt + st.q_ddot_prev * (0.5 * dt * dt);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      st.q_guess(i) = std::clamp(st.q_guess(i), st.bounds.lo[k], st.bounds.hi[k]);
+    }
+    out.q = st.q_guess;
+    ik = detail::newton(st.chain, st.bounds, R_target, p_target, st.options, false, out.q, ws);
+    if (!ik.converged) {  // the predictor left the basin (e.g. a jump in the input): from q_prev
+      out.q = st.q_prev;
+      const int first_iterations = ik.iterations;
+      ik = detail::newton(st.chain, st.bounds, R_target, p_target, st.options, false, out.q, ws);
+      ik.iterations += first_iterations;
+    }
+  }
+  out.converged = ik.converged;
+  out.iterations = ik.iterations;
+  out.position_error = ik.position_error;
+  out.orientation_error = ik.orientation_error;
+  if (!out.converged) return false;
+
+  // Velocities and accelerations at q (ws holds J, the axes and the pose there), first with
+  // every joint, then, if a joint sits at a limit and would leave it, with that joint held
+  // (W_ii = 0: the reduced arm J W, the same formulas), as the positions are projected.
+  const JointJacobian& J = ws.J;
+  out.manipulability = detail::factor(J, nullptr, ws);
+  Vector6d twist, accel;
+  twist << x.v_WT, x.omega_WT;
+  accel << x.a_WT, x.alpha_WT;
+  const double speed = x.v_WT.norm();                                                // |v| [m/s]
+  const double speed_dot = speed > 0.0 ? x.v_WT.dot(x.a_WT) / speed : x.a_WT.norm();  // d|v|/dt [m/s^2]
+  const double k = n > 6 ? st.options.limit_avoidance_gain : 0.0;                     // [rad^2/m]
+  std::array<bool, kMaxJoints> active{};
+  active.fill(true);
+  auto rates = [&] {  // ws.llt holds J W J^T
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const auto j = static_cast<std::size_t>(i);
+      const double r = st.bounds.range[j];
+      const double grad = r > 0.0 ? 2.0 * (out.q(i) - st.bounds.mid[j]) / (r * r) : 0.0;  // grad H_i [1/rad]
+      st.z(i) = active[j] ? -k * speed * grad : 0.0;                                       // [rad/s]
+    }
+    const Vector6d w = ws.llt.solve(twist - J * st.z);  // (J W J^T)^-1 ([v; omega] - J z)
+    out.q_dot.noalias() = J.transpose() * w;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      out.q_dot(i) = active[static_cast<std::size_t>(i)] ? out.q_dot(i) + st.z(i) : 0.0;  // J^+ [v; omega] + N z (1.8)
+    }
+    st.chain.jacobian_dot(ws.p, ws.z, ws.o, J, out.q_dot, st.J_dot);
+    st.xi.noalias() = st.J_dot.transpose() * w;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const auto j = static_cast<std::size_t>(i);
+      const double r = st.bounds.range[j];
+      if (!active[j]) {
+        st.xi(i) = 0.0;
+        continue;
+      }
+      if (r > 0.0) {
+        const double grad = 2.0 * (out.q(i) - st.bounds.mid[j]) / (r * r);
+        st.xi(i) -= k * (speed_dot * grad + speed * 2.0 * out.q_dot(i) / (r * r));  // + z_dot_i [rad/s^2]
+      }
+    }
+    // xi = J_dot^T w + z_dot: the null-space part of d/dt q_dot
+    const Vector6d b = accel - st.J_dot * out.q_dot;  // [a; alpha] - J_dot q_dot  (1.10)
+    const Vector6d w2 = ws.llt.solve(b - J * st.xi);
+    out.q_ddot.noalias() = J.transpose() * w2;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      out.q_ddot(i) = active[static_cast<std::size_t>(i)] ? out.q_ddot(i) + st.xi(i) : 0.0;  // J^+ b + N xi
+    }
+  };
+  st.z.resize(n);
+  st.xi.resize(n);
+  rates();
+  int held = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const auto j = static_cast<std::size_t>(i);
+    active[j] = !((out.q(i) <= st.bounds.lo[j] && out.q_dot(i) < 0.0) ||
+                  (out.q(i) >= st.bounds.hi[j] && out.q_dot(i) > 0.0));
+    held += active[j] ? 0 : 1;
+  }
+  if (held > 0 && n - held >= 6) {
+    detail::factor(J, &active, ws);
+    rates();
+  }
+
+  // Branch certificate: the joint-space midpoint against the Cartesian chord's midpoint.
+  const Vector3d p = ws.p;
+  if (!st.first) {
+    st.q_guess = 0.5 * (st.q_prev + out.q);
+    Matrix3d R_mid;
+    Vector3d p_mid;
+    st.chain.pose(st.q_guess, R_mid, p_mid);
+    out.midpoint_deviation = (p_mid - 0.5 * (st.p_prev + p)).norm();
+  }
+
+  st.first = false;
+  st.t_prev = x.t;
+  st.q_prev = out.q;
+  st.q_dot_prev = out.q_dot;
+  st.q_ddot_prev = out.q_ddot;
+  st.p_prev = p;
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------
+// JointReportBuilder
+
+JointReportBuilder::JointReportBuilder(const RobotModel& model, double branch_tolerance, double ik_position_tolerance)
+    : model_(&model), branch_tolerance_(branch_tolerance), ik_position_tolerance_(ik_position_tolerance) {
+  GEOTRAJ_CHECK(model.limits.size() == model.dof());
+  const std::size_t n = model.dof();
+  report_.joints.resize(n);
+  report_.violations.reserve(n * kKinds);  // at most one per (joint, kind): add() never allocates
+  reported_.assign(n * kKinds, false);
+  report_.binding.reserve(kMaxUsageStretches);  // add() never allocates
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  report_.tightest_position.kind = LimitKind::kPosition;
+  report_.tightest_position.margin = inf;
+  report_.tightest_velocity.kind = LimitKind::kVelocity;
+  report_.tightest_velocity.margin = inf;
+  report_.tightest_acceleration.kind = LimitKind::kAcceleration;
+  report_.tightest_acceleration.margin = inf;
+}
+
+void JointReportBuilder::record(LimitKind kind, std::size_t joint, std::size_t sample, double t, double value,
+                                double limit, double margin) {
+  const std::size_t key = joint * kKinds + static_cast<std::size_t>(kind);
+  if (reported_[key]) return;  // the first sample of the (joint, kind) only
+  reported_[key] = true;
+  report_.violations.push_back(LimitEvent{kind, joint, sample, t, value, limit, margin});
+}
+
+void JointReportBuilder::add(std::size_t sample, double t, double s_path, const JointSample& s) {
+  JointMotionReport& r = report_;
+  ++r.samples;
+  r.max_position_error = std::max(r.max_position_error, s.position_error);
+  r.max_orientation_error = std::max(r.max_orientation_error, s.orientation_error);
+  if (!s.converged) {
+    record(LimitKind::kIk, 0, sample, t, s.position_error, ik_position_tolerance_,
+           ik_position_tolerance_ - s.position_error);
+    return;  // q, q_dot, q_ddot of a failed sample are not a motion
+  }
+  ++r.converged_samples;
+  if (s.midpoint_deviation > r.max_midpoint_deviation) {
+    r.max_midpoint_deviation = s.midpoint_deviation;
+    r.max_midpoint_deviation_t = t;
+  }
+  if (s.midpoint_deviation > branch_tolerance_) {
+    record(LimitKind::kBranch, 0, sample, t, s.midpoint_deviation, branch_tolerance_,
+           branch_tolerance_ - s.midpoint_deviation);
+  }
+  if (s.manipulability < r.min_manipulability) {
+    r.min_manipulability = s.manipulability;
+    r.min_manipulability_t = t;
+  }
+  const std::size_t n = model_->dof();
+  GEOTRAJ_CHECK(static_cast<std::size_t>(s.q.size()) == n && static_cast<std::size_t>(s.q_dot.size()) == n &&
+                static_cast<std::size_t>(s.q_ddot.size()) == n);
+  for (std::size_t j = 0; j < n; ++j) {
+    const auto i = static_cast<Eigen::Index>(j);
+    const JointLimits& lim = model_->limits[j];
+    JointUsage& u = r.joints[j];
+    const double q = s.q(i), v = std::abs(s.q_dot(i)), a = std::abs(s.q_ddot(i));
+    u.min_position = std::min(u.min_position, q);
+    u.max_position = std::max(u.max_position, q);
+    u.peak_velocity = std::max(u.peak_velocity, v);
+    u.peak_acceleration = std::max(u.peak_acceleration, a);
+    u.velocity_usage = u.peak_velocity / lim.max_velocity;
+    u.acceleration_usage = u.peak_acceleration / lim.max_acceleration;
+
+    // Position: distance to the nearer limit (negative outside).
+    const bool above = lim.max_position - q < q - lim.min_position;
+    const double bound = above ? lim.max_position : lim.min_position;
+    const double margin_p = std::min(q - lim.min_position, lim.max_position - q);
+    u.position_margin = std::min(u.position_margin, margin_p);
+    if (margin_p < r.tightest_position.margin) {
+      r.tightest_position = LimitEvent{LimitKind::kPosition, j, sample, t, q, bound, margin_p};
+    }
+    if (margin_p < -kLimitTolerance * std::max(1.0, std::abs(bound))) {
+      record(LimitKind::kPosition, j, sample, t, q, bound, margin_p);
+    }
+
+    const double margin_v = lim.max_velocity - v;
+    if (margin_v < r.tightest_velocity.margin) {
+      r.tightest_velocity = LimitEvent{LimitKind::kVelocity, j, sample, t, v, lim.max_velocity, margin_v};
+    }
+    if (margin_v < -kLimitTolerance * lim.max_velocity) {
+      record(LimitKind::kVelocity, j, sample, t, v, lim.max_velocity, margin_v);
+    }
+
+    const double margin_a = lim.max_acceleration - a;
+    if (margin_a < r.tightest_acceleration.margin) {
+      r.tightest_acceleration = LimitEvent{LimitKind::kAcceleration, j, sample, t, a, lim.max_acceleration, margin_a};
+    }
+    if (margin_a < -kLimitTolerance * lim.max_acceleration) {
+      record(LimitKind::kAcceleration, j, sample, t, a, lim.max_acceleration, margin_a);
+    }
+  }
+  update_binding(sample, t, s_path, s);
+}
+
+void JointReportBuilder::update_binding(std::size_t sample, double t, double s_path, const JointSample& s) {
+  // The most used joint limit at this sample.
+  UsageStretch top;
+  for (std::size_t j = 0; j < model_->dof(); ++j) {
+    const auto i = static_cast<Eigen::Index>(j);
+    const JointLimits& lim = model_->limits[j];
+    const double v = std::abs(s.q_dot(i)), a = std::abs(s.q_ddot(i));
+    if (v / lim.max_velocity > top.peak_usage) {
+      top = {LimitKind::kVelocity, j, 0, 0, 0, 0, 0, 0, v / lim.max_velocity, v, lim.max_velocity};
+    }
+    if (a / lim.max_acceleration > top.peak_usage) {
+      top = {LimitKind::kAcceleration, j, 0, 0, 0, 0, 0, 0, a / lim.max_acceleration, a, lim.max_acceleration};
+    }
+  }
+  auto& stretches = report_.binding;
+  if (!stretches.empty()) {
+    UsageStretch& last = stretches.back();
+    last.sample_end = sample;
+    last.t_end = t;
+    last.s_end = s_path;
+    // The current stretch's own limit at this sample.
+    const auto i = static_cast<Eigen::Index>(last.joint);
+    const double own_value = last.kind == LimitKind::kVelocity ? std::abs(s.q_dot(i)) : std::abs(s.q_ddot(i));
+    const double own = own_value / last.limit;
+    if (own > last.peak_usage) {
+      last.peak_usage = own;
+      last.value = own_value;
+    }
+    const bool same = top.kind == last.kind && top.joint == last.joint;
+    if (same || top.peak_usage <= kUsageHysteresis * own || stretches.size() == kMaxUsageStretches) return;
+  } else if (top.peak_usage == 0.0) {
+    return;  // at rest before anything moves
+  }
+  top.sample_start = top.sample_end = sample;
+  top.t_start = top.t_end = t;
+  top.s_start = top.s_end = s_path;
+  stretches.push_back(top);
+}
+
+}  // namespace geotraj::core

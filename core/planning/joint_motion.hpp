@@ -1,0 +1,242 @@
+// The joint-space motion of an arm that follows a Cartesian motion (thesis 6.4), one sample
+// at a time: joint positions by warm-started IK (ik.hpp), joint velocities and
+// accelerations from the Cartesian ones through the Jacobian and the second-order term
+// (Eqs. 1.8-1.11, never finite differences), and the certificates a user needs before
+// streaming to a controller: IK residuals, the deviation of joint interpolation between
+// samples, manipulability, joint-limit margins. Frames and units: everything Cartesian in
+// the world frame W (the robot's base pose is part of the model); [m], [rad], [s].
+//
+// Redundancy (n > 6, the PA-10), docs/kinematics.md: the self-motion is the null-space
+// projection of a joint-limit avoidance velocity,
+//   z(q, v) = -k |v_WT| grad H(q),  H(q) = sum_i ((q_i - mid_i) / range_i)^2,
+//   grad H_i = 2 (q_i - mid_i) / range_i^2,       (mid, range of joint i's position limits)
+// k = IkOptions::limit_avoidance_gain [rad^2/m]. Deviation from a time-based z(q): the
+// gain follows the tool speed |v_WT| [m/s], so the self-motion is per metre of travel, the
+// joints rest when the tool rests (start, end, cusps, stops) and the joint path does not
+// depend on the timing. With J^+ = J^T (J J^T)^-1 and N = I - J^+ J (both at q), the same
+// choice is applied to positions, velocities and accelerations:
+//   velocity      q_dot  = J^+ [v; omega] + N z                                      (1.8)
+//   acceleration  q_ddot = J^+ ([a; alpha] - J_dot q_dot) + N (J_dot^T w + z_dot),     (1.10)
+//                 w = (J J^T)^-1 ([v; omega] - J z),
+//                 z_dot_i = -k (d|v|/dt grad H_i + |v| 2 q_dot_i / range_i^2),
+//                 d|v|/dt = v . a / |v| (|a| at a rest: the motion leaves it forwards);
+//   position      q_k = Newton projection (ik.hpp, minimum-norm corrections) of the
+//                 second-order predictor q_{k-1} + q_dot_{k-1} dt + q_ddot_{k-1} dt^2 / 2.
+// The term N J_dot^T w is d/dt of the projector (N dJ^+/dt = N J_dot^T (J J^T)^-1): without
+// it q_ddot would not be the time derivative of q_dot (deviation from the plain N z_dot).
+// Hence, where the solves are undamped (away from singularities), J q_dot = [v; omega] and
+// J q_ddot + J_dot q_dot = [a; alpha] to rounding, q_dot is the derivative of the q samples
+// and q_ddot that of q_dot: the q samples integrate
+// q_dot = J^+ [v; omega] + N z with local error O(dt^3) (the predictor) and Newton
+// corrections in the row space of J, so central differences of q match q_dot to O(dt^2)
+// where the Cartesian motion is smooth. A non-redundant arm (n = 6) has N = 0: q_dot =
+// J^-1 [v; omega].
+#pragma once
+
+#include <cstddef>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "core/geometry/path.hpp"
+#include "core/motion/motion.hpp"
+#include "core/motion/orientation.hpp"
+#include "core/robot/ik.hpp"
+#include "core/robot/robot.hpp"
+
+namespace geotraj::core {
+
+/// The tool's Cartesian state at one sample, in W: pose X_WT, velocity and acceleration of
+/// its origin [m/s, m/s^2], angular velocity and acceleration [rad/s, rad/s^2].
+struct CartesianState {
+  double t = 0.0;  ///< [s]
+  Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d v_WT = Eigen::Vector3d::Zero();
+  Eigen::Vector3d omega_WT = Eigen::Vector3d::Zero();
+  Eigen::Vector3d a_WT = Eigen::Vector3d::Zero();
+  Eigen::Vector3d alpha_WT = Eigen::Vector3d::Zero();
+};
+
+/// The tool's Cartesian state at a motion sample (motion.hpp) with the orientation plan of
+/// the same path (orientation.hpp): p, v, a from the sample; R_WT, omega, alpha from
+/// orientation_at with s_dot = sample.speed [m/s] and s_ddot = sample.s_ddot [m/s^2].
+/// No heap allocation.
+CartesianState cartesian_state(const Path& path, const OrientationPlan& orientation, const MotionSample& sample);
+
+/// One joint-space sample.
+struct JointSample {
+  JointVector q;      ///< [rad or m]
+  JointVector q_dot;  ///< [rad/s or m/s]
+  JointVector q_ddot; ///< [rad/s^2 or m/s^2]
+  bool converged = false;
+  int iterations = 0;              ///< Newton steps (all attempts)
+  double position_error = 0.0;     ///< IK residual |p_target - p_WT(q)| [m]
+  double orientation_error = 0.0;  ///< IK residual, angle of R_target R_WT(q)^T [rad]
+  double manipulability = 0.0;     ///< sqrt(det(J J^T)) at q (Yoshikawa; [m^3 rad^3] mixed)
+  /// |p_WT((q_prev + q) / 2) - (p_prev + p) / 2| [m]: how far linear joint interpolation
+  /// between the previous sample and this one strays from the Cartesian chord (0 for the
+  /// first sample). On one smooth branch it is O(dt^2) (the chord's sagitta and the
+  /// curvature of the joint map); a branch change or a singularity makes it large.
+  double midpoint_deviation = 0.0;
+};
+
+/// Follows a Cartesian motion sample by sample (a reusable workspace: no heap allocation per
+/// sample). The first call solves from `q_seed` (the branch seed, e.g. the request's
+/// initialJoints or the model's home) with IkOptions::restarts allowed; later calls
+/// warm-start from the previous sample (second-order predictor, above) and stay on its
+/// branch: no restarts and no 2 pi wrapping, only the Newton projection (and, if the
+/// predicted start fails, one more attempt from the previous configuration).
+/// Redundant arms: the null-space choice above, the same in positions and in
+/// velocities/accelerations, so q_dot matches finite differences of q.
+/// Joint velocities: J q_dot = [v; omega]; accelerations: J q_ddot = [a; alpha] - J_dot q_dot
+/// (1.8-1.11), minimum-norm plus the null-space term. Near a singularity (smallest Cholesky
+/// pivot of J J^T below 1e-8, ik.hpp) the same damping applies to the velocity solves, and
+/// these equations hold only approximately (the manipulability says so).
+/// Limits: positions are projected onto the limits like every Newton step (ik.hpp), so q
+/// never leaves them. A joint that sits at a limit and whose velocity would take it out is
+/// held there (q_dot_i = q_ddot_i = 0) and, while at least 6 joints are left, the others
+/// follow the tool with the same formulas on the reduced arm J W (W = diag(1, .., 0, ..)):
+/// the motion stays consistent, and the report shows a zero position margin. A motion that
+/// needs more than the remaining joints can give fails the IK (kIk).
+class JointTracker {
+ public:
+  /// `model` must outlive the tracker and be valid (validate_robot); q_seed.size() == dof.
+  /// With fewer than 6 joints every track() reports not converged (ik.hpp). Allocates its
+  /// workspace here, once.
+  JointTracker(const RobotModel& model, const JointVector& q_seed, const IkOptions& options = {});
+  ~JointTracker();
+  JointTracker(JointTracker&&) noexcept;
+  JointTracker& operator=(JointTracker&&) noexcept;
+
+  /// Computes the joint sample for `x` (the next sample in time order, x.t increasing)
+  /// into `out`; returns out.converged. After a failure the tracker keeps the last good
+  /// configuration (and the next call predicts from it); out holds the failed attempt.
+  bool track(const CartesianState& x, JointSample& out);
+  /// Starts again from a new seed (the next track() is a first call).
+  void reset(const JointVector& q_seed);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+/// Which limit an event is about.
+enum class LimitKind {
+  kPosition,      ///< joint position outside [minPosition, maxPosition]
+  kVelocity,      ///< |q_dot| > maxVelocity
+  kAcceleration,  ///< |q_ddot| > maxAcceleration
+  kIk,            ///< the IK did not converge (value: position error [m])
+  kBranch,        ///< midpoint deviation above the tolerance (a branch change or singularity)
+};
+
+/// One joint-limit event of a motion: where a limit is broken, or how close it comes.
+struct LimitEvent {
+  LimitKind kind = LimitKind::kPosition;
+  std::size_t joint = 0;   ///< zero-based joint (0 for kIk / kBranch)
+  std::size_t sample = 0;  ///< zero-based sample index
+  double t = 0.0;          ///< [s]
+  double value = 0.0;      ///< the joint value / |velocity| / |acceleration| (or the error)
+  double limit = 0.0;      ///< the limit it is compared with
+  /// kPosition: distance to the nearer position limit [rad or m] (negative outside);
+  /// kVelocity, kAcceleration: limit - |value|; kIk, kBranch: tolerance - value.
+  double margin = 0.0;
+};
+
+/// How one joint is used over a motion.
+struct JointUsage {
+  double min_position = std::numeric_limits<double>::infinity();
+  double max_position = -std::numeric_limits<double>::infinity();
+  double peak_velocity = 0.0;      ///< max |q_dot| [rad/s or m/s]
+  double peak_acceleration = 0.0;  ///< max |q_ddot| [rad/s^2 or m/s^2]
+  double velocity_usage = 0.0;     ///< peak_velocity / maxVelocity
+  double acceleration_usage = 0.0; ///< peak_acceleration / maxAcceleration
+  double position_margin = std::numeric_limits<double>::infinity();  ///< smallest distance to a position limit
+};
+
+/// A stretch of the motion over which one joint limit is the most used: which limit sets
+/// the pace there. Usage = |q_dot| / maxVelocity or |q_ddot| / maxAcceleration.
+struct UsageStretch {
+  LimitKind kind = LimitKind::kVelocity;  ///< kVelocity or kAcceleration
+  std::size_t joint = 0;
+  std::size_t sample_start = 0, sample_end = 0;  ///< first and last sample of the stretch
+  double t_start = 0.0, t_end = 0.0;             ///< [s]
+  double s_start = 0.0, s_end = 0.0;             ///< arc length along the path [m] (0 without one)
+  double peak_usage = 0.0;  ///< largest usage of that limit on the stretch (1: at the limit)
+  double value = 0.0;       ///< |q_dot| or |q_ddot| at the peak
+  double limit = 0.0;       ///< maxVelocity or maxAcceleration
+};
+
+/// At most this many binding stretches are kept (the last one absorbs the rest).
+inline constexpr std::size_t kMaxUsageStretches = 64;
+/// A new limit takes over the stretch only when its usage exceeds the current one's by this
+/// factor (hysteresis: near-equal usages do not split the motion into slivers).
+inline constexpr double kUsageHysteresis = 1.05;
+
+/// A limit counts as broken when the value passes it by more than this fraction of the
+/// limit (1 for positions below 1 rad or m): rounding, not motion. A time-optimal motion runs
+/// exactly at its limits.
+inline constexpr double kLimitTolerance = 1e-9;
+
+/// The joint-space report of a whole motion (what PlanTrajectory returns with a robot).
+struct JointMotionReport {
+  std::size_t samples = 0;
+  /// Samples whose IK converged: the joint figures, the tightest margins and the lowest
+  /// manipulability are taken over these only (none: they keep their +-infinity starts).
+  std::size_t converged_samples = 0;
+  std::vector<JointUsage> joints;
+  LimitEvent tightest_position;      ///< smallest position margin, its joint and time
+  LimitEvent tightest_velocity;      ///< smallest velocity margin
+  LimitEvent tightest_acceleration;  ///< smallest acceleration margin
+  double max_position_error = 0.0;     ///< worst IK residual [m]
+  double max_orientation_error = 0.0;  ///< worst IK residual [rad]
+  double max_midpoint_deviation = 0.0; ///< worst JointSample::midpoint_deviation [m]
+  double max_midpoint_deviation_t = 0.0;
+  double min_manipulability = std::numeric_limits<double>::infinity();
+  double min_manipulability_t = 0.0;
+  /// Every broken limit, the first sample of each (joint, kind) run only, in time order
+  /// (bounded: at most one event per joint and kind).
+  std::vector<LimitEvent> violations;
+  /// Which joint limit is the most used, stretch by stretch, in time order (samples at rest,
+  /// where every usage is 0, join the stretch around them; consecutive stretches share their
+  /// boundary sample).
+  std::vector<UsageStretch> binding;
+  bool feasible() const { return violations.empty(); }
+};
+
+/// Accumulates a JointMotionReport sample by sample (O(joints) memory, whatever the
+/// motion's length; no heap allocation in add()). The limits are the model's (pass a copy
+/// with other limits to check against them).
+///  - `branch_tolerance` [m] bounds midpoint_deviation (kBranch above it). The default
+///    1 mm is 10x the chord sagitta kappa ds^2 / 8 <= 1e-4 m of the thesis's demo paths at
+///    100 Hz (measured on the PA-10: at most 4e-6 m) and far below the deviation of a
+///    branch flip (a joint turning by a sizeable angle between samples: centimetres).
+///  - `ik_position_tolerance` [m]: the kIk event's limit (the tracker's
+///    IkOptions::position_tolerance); kIk is raised by a sample that did not converge.
+/// Before the first sample the tightest events have margin +infinity.
+class JointReportBuilder {
+ public:
+  explicit JointReportBuilder(const RobotModel& model, double branch_tolerance = 1e-3,
+                              double ik_position_tolerance = IkOptions{}.position_tolerance);
+  /// Adds sample number `sample` (zero-based, increasing) at time t [s].
+  void add(std::size_t sample, double t, const JointSample& s) { add(sample, t, 0.0, s); }
+  /// The same, with the sample's arc length along the path s_path [m] (for the stretches).
+  void add(std::size_t sample, double t, double s_path, const JointSample& s);
+  const JointMotionReport& report() const { return report_; }
+
+ private:
+  static constexpr std::size_t kKinds = 5;  ///< LimitKind values
+  void record(LimitKind kind, std::size_t joint, std::size_t sample, double t, double value, double limit,
+              double margin);
+  void update_binding(std::size_t sample, double t, double s_path, const JointSample& s);
+
+  const RobotModel* model_;
+  double branch_tolerance_;
+  double ik_position_tolerance_;
+  JointMotionReport report_;
+  std::vector<bool> reported_;  ///< (joint, kind) already in violations: joint * kKinds + kind
+};
+
+}  // namespace geotraj::core

@@ -1,0 +1,504 @@
+#include "core/planning/time_optimal.hpp"
+
+#include <algorithm>
+#include <array>
+#include <optional>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+
+#include "core/geometry/arc_length.hpp"
+#include "core/planning/joint_motion.hpp"
+#include "core/format.hpp"
+
+namespace geotraj::core {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+
+/// Which constraint a bound comes from.
+struct Source {
+  BindingKind kind = BindingKind::kCartesianSpeed;
+  std::size_t joint = 0;
+  bool next = false;  ///< the next point's controllable set, not a limit
+};
+
+/// A bound on u linear in x = b: u >= c0 + c1 x (lower) or u <= c0 + c1 x (upper).
+struct Line {
+  double c0 = 0.0, c1 = 0.0;
+  Source src;
+};
+
+/// Scratch of one interval's polygon (fixed capacity: no allocation in the sweep).
+struct Polygon {
+  static constexpr std::size_t kCap = 2 * kMaxJoints + 4;
+  std::array<Line, kCap> lower, upper;
+  std::size_t n_lower = 0, n_upper = 0;
+  double x_max = kInf;  ///< bounds on x alone (joint acceleration with no u term)
+  Source x_max_src;
+  void clear() {
+    n_lower = n_upper = 0;
+    x_max = kInf;
+  }
+  void add_lower(double c0, double c1, Source s) { lower[n_lower++] = {c0, c1, s}; }
+  void add_upper(double c0, double c1, Source s) { upper[n_upper++] = {c0, c1, s}; }
+  void add_x_max(double x, Source s) {
+    if (x < x_max) x_max = x, x_max_src = s;
+  }
+  /// -a <= A u + C x <= a.
+  void add_two_sided(double A, double C, double a, Source s) {
+    if (!(a < kInf)) return;
+    const double scale = std::abs(C) + 1.0;
+    if (std::abs(A) <= 1e-13 * scale) {
+      if (C != 0.0) add_x_max(a / std::abs(C), s);
+      return;
+    }
+    if (A > 0.0) {
+      add_upper(a / A, -C / A, s);
+      add_lower(-a / A, -C / A, s);
+    } else {
+      add_upper(-a / A, -C / A, s);
+      add_lower(a / A, -C / A, s);
+    }
+  }
+};
+
+/// Per grid point: the largest b the point's own limits allow, and what sets it.
+struct PointCap {
+  double x = kInf;
+  Source src;
+};
+
+PointCap point_cap(const GridPoint& g, const TimeOptimalLimits& lim, double sigma) {
+  PointCap c;
+  auto take = [&](double x, Source s) {
+    if (x < c.x) c.x = x, c.src = s;
+  };
+  for (Eigen::Index j = 0; j < g.q_s.size(); ++j) {
+    const double qs = std::abs(g.q_s(j)), v = lim.joint_velocity(j) * sigma;
+    if (qs > 0.0 && v < kInf) take((v / qs) * (v / qs), {BindingKind::kJointVelocity, static_cast<std::size_t>(j)});
+  }
+  if (lim.speed < kInf) take(lim.speed * lim.speed, {BindingKind::kCartesianSpeed, 0});
+  if (g.kappa > 0.0 && lim.centripetal < kInf)
+    take(lim.centripetal * sigma * sigma / g.kappa, {BindingKind::kCentripetalAcceleration, 0});
+  return c;
+}
+
+/// The polygon of interval i (points g0 = s_i, g1 = s_{i+1}, ds = s_{i+1} - s_i): the joint
+/// accelerations at both ends and the tangential limit; the next set is added by the caller.
+void interval_polygon(const GridPoint& g0, const GridPoint& g1, double ds, const TimeOptimalLimits& lim, double sig0,
+                      double sig1, Polygon& p) {
+  p.clear();
+  for (Eigen::Index j = 0; j < g0.q_s.size(); ++j) {
+    const Source src{BindingKind::kJointAcceleration, static_cast<std::size_t>(j)};
+    const double a0 = lim.joint_acceleration(j) * sig0 * sig0, a1 = lim.joint_acceleration(j) * sig1 * sig1;
+    p.add_two_sided(g0.q_s(j), g0.q_ss(j), a0, src);  // q_ddot at s_i
+    // q_ddot at s_{i+1} with b_{i+1} = b_i + 2 ds u: (q_s + 2 ds q_ss) u + q_ss b_i.
+    p.add_two_sided(g1.q_s(j) + 2.0 * ds * g1.q_ss(j), g1.q_ss(j), a1, src);
+  }
+  if (lim.tangential < kInf) {
+    p.add_upper(lim.tangential, 0.0, {BindingKind::kTangentialAcceleration, 0});
+    p.add_lower(-lim.tangential, 0.0, {BindingKind::kTangentialAcceleration, 0});
+  }
+}
+
+/// Usage of every constraint on interval i at the solution; the largest.
+struct Usage {
+  Source src;
+  double value = 0.0, limit = 0.0, ratio = -1.0;
+};
+
+Usage interval_usage(const GridPoint& g0, const GridPoint& g1, double x0, double x1, double u,
+                     const TimeOptimalLimits& lim) {
+  Usage best;
+  auto take = [&](Source s, double value, double limit) {
+    if (!(limit < kInf)) return;
+    const double r = value / limit;
+    if (r > best.ratio) best = {s, value, limit, r};
+  };
+  const double v0 = std::sqrt(x0), v1 = std::sqrt(x1);
+  for (Eigen::Index j = 0; j < g0.q_s.size(); ++j) {
+    const std::size_t jj = static_cast<std::size_t>(j);
+    take({BindingKind::kJointVelocity, jj}, std::max(std::abs(g0.q_s(j)) * v0, std::abs(g1.q_s(j)) * v1),
+         lim.joint_velocity(j));
+    take({BindingKind::kJointAcceleration, jj},
+         std::max(std::abs(g0.q_s(j) * u + g0.q_ss(j) * x0), std::abs(g1.q_s(j) * u + g1.q_ss(j) * x1)),
+         lim.joint_acceleration(j));
+  }
+  take({BindingKind::kCartesianSpeed, 0}, std::max(v0, v1), lim.speed);
+  take({BindingKind::kTangentialAcceleration, 0}, std::abs(u), lim.tangential);
+  take({BindingKind::kCentripetalAcceleration, 0}, std::max(g0.kappa * x0, g1.kappa * x1), lim.centripetal);
+  return best;
+}
+
+std::string source_words(const Source& s) {
+  switch (s.kind) {
+    case BindingKind::kJointVelocity: return "the velocity limit of joint " + std::to_string(s.joint);
+    case BindingKind::kJointAcceleration: return "the acceleration limit of joint " + std::to_string(s.joint);
+    case BindingKind::kCartesianSpeed: return "maxSpeed";
+    case BindingKind::kTangentialAcceleration: return "maxAcceleration (tangential)";
+    case BindingKind::kCentripetalAcceleration: return "maxAcceleration (centripetal)";
+  }
+  return "?";
+}
+
+/// The sweep with per-point limit scales sigma (joint limits and the centripetal limit at
+/// point i are multiplied by sigma_i, accelerations by sigma_i^2); sigma null: all 1.
+Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& grid, const TimeOptimalLimits& lim,
+                                    const std::vector<double>* sigma) {
+  const std::size_t n_pts = grid.size();
+  GEOTRAJ_CHECK(n_pts >= 3);
+  GEOTRAJ_CHECK(lim.joint_velocity.size() == lim.joint_acceleration.size());
+  const std::size_t N = n_pts - 1;
+  auto sig = [&](std::size_t i) { return sigma ? (*sigma)[i] : 1.0; };
+  auto fail = [&](std::size_t i, const std::string& why) {
+    return tl::make_unexpected(Violations{{"motion", "no positive speed is admissible at s = " + number(grid[i].s, 6) +
+                                                         " m from the portion's start: " + why}});
+  };
+
+  std::vector<double> lo(n_pts, 0.0), hi(n_pts, 0.0);
+  Polygon poly;
+  // Backward: controllable sets. K_N = {0} (rest).
+  for (std::size_t k = N; k-- > 0;) {
+    const GridPoint &g0 = grid[k], &g1 = grid[k + 1];
+    const double ds = g1.s - g0.s;
+    GEOTRAJ_CHECK(ds > 0.0);
+    interval_polygon(g0, g1, ds, lim, sig(k), sig(k + 1), poly);
+    // x + 2 ds u in [lo_{k+1}, hi_{k+1}].
+    poly.add_lower(lo[k + 1] / (2.0 * ds), -1.0 / (2.0 * ds), {BindingKind::kCartesianSpeed, 0, true});
+    poly.add_upper(hi[k + 1] / (2.0 * ds), -1.0 / (2.0 * ds), {BindingKind::kCartesianSpeed, 0, true});
+    const PointCap cap = point_cap(g0, lim, sig(k));
+    double x_lo = 0.0, x_hi = std::min(cap.x, poly.x_max);
+    Source hi_src = cap.x <= poly.x_max ? cap.src : poly.x_max_src;
+    bool empty = false;
+    // Fourier-Motzkin: every (lower, upper) pair needs l(x) <= u(x).
+    for (std::size_t a = 0; a < poly.n_lower; ++a) {
+      const Line& l = poly.lower[a];
+      for (std::size_t c = 0; c < poly.n_upper; ++c) {
+        const Line& up = poly.upper[c];
+        const double slope = l.c1 - up.c1, rhs = up.c0 - l.c0;  // slope x <= rhs
+        const double tol = 1e-14 * (std::abs(l.c1) + std::abs(up.c1));
+        if (slope > tol) {
+          const double x = rhs / slope;
+          if (x < x_hi) x_hi = x, hi_src = up.src.next ? l.src : up.src;
+        } else if (slope < -tol) {
+          x_lo = std::max(x_lo, rhs / slope);
+        } else if (rhs < -1e-12 * (std::abs(up.c0) + std::abs(l.c0))) {
+          empty = true;
+        }
+      }
+    }
+    if (empty || x_hi < x_lo - 1e-12 * std::max(1.0, std::abs(x_hi)))
+      return fail(k, "the rest at the end of the portion cannot be reached within " + source_words(hi_src));
+    if (x_hi < x_lo) x_lo = x_hi;
+    if (k > 0 && !(x_hi > 0.0)) return fail(k, source_words(hi_src) + " admits only zero speed there");
+    lo[k] = x_lo;
+    hi[k] = x_hi;
+  }
+  if (lo[0] > 1e-12 * std::max(1.0, hi[0]))
+    return fail(0, "the motion cannot start from rest within the acceleration limits");
+
+  // Forward: the largest admissible u that stays controllable.
+  TimeOptimalSolution sol;
+  sol.b.assign(n_pts, 0.0);
+  sol.u.assign(N, 0.0);
+  for (std::size_t k = 0; k < N; ++k) {
+    const GridPoint &g0 = grid[k], &g1 = grid[k + 1];
+    const double ds = g1.s - g0.s, x = sol.b[k];
+    interval_polygon(g0, g1, ds, lim, sig(k), sig(k + 1), poly);
+    double u = (hi[k + 1] - x) / (2.0 * ds);
+    for (std::size_t c = 0; c < poly.n_upper; ++c) u = std::min(u, poly.upper[c].c0 + poly.upper[c].c1 * x);
+    const double x1 = std::clamp(x + 2.0 * ds * u, lo[k + 1], hi[k + 1]);
+    sol.b[k + 1] = k + 1 == N ? 0.0 : x1;
+    sol.u[k] = (sol.b[k + 1] - x) / (2.0 * ds);
+  }
+
+  // The profile: constant acceleration per interval, dt = 2 ds / (sqrt(b_i) + sqrt(b_{i+1})).
+  double t = 0.0;
+  sol.profile.length = grid.back().s;
+  for (std::size_t k = 0; k < N; ++k) {
+    const double ds = grid[k + 1].s - grid[k].s;
+    const double v0 = std::sqrt(sol.b[k]), v1 = std::sqrt(sol.b[k + 1]);
+    if (!(v0 + v1 > 0.0)) return fail(k, "the speed stays zero over an interval (grid too coarse)");
+    const double dt = 2.0 * ds / (v0 + v1);
+    sol.profile.pieces.push_back({t, grid[k].s, v0, sol.u[k], 0.0});
+    const Usage us = interval_usage(grid[k], grid[k + 1], sol.b[k], sol.b[k + 1], sol.u[k], lim);
+    BindingStretch st;
+    st.kind = us.src.kind;
+    st.joint = us.src.joint;
+    st.s_begin = grid[k].s;
+    st.s_end = grid[k + 1].s;
+    st.t_begin = t;
+    st.t_end = t + dt;
+    st.value = us.value;
+    st.limit = us.limit;
+    st.usage = us.ratio;
+    if (!sol.binding.empty() && sol.binding.back().kind == st.kind && sol.binding.back().joint == st.joint) {
+      BindingStretch& last = sol.binding.back();
+      last.s_end = st.s_end;
+      last.t_end = st.t_end;
+      if (st.value > last.value) last.value = st.value, last.usage = st.usage;
+    } else {
+      sol.binding.push_back(st);
+    }
+    t += dt;
+  }
+  sol.profile.duration = t;
+  sol.duration = t;
+  return sol;
+}
+
+
+}  // namespace
+
+const char* name(BindingKind kind) {
+  switch (kind) {
+    case BindingKind::kJointVelocity: return "joint velocity";
+    case BindingKind::kJointAcceleration: return "joint acceleration";
+    case BindingKind::kCartesianSpeed: return "Cartesian speed";
+    case BindingKind::kTangentialAcceleration: return "tangential acceleration";
+    case BindingKind::kCentripetalAcceleration: return "centripetal acceleration";
+  }
+  return "?";
+}
+
+std::string describe(const BindingStretch& st) {
+  std::string who = name(st.kind);
+  if (st.kind == BindingKind::kJointVelocity || st.kind == BindingKind::kJointAcceleration)
+    who = "joint " + std::to_string(st.joint) + (st.kind == BindingKind::kJointVelocity ? " velocity" : " acceleration");
+  return who + " " + number(st.value, 6) + " of " + number(st.limit, 6) + " on s " + number(st.s_begin, 6) + "-" + number(st.s_end, 6) +
+         " m, t " + number(st.t_begin, 6) + "-" + number(st.t_end, 6) + " s";
+}
+
+Expected<TimeOptimalSolution> solve_time_optimal(const std::vector<GridPoint>& grid, const TimeOptimalLimits& limits) {
+  return sweep(grid, limits, nullptr);
+}
+
+TimeOptimalLimits time_optimal_limits(const MotionSpec& spec, const RobotModel* robot) {
+  TimeOptimalLimits lim;
+  const double sc = spec.speed_scale;
+  if (robot) {
+    const Eigen::Index n = static_cast<Eigen::Index>(robot->dof());
+    lim.joint_velocity.resize(n);
+    lim.joint_acceleration.resize(n);
+    for (Eigen::Index j = 0; j < n; ++j) {
+      lim.joint_velocity(j) = robot->limits[static_cast<std::size_t>(j)].max_velocity * sc;
+      lim.joint_acceleration(j) = robot->limits[static_cast<std::size_t>(j)].max_acceleration * sc * sc;
+    }
+  }
+  if (spec.max_speed) lim.speed = *spec.max_speed * sc;
+  if (spec.max_acceleration) lim.tangential = lim.centripetal = *spec.max_acceleration * sc * sc;
+  return lim;
+}
+
+Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& path, const OrientationPlan& orientation,
+                                                                 const std::vector<MotionPortion>& portions,
+                                                                 const RobotModel* robot, const JointVector& seed,
+                                                                 std::size_t grid_intervals, const IkOptions& ik) {
+  GEOTRAJ_CHECK(grid_intervals >= 2);
+  std::vector<std::vector<GridPoint>> grids;
+  std::optional<JointTracker> tracker;
+  if (robot) tracker.emplace(*robot, seed, ik);
+  JointSample js;
+  Jet jet{};
+  double t_fake = 0.0;  // the tracker's time: arc length travelled at s_dot = 1 [s]
+  for (std::size_t p = 0; p < portions.size(); ++p) {
+    const MotionPortion& por = portions[p];
+    std::vector<GridPoint> grid(grid_intervals + 1);
+    for (std::size_t k = 0; k <= grid_intervals; ++k) {
+      const double s_loc = por.length * static_cast<double>(k) / static_cast<double>(grid_intervals);
+      double u = k == 0 ? por.u_start : k == grid_intervals ? por.u_end : parameter_at(path, por.s_start + s_loc);
+      u = std::clamp(u, por.u_start, por.u_end);
+      const std::size_t seg =
+          std::min(static_cast<std::size_t>(std::floor(u)), static_cast<std::size_t>(por.u_end) - 1);
+      const double u_local = u - static_cast<double>(seg);
+      evaluate(path.segments[seg], u_local, 2, jet);
+      const double sp = jet[1].norm();
+      GridPoint& g = grid[k];
+      g.s = s_loc;
+      if (!(sp > 0.0)) return tl::make_unexpected(Violations{{"motion", "the path has no tangent at u = " + number(u, 6)}});
+      const Eigen::Vector3d T = jet[1] / sp;
+      const Eigen::Vector3d p_ss = (jet[2] - jet[2].dot(T) * T) / (sp * sp);  // d2p/ds2 = kappa N
+      g.kappa = p_ss.norm();
+      if (tracker) {
+        MotionSample ms;
+        ms.t = t_fake;
+        ms.u = u;
+        ms.s = por.s_start + s_loc;
+        ms.segment = seg;
+        ms.portion = p;
+        ms.p_W = jet[0];
+        ms.v_W = T;  // s_dot = 1
+        ms.a_W = p_ss;
+        ms.speed = 1.0;
+        ms.s_ddot = 0.0;
+        const CartesianState x = cartesian_state(path, orientation, ms);
+        if (!tracker->track(x, js))
+          return tl::make_unexpected(Violations{
+              {"motion", "the IK fails at s = " + number(por.s_start + s_loc, 6) + " m (u = " + number(u, 6) +
+                             ") of the path: position error " + number(js.position_error, 6) + " m"}});
+        g.q_s = js.q_dot;    // dq/ds at s_dot = 1
+        g.q_ss = js.q_ddot;  // d2q/ds2 at s_ddot = 0
+      }
+      const double next = k < grid_intervals ? por.length / static_cast<double>(grid_intervals) : 1e-9;
+      t_fake += next;  // a rest between portions: a tiny step (the tangent may invert)
+    }
+    grids.push_back(std::move(grid));
+  }
+  return grids;
+}
+
+Expected<MotionPlan> assemble_motion(const MotionSpec& spec, std::vector<MotionPortion> portions,
+                                     const std::vector<SpeedProfile>& profiles) {
+  GEOTRAJ_CHECK(portions.size() == profiles.size());
+  MotionPlan plan;
+  plan.spec = spec;
+  double t = 0.0;
+  for (std::size_t i = 0; i < portions.size(); ++i) {
+    MotionPortion& por = portions[i];
+    por.t_start = t;
+    por.profile = profiles[i];
+    t += por.profile.duration;
+    plan.peak_speed = std::max(plan.peak_speed, peak_speed(por.profile));
+    plan.peak_acceleration = std::max(plan.peak_acceleration, peak_acceleration(por.profile));
+  }
+  plan.portions = std::move(portions);
+  plan.duration_s = t;
+  if (!(t * spec.cycle_rate_hz < kMaxMotionSamples))
+    return tl::make_unexpected(Violations{{"motion.durationS", "the time-optimal motion lasts " + number(t, 6) +
+                                                                   " s, more samples than a stream may hold"}});
+  plan.sample_count = grid_sample_count(t, spec.cycle_rate_hz);
+  return plan;
+}
+
+Expected<SampleCheck> check_time_optimal_samples(const Path& path, const OrientationPlan& orientation,
+                                                 const MotionPlan& motion,
+                                                 const std::vector<std::vector<GridPoint>>& grids,
+                                                 const TimeOptimalLimits& limits, const RobotModel* robot,
+                                                 const JointVector& seed, const TimeOptimalOptions& options) {
+  GEOTRAJ_CHECK(grids.size() == motion.portions.size());
+  SampleCheck out;
+  out.shrink.resize(grids.size());
+  for (std::size_t p = 0; p < grids.size(); ++p) out.shrink[p].assign(grids[p].size(), 1.0);
+  MotionSampler sampler(path, motion);
+  std::optional<JointTracker> tracker;
+  if (robot) tracker.emplace(*robot, seed, options.ik);
+  MotionSample ms;
+  JointSample js;
+  while (sampler.next(ms)) {
+    const MotionPortion& por = motion.portions[ms.portion];
+    const std::size_t N = grids[ms.portion].size() - 1;
+    const double h = por.length / static_cast<double>(N);
+    const std::size_t k =
+        h > 0.0 ? std::min(N - 1, static_cast<std::size_t>(std::max(0.0, (ms.s - por.s_start) / h))) : 0;
+    // ratio r of a velocity-like limit shrinks sigma by 1 / r; of an acceleration by 1 / sqrt(r).
+    auto note = [&](double value, double limit, bool accel) {
+      if (!(limit < kInf)) return;
+      const double r = value / limit;
+      out.worst_usage = std::max(out.worst_usage, r);
+      if (r > 1.0 + options.sample_tolerance) {
+        out.broken = true;
+        const double f = (accel ? 1.0 / std::sqrt(r) : 1.0 / r) * (1.0 - 1e-6);
+        out.shrink[ms.portion][k] = std::min(out.shrink[ms.portion][k], f);
+        out.shrink[ms.portion][k + 1] = std::min(out.shrink[ms.portion][k + 1], f);
+      }
+    };
+    if (ms.speed > 0.0) {
+      const Eigen::Vector3d T = ms.v_W / ms.speed;
+      note((ms.a_W - ms.a_W.dot(T) * T).norm(), limits.centripetal, true);
+    }
+    if (tracker) {
+      const CartesianState x = cartesian_state(path, orientation, ms);
+      if (!tracker->track(x, js))
+        return tl::make_unexpected(Violations{{"motion", "the IK fails at t = " + number(ms.t, 6) + " s (s = " +
+                                                             number(ms.s, 6) + " m, u = " + number(ms.u, 6) + ")"}});
+      for (Eigen::Index j = 0; j < js.q_dot.size(); ++j) {
+        note(std::abs(js.q_dot(j)), limits.joint_velocity(j), false);
+        note(std::abs(js.q_ddot(j)), limits.joint_acceleration(j), true);
+      }
+    }
+  }
+  return out;
+}
+
+Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationPlan& orientation,
+                                            const MotionSpec& spec, const RobotModel* robot,
+                                            const JointVector& seed, const TimeOptimalOptions& options) {
+  MotionSpec checked = spec;
+  checked.duration_s = 1.0;  // the time is the result: durationS's rules do not apply
+  checked.profile = ProfileShape::kTrapezoidal;
+  if (auto v = validate_motion(checked); !v.empty()) return tl::make_unexpected(v);
+  if (!robot && !spec.max_acceleration)
+    return tl::make_unexpected(
+        Violations{{"motion.maxAcceleration", "is needed for a time-optimal motion without a robot"}});
+  if (options.grid_intervals < 2)
+    return tl::make_unexpected(Violations{{"motion", "a time-optimal grid needs at least 2 intervals"}});
+  auto portions_plan = plan_motion(path, checked);  // the portions between rests
+  if (!portions_plan) return tl::make_unexpected(portions_plan.error());
+
+  auto grids = time_optimal_grids(path, orientation, portions_plan->portions, robot, seed, options.grid_intervals,
+                                  options.ik);
+  if (!grids) return tl::make_unexpected(grids.error());
+
+  TimeOptimalPlan out;
+  out.limits = time_optimal_limits(spec, robot);
+  out.grids = std::move(*grids);
+  const std::size_t P = out.grids.size();
+  std::vector<std::vector<double>> sigma(P);
+  for (std::size_t p = 0; p < P; ++p) sigma[p].assign(out.grids[p].size(), 1.0);
+
+  MotionSpec timed = spec;
+  for (int round = 0;; ++round) {
+    out.solutions.clear();
+    std::vector<SpeedProfile> profiles;
+    for (std::size_t p = 0; p < P; ++p) {
+      const auto& por = portions_plan->portions[p];
+      auto sol = sweep(out.grids[p], out.limits, &sigma[p]);
+      if (!sol) {
+        Violations v = sol.error();
+        for (auto& fv : v)
+          fv.description += " (portion " + std::to_string(p) + ", u " + number(por.u_start, 6) + " to " + number(por.u_end, 6) +
+                            ", path s from " + number(por.s_start, 6) + " m)";
+        return tl::make_unexpected(v);
+      }
+      profiles.push_back(sol->profile);
+      out.solutions.push_back(std::move(*sol));
+    }
+    auto motion = assemble_motion(timed, portions_plan->portions, profiles);
+    if (!motion) return tl::make_unexpected(motion.error());
+    out.motion = std::move(*motion);
+    out.motion.spec.duration_s = 0.0;
+    out.refinements = round;
+    if (!options.verify_samples) break;
+
+    auto check =
+        check_time_optimal_samples(path, orientation, out.motion, out.grids, out.limits, robot, seed, options);
+    if (!check) return tl::make_unexpected(check.error());
+    out.worst_sample_usage = check->worst_usage;
+    if (!check->broken) break;
+    if (round >= options.max_refinements)
+      return tl::make_unexpected(Violations{
+          {"motion", "the sampled motion still exceeds a limit by " + number(100.0 * (out.worst_sample_usage - 1.0), 6) +
+                         " % after " + std::to_string(round) + " refinements: use a finer grid"}});
+    for (std::size_t p = 0; p < P; ++p)
+      for (std::size_t i = 0; i < sigma[p].size(); ++i) sigma[p][i] *= check->shrink[p][i];
+  }
+
+  for (std::size_t p = 0; p < P; ++p) {
+    const MotionPortion& por = out.motion.portions[p];
+    for (BindingStretch st : out.solutions[p].binding) {
+      st.portion = p;
+      st.s_begin += por.s_start;
+      st.s_end += por.s_start;
+      st.t_begin += por.t_start;
+      st.t_end += por.t_start;
+      out.binding.push_back(st);
+    }
+  }
+  return out;
+}
+
+}  // namespace geotraj::core

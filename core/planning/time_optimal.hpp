@@ -1,0 +1,203 @@
+// Time-optimal timing along a path under joint and Cartesian limits (time-optimal path
+// parameterisation by reachability, Pham and Pham, "A new approach to time-optimal path
+// parameterization based on reachability analysis", IEEE T-RO 34(3), 2018: TOPP-RA).
+//
+// Formulation. On one portion (rest to rest, motion.hpp) let s in [0, L] be the arc length
+// from the portion's start [m], s_dot = ds/dt, s_ddot = d2s/dt2, and b = s_dot^2 [m^2/s^2].
+// Then d b / ds = 2 s_ddot. With q(s) the joint path the tracker follows (joint_motion.hpp:
+// its null-space term is per metre of travel, so q depends on s only),
+//   q_dot  = q_s s_dot,                 q_ddot = q_s s_ddot + q_ss b,
+// where q_s = dq/ds [rad/m] and q_ss = d2q/ds2 [rad/m^2]. Over a grid s_0 = 0 < ... < s_N = L
+// the unknowns are b_i = b(s_i) and, on each interval, a constant u_i = s_ddot, so
+// b_{i+1} = b_i + 2 (s_{i+1} - s_i) u_i and b is linear in s. Every limit is linear in
+// (b, u) (the canonical form a u + c b in [lo, hi]):
+//   joint velocity       |q_s,j| sqrt(b) <= v_max,j     ->  b <= (v_max,j / |q_s,j|)^2
+//   joint acceleration   |q_s,j u + q_ss,j b| <= a_max,j
+//   Cartesian speed      b <= maxSpeed^2
+//   tangential           |u| <= maxAcceleration
+//   centripetal          kappa b <= maxAcceleration
+// and each is imposed at BOTH ends of each interval (at s_{i+1} with b_{i+1} and the same
+// u_i), so the piecewise-constant acceleration is admissible on either side of every grid
+// point. The problem is convex in (b, u); the time is sum_i 2 ds_i / (sqrt(b_i) +
+// sqrt(b_{i+1})).
+//
+// Sweep (O(N x constraints), no solver): backward, the controllable sets K_N = {0} and
+// K_i = {b : some admissible u_i takes b into K_{i+1}}, each an interval computed exactly by
+// projecting the interval's 2-D polygon in (b, u) onto b (Fourier-Motzkin over pairs of one
+// lower and one upper bound on u); forward from b_0 = 0, the largest admissible u_i that
+// stays in K_{i+1}.
+#pragma once
+
+#include <cstddef>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/geometry/path.hpp"
+#include "core/motion/motion.hpp"
+#include "core/motion/orientation.hpp"
+#include "core/robot/ik.hpp"
+#include "core/robot/robot.hpp"
+
+namespace geotraj::core {
+
+/// The path data the limits need at one grid point of a portion.
+struct GridPoint {
+  double s = 0.0;      ///< arc length from the portion's start [m]
+  JointVector q_s;     ///< dq/ds [rad/m or m/m]; empty without a robot
+  JointVector q_ss;    ///< d2q/ds2 [rad/m^2 or 1/m]; empty without a robot
+  double kappa = 0.0;  ///< curvature [1/m]
+};
+
+/// The limits of a time-optimal timing. A limit at +infinity is not imposed.
+struct TimeOptimalLimits {
+  JointVector joint_velocity;      ///< v_max,j [rad/s or m/s], one per joint of GridPoint::q_s
+  JointVector joint_acceleration;  ///< a_max,j [rad/s^2 or m/s^2]
+  double speed = std::numeric_limits<double>::infinity();         ///< Cartesian maxSpeed [m/s]
+  double tangential = std::numeric_limits<double>::infinity();    ///< |s_ddot| <= [m/s^2]
+  double centripetal = std::numeric_limits<double>::infinity();   ///< kappa s_dot^2 <= [m/s^2]
+};
+
+/// Which limit a constraint is.
+enum class BindingKind {
+  kJointVelocity,
+  kJointAcceleration,
+  kCartesianSpeed,
+  kTangentialAcceleration,
+  kCentripetalAcceleration,
+};
+
+/// The name of a kind ("joint velocity", ...).
+const char* name(BindingKind kind);
+
+/// A stretch of the motion where one limit binds (the largest usage value / limit of every
+/// constraint on each grid interval; consecutive intervals with the same constraint merged).
+struct BindingStretch {
+  BindingKind kind = BindingKind::kCartesianSpeed;
+  std::size_t joint = 0;    ///< zero-based joint (joint kinds only)
+  std::size_t portion = 0;  ///< index in MotionPlan::portions
+  double s_begin = 0.0;     ///< arc length from the PATH's start [m]
+  double s_end = 0.0;
+  double t_begin = 0.0;     ///< [s]
+  double t_end = 0.0;
+  double value = 0.0;       ///< the largest value of the constraint over the stretch (|q_dot|, ...)
+  double limit = 0.0;       ///< the limit it is compared with
+  double usage = 0.0;       ///< smallest value / limit over the stretch's intervals (1: binding)
+};
+
+/// The exact solution of one portion's grid.
+struct TimeOptimalSolution {
+  std::vector<double> b;  ///< s_dot^2 at each grid point [m^2/s^2], b.front() = b.back() = 0
+  std::vector<double> u;  ///< s_ddot on each interval [m/s^2] (N values)
+  std::vector<BindingStretch> binding;  ///< portion 0, s from the portion's start
+  SpeedProfile profile;   ///< one constant-acceleration piece per interval (j = 0), exact times
+  double duration = 0.0;  ///< [s]
+};
+
+/// The sweep over `grid` (s strictly increasing from 0, at least 2 points; q_s, q_ss of
+/// the size of limits.joint_velocity). Rest to rest: b = 0 at both ends.
+/// Errors (field `motion`): a grid point where only zero speed is admissible, or from
+/// which the rest at the end cannot be reached; the description names s [m] (from the
+/// portion's start) and the limit (joint and kind) that stops it.
+Expected<TimeOptimalSolution> solve_time_optimal(const std::vector<GridPoint>& grid, const TimeOptimalLimits& limits);
+
+/// Options of plan_time_optimal.
+struct TimeOptimalOptions {
+  /// Grid intervals per portion. 200 intervals put the grid points about 5 mm apart on the
+  /// thesis's demo paths (portions of about 1 m): finer than the curvature features of the
+  /// blends, and the time changes by less than 0.1 % from 200 to 1,000.
+  std::size_t grid_intervals = 200;
+  /// Stream the result through MotionSampler (and JointTracker with a robot) and check
+  /// every sample; where one breaks a limit, tighten the limits at that interval by the
+  /// ratio and solve again (at most `max_refinements` times).
+  bool verify_samples = true;
+  int max_refinements = 8;
+  /// Relative slack of the sample check: a sample passes when value <= limit (1 + slack)
+  /// (the IK's rounding; 1e-9).
+  double sample_tolerance = 1e-9;
+  IkOptions ik;
+};
+
+/// A time-optimal plan: the motion (sampled exactly by MotionSampler) and why it takes the
+/// time it takes.
+struct TimeOptimalPlan {
+  MotionPlan motion;
+  std::vector<BindingStretch> binding;   ///< in time order, over all portions
+  /// The grid of each portion (what the optimiser of jerk-limited timing starts from).
+  std::vector<std::vector<GridPoint>> grids;
+  std::vector<TimeOptimalSolution> solutions;  ///< one per portion
+  TimeOptimalLimits limits;                    ///< the limits used (speedScale applied)
+  int refinements = 0;          ///< re-solves after the sample check
+  double worst_sample_usage = 0.0;  ///< largest value / limit over every sample checked
+};
+
+/// The joint path's derivatives along `path`: for each portion of `portions` (as
+/// plan_motion makes them; their profiles are not used), grid_intervals + 1 points uniform
+/// in arc length with q_s and q_ss from a JointTracker evaluated with s_dot = 1 [m/s],
+/// s_ddot = 0 (then q_dot = q_s, q_ddot = q_ss), seeded with `seed`, and the curvature.
+/// `robot` null: kappa only. Errors (field `motion`): the IK fails at a grid point (s and u
+/// named).
+Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& path, const OrientationPlan& orientation,
+                                                                 const std::vector<MotionPortion>& portions,
+                                                                 const RobotModel* robot, const JointVector& seed,
+                                                                 std::size_t grid_intervals,
+                                                                 const IkOptions& ik = {});
+
+/// The limits of `spec` (maxSpeed, maxAcceleration both tangential and centripetal, each
+/// optional) and of `robot` (velocity, acceleration; may be null), scaled by speedScale
+/// (v s, a s^2).
+TimeOptimalLimits time_optimal_limits(const MotionSpec& spec, const RobotModel* robot);
+
+/// The MotionPlan of per-portion profiles (durations, sample count and peaks by
+/// plan_motion's rules). `portions` give u, s and lengths; their profiles are replaced.
+Expected<MotionPlan> assemble_motion(const MotionSpec& spec, std::vector<MotionPortion> portions,
+                                     const std::vector<SpeedProfile>& profiles);
+
+/// The fastest motion along `path` within the limits of `spec` (durationS is ignored: the
+/// time is the result) and of `robot` (joint velocities and accelerations; null: the
+/// Cartesian limits only). Portions between rests as plan_motion; each portion is solved
+/// by solve_time_optimal on a grid of options.grid_intervals intervals, then (by default)
+/// every sample of the result is checked and the grid limits tightened until none breaks a
+/// limit. Guarantee: at every grid point, on both sides, every limit holds to rounding;
+/// Cartesian speed and tangential acceleration hold everywhere (b is linear and u constant
+/// between grid points); with verify_samples every streamed sample (cycle rate) is within
+/// every limit to sample_tolerance, or the call fails.
+/// Errors: validate_motion's minus the durationS rule; `motion` when no limit is given, a
+/// point admits no positive speed (s, u and the limit named), the IK fails, or the sample
+/// check does not settle.
+Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationPlan& orientation,
+                                            const MotionSpec& spec, const RobotModel* robot,
+                                            const JointVector& seed, const TimeOptimalOptions& options = {});
+
+/// The outcome of check_time_optimal_samples.
+struct SampleCheck {
+  bool broken = false;        ///< some sample exceeds a limit by more than sample_tolerance
+  double worst_usage = 0.0;   ///< largest value / limit over every sample checked
+  /// Per portion and grid point, the factor (in (0, 1]) by which to scale that point's
+  /// limits (velocities by it, accelerations by its square) before solving again: for each
+  /// sample with value / limit r > 1 + sample_tolerance on grid interval k, both ends k and
+  /// k + 1 get at most (1 / r of a velocity, 1 / sqrt(r) of an acceleration) (1 - 1e-6).
+  std::vector<std::vector<double>> shrink;
+};
+
+/// Streams `motion` through MotionSampler at its cycle rate (and, with a robot, through a
+/// JointTracker seeded with `seed` and options.ik) and compares every sample with `limits`:
+/// joint velocity |q_dot,j| [rad/s or m/s], joint acceleration |q_ddot,j| [rad/s^2 or m/s^2]
+/// and the centripetal acceleration |a_W - (a_W . T) T| [m/s^2] (maxSpeed and the tangential
+/// limit hold exactly between grid points and are not sampled). `grids` are the portions'
+/// grids (uniform in s, as time_optimal_grids makes them); a sample belongs to the grid
+/// interval of its arc length. Used by plan_time_optimal after each sweep; any timing on
+/// the same grids may use it the same way.
+/// Errors (field `motion`): the IK fails at a sample (t, s and u named).
+Expected<SampleCheck> check_time_optimal_samples(const Path& path, const OrientationPlan& orientation,
+                                                 const MotionPlan& motion,
+                                                 const std::vector<std::vector<GridPoint>>& grids,
+                                                 const TimeOptimalLimits& limits, const RobotModel* robot,
+                                                 const JointVector& seed, const TimeOptimalOptions& options);
+
+/// A one-line description of a stretch ("joint 3 velocity 1.99 of 1.99 rad/s on s 0.1-0.4 m").
+std::string describe(const BindingStretch& stretch);
+
+}  // namespace geotraj::core

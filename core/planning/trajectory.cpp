@@ -1,0 +1,97 @@
+// Sampling any trajectory with the tool's full state and the joints. See trajectory.hpp.
+#include "core/planning/trajectory.hpp"
+
+namespace geotraj::core {
+namespace {
+
+template <class... F>
+struct Overloaded : F... {
+  using F::operator()...;
+};
+template <class... F>
+Overloaded(F...) -> Overloaded<F...>;
+
+}  // namespace
+
+std::size_t sample_count(const Trajectory& trajectory) {
+  return std::visit(Overloaded{[](const PathMotion& m) { return m.timing.sample_count; },
+                               [](const JointMovePlan& m) { return m.sample_count; },
+                               [](const LinearMovePlan& m) { return m.sample_count; }},
+                    trajectory);
+}
+
+double duration(const Trajectory& trajectory) {
+  return std::visit(Overloaded{[](const PathMotion& m) { return m.timing.duration_s; },
+                               [](const JointMovePlan& m) { return m.duration_s; },
+                               [](const LinearMovePlan& m) { return m.duration_s; }},
+                    trajectory);
+}
+
+TrajectorySampler::TrajectorySampler(const Trajectory& trajectory, const RobotModel* robot, const JointVector& seed,
+                                     const IkOptions& options)
+    : trajectory_(&trajectory) {
+  std::visit(Overloaded{[&](const PathMotion& m) { path_sampler_.emplace(m.path, m.timing); },
+                        [&](const JointMovePlan& m) { joint_sampler_.emplace(m); },
+                        [&](const LinearMovePlan& m) { linear_sampler_.emplace(m); }},
+             trajectory);
+  // Joint moves carry their joints; the others need the IK at every sample.
+  if (robot != nullptr && !joint_sampler_) tracker_.emplace(*robot, seed, options);
+}
+
+bool TrajectorySampler::next(TrajectorySample& out) {
+  CartesianState& x = out.tool;
+  if (path_sampler_) {
+    const auto& m = std::get<PathMotion>(*trajectory_);
+    if (!path_sampler_->next(motion_sample_)) return false;
+    const MotionSample& ms = motion_sample_;
+    x = cartesian_state(m.path, m.orientation, ms);
+    out.t = ms.t;
+    out.u = ms.u;
+    out.s = ms.s;
+    out.segment = ms.segment;
+    out.speed = ms.speed;
+    out.q_WT = Eigen::Quaterniond(x.X_WT.linear());
+  } else {
+    const bool more = joint_sampler_ ? joint_sampler_->next(move_sample_) : linear_sampler_->next(move_sample_);
+    if (!more) return false;
+    const MoveSample& ms = move_sample_;
+    out.t = ms.t;
+    out.u = ms.u;
+    out.s = ms.s;
+    out.segment = 0;
+    out.speed = ms.speed;
+    x.t = ms.t;
+    x.X_WT.linear() = ms.q_WT.toRotationMatrix();
+    x.X_WT.translation() = ms.p_W;
+    x.v_WT = ms.v_W;
+    x.a_WT = ms.a_W;
+    x.omega_WT = ms.omega_W;
+    x.alpha_WT = ms.alpha_W;
+    out.q_WT = ms.q_WT;
+  }
+  // q and -q are one rotation: keep successive samples in one hemisphere.
+  if (out.q_WT.coeffs().dot(previous_q_.coeffs()) < 0.0) out.q_WT.coeffs() *= -1.0;
+  previous_q_ = out.q_WT;
+
+  out.has_joints = false;
+  if (joint_sampler_ && move_sample_.has_joints) {
+    out.has_joints = true;
+    JointSample& j = out.joints;
+    j.q = move_sample_.q;
+    j.q_dot = move_sample_.q_dot;
+    j.q_ddot = move_sample_.q_ddot;
+    j.converged = true;
+    j.iterations = 0;
+    j.position_error = 0.0;
+    j.orientation_error = 0.0;
+    j.manipulability = move_sample_.manipulability;
+    j.midpoint_deviation = 0.0;
+  } else if (tracker_) {
+    out.has_joints = true;
+    tracker_->track(x, out.joints);
+  }
+  ++k_;
+  return true;
+}
+
+}  // namespace geotraj::core

@@ -1,0 +1,321 @@
+// Inverse kinematics: the DH chain evaluator, the projected Newton iteration and cold solves
+// with restarts. See ik.hpp and dh_chain.hpp.
+#include "core/robot/ik.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "core/error.hpp"
+#include "core/robot/dh_chain.hpp"
+
+namespace geotraj::core {
+namespace detail {
+
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+
+namespace {
+
+// R * RotX(alpha) (columns 1 and 2 turn about column 0).
+inline void rotate_x(Matrix3d& R, double c, double s) {
+  const Vector3d y = R.col(1);
+  R.col(1) = c * y + s * R.col(2);
+  R.col(2) = c * R.col(2) - s * y;
+}
+
+// R * RotZ(theta) (columns 0 and 1 turn about column 2).
+inline void rotate_z(Matrix3d& R, double c, double s) {
+  const Vector3d x = R.col(0);
+  R.col(0) = c * x + s * R.col(1);
+  R.col(1) = c * R.col(1) - s * x;
+}
+
+}  // namespace
+
+DhChain::DhChain(const RobotModel& model)
+    : n_(static_cast<Eigen::Index>(model.dof())),
+      modified_(model.convention == DhConvention::kModified),
+      R_base_(model.base.linear()),
+      R_tool_(model.tool.linear()),
+      p_base_(model.base.translation()),
+      p_tool_(model.tool.translation()),
+      o_base_(model.base.translation()) {
+  GEOTRAJ_CHECK(model.dof() <= kMaxJoints);
+  for (std::size_t i = 0; i < model.dof(); ++i) {
+    const DhLink& l = model.links[i];
+    links_[i] = Link{std::cos(l.alpha), std::sin(l.alpha), l.a, l.d, l.theta, l.offset,
+                     l.type == JointType::kRevolute};
+  }
+}
+
+// The chain link by link from the base: modified (1.3) RotX(alpha) TransX(a) | axis |
+// RotZ(theta*) TransZ(d*); standard | axis | RotZ(theta*) TransZ(d*) TransX(a) RotX(alpha).
+// on_axis(i, R, p) sees the frame at the bar: joint i turns about its z column through its
+// origin. Leaves R, p at the last link's frame.
+template <class OnAxis>
+void DhChain::walk(const JointVector& q, Matrix3d& R, Vector3d& p, OnAxis&& on_axis) const {
+  GEOTRAJ_CHECK(q.size() == n_);
+  R = R_base_;
+  p = p_base_;
+  for (Eigen::Index i = 0; i < n_; ++i) {
+    const Link& l = links_[static_cast<std::size_t>(i)];
+    const double theta = l.theta + (l.revolute ? l.offset + q(i) : 0.0);  // theta_i*
+    const double d = l.d + (l.revolute ? 0.0 : l.offset + q(i));          // d_i*
+    if (modified_) {
+      p.noalias() += l.a * R.col(0);  // (1.3): RotX(alpha_{i-1}) TransX(a_{i-1})
+      rotate_x(R, l.ca, l.sa);
+      on_axis(i, R, p);
+      rotate_z(R, std::cos(theta), std::sin(theta));  // (1.3): RotZ(theta_i) TransZ(d_i)
+      p.noalias() += d * R.col(2);
+    } else {
+      on_axis(i, R, p);
+      rotate_z(R, std::cos(theta), std::sin(theta));
+      p.noalias() += d * R.col(2) + l.a * R.col(0);
+      rotate_x(R, l.ca, l.sa);
+    }
+  }
+}
+
+void DhChain::pose(const JointVector& q, Matrix3d& R_WT, Vector3d& p_WT) const {
+  Matrix3d R;
+  Vector3d p;
+  walk(q, R, p, [](Eigen::Index, const Matrix3d&, const Vector3d&) {});
+  p_WT = p + R * p_tool_;
+  R_WT = R * R_tool_;
+}
+
+void DhChain::jacobian(const JointVector& q, Matrix3d& R_WT, Vector3d& p_WT, JointAxes& z, JointAxes& o,
+                       JointJacobian& J) const {
+  z.resize(3, n_);
+  o.resize(3, n_);
+  J.resize(6, n_);
+  Matrix3d R;
+  Vector3d p;
+  walk(q, R, p, [&](Eigen::Index i, const Matrix3d& Ri, const Vector3d& pi) {
+    z.col(i) = Ri.col(2);
+    o.col(i) = pi;
+  });
+  p_WT = p + R * p_tool_;
+  R_WT = R * R_tool_;
+  for (Eigen::Index i = 0; i < n_; ++i) {
+    const Vector3d zi = z.col(i);
+    if (links_[static_cast<std::size_t>(i)].revolute) {
+      J.block<3, 1>(0, i) = zi.cross(p_WT - o.col(i));  // (1.9), revolute column
+      J.block<3, 1>(3, i) = zi;
+    } else {
+      J.block<3, 1>(0, i) = zi;  // (1.9), prismatic column
+      J.block<3, 1>(3, i).setZero();
+    }
+  }
+}
+
+void DhChain::jacobian_dot(const Vector3d& p_WT, const JointAxes& z, const JointAxes& o, const JointJacobian& J,
+                           const JointVector& q_dot, JointJacobian& J_dot) const {
+  GEOTRAJ_CHECK(q_dot.size() == n_ && J.cols() == n_);
+  J_dot.resize(6, n_);
+  const Vector3d p_dot = J.topRows<3>() * q_dot;  // tool velocity [m/s]
+  Vector3d omega = Vector3d::Zero();              // angular velocity of the frame carrying axis i
+  Vector3d v_o = Vector3d::Zero();                // velocity of the point o_i
+  Vector3d o_prev = o_base_;
+  for (Eigen::Index i = 0; i < n_; ++i) {
+    const Vector3d zi = z.col(i);
+    const Vector3d oi = o.col(i);
+    v_o += omega.cross(oi - o_prev);  // o_i rides on the body after joint i-1 (1.10)
+    o_prev = oi;
+    const Vector3d z_dot = omega.cross(zi);
+    if (links_[static_cast<std::size_t>(i)].revolute) {
+      J_dot.block<3, 1>(0, i) = z_dot.cross(p_WT - oi) + zi.cross(p_dot - v_o);  // (1.11)
+      J_dot.block<3, 1>(3, i) = z_dot;
+      omega += zi * q_dot(i);
+    } else {
+      J_dot.block<3, 1>(0, i) = z_dot;
+      J_dot.block<3, 1>(3, i).setZero();
+      v_o += zi * q_dot(i);
+    }
+  }
+}
+
+JointBounds::JointBounds(const RobotModel& model) {
+  GEOTRAJ_CHECK(model.limits.size() == model.dof() && model.dof() <= kMaxJoints);
+  for (std::size_t i = 0; i < model.dof(); ++i) {
+    lo[i] = model.limits[i].min_position;
+    hi[i] = model.limits[i].max_position;
+    mid[i] = 0.5 * (lo[i] + hi[i]);
+    range[i] = hi[i] - lo[i];
+    revolute[i] = model.links[i].type == JointType::kRevolute;
+  }
+}
+
+Vector3d rotation_vector(const Matrix3d& R) {
+  Eigen::Quaterniond q(R);
+  if (q.w() < 0.0) q.coeffs() = -q.coeffs();  // angle in [0, pi]
+  const double s = q.vec().norm();            // sin(angle / 2)
+  // angle / sin(angle / 2) = 2 atan2(s, w) / s; for s < 1e-7 its series 2 / w (1 - s^2 / (3 w^2)
+  // + ...) is 2 / w to 4e-15 relative.
+  const double scale = s < 1e-7 ? 2.0 / q.w() : 2.0 * std::atan2(s, q.w()) / s;
+  return scale * q.vec();
+}
+
+double factor(const JointJacobian& J, const std::array<bool, kMaxJoints>* active, NewtonWorkspace& ws) {
+  if (active == nullptr) {
+    ws.A.noalias() = J * J.transpose();
+  } else {
+    ws.A.setZero();
+    for (Eigen::Index i = 0; i < J.cols(); ++i) {
+      if ((*active)[static_cast<std::size_t>(i)]) ws.A.noalias() += J.col(i) * J.col(i).transpose();
+    }
+  }
+  ws.llt.compute(ws.A);
+  double p_min = 0.0, sqrt_det = 0.0;
+  if (ws.llt.info() == Eigen::Success) {
+    const auto L = ws.llt.matrixLLT().diagonal();
+    p_min = L.cwiseAbs2().minCoeff();
+    sqrt_det = L.prod();
+  }
+  if (p_min < kSingularPivot) {
+    const double r = 1.0 - p_min / kSingularPivot;
+    ws.A.diagonal().array() += kSingularPivot * r * r;  // lambda^2, continuous at the threshold
+    ws.llt.compute(ws.A);
+  }
+  return sqrt_det;
+}
+
+NewtonOutcome newton(const DhChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
+                     const Vector3d& p_target, const IkOptions& options, bool wrap, JointVector& q,
+                     NewtonWorkspace& ws) {
+  const Eigen::Index n = chain.dof();
+  constexpr double two_pi = 2.0 * std::numbers::pi;
+  NewtonOutcome out;
+  Vector6d e;
+  JointVector dq(n), q_base(n);
+  std::array<bool, kMaxJoints> active{};
+  double merit_base = std::numeric_limits<double>::infinity();  // |e|^2 at q_base [m^2 + rad^2]
+  int halvings = 0;
+  auto step_to = [&](double scale) {  // q = projection of q_base + scale dq onto the limits
+    q = q_base + scale * dq;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      if (wrap && bounds.revolute[k] && bounds.range[k] >= two_pi) {
+        if (q(i) > bounds.hi[k] && q(i) - two_pi >= bounds.lo[k]) q(i) -= two_pi;
+        if (q(i) < bounds.lo[k] && q(i) + two_pi <= bounds.hi[k]) q(i) += two_pi;
+      }
+      q(i) = std::clamp(q(i), bounds.lo[k], bounds.hi[k]);
+    }
+  };
+  for (int it = 0;; ++it) {
+    chain.jacobian(q, ws.R, ws.p, ws.z, ws.o, ws.J);
+    e.head<3>() = p_target - ws.p;
+    e.tail<3>() = rotation_vector(R_target * ws.R.transpose());
+    out.iterations = it;
+    out.position_error = e.head<3>().norm();
+    out.orientation_error = e.tail<3>().norm();
+    if (out.position_error <= options.position_tolerance && out.orientation_error <= options.orientation_tolerance) {
+      out.converged = true;
+      return out;
+    }
+    if (it >= options.max_iterations || !std::isfinite(out.position_error + out.orientation_error)) return out;
+
+    // Backtracking: a step that increased the error (far from the solution, where the
+    // linearisation fails) is halved, up to kMaxHalvings times, then taken anyway.
+    const double merit = e.squaredNorm();
+    if (merit > merit_base && halvings < kMaxHalvings) {
+      ++halvings;
+      step_to(std::ldexp(1.0, -halvings));
+      continue;
+    }
+    halvings = 0;
+    merit_base = merit;
+    q_base = q;
+
+    factor(ws.J, nullptr, ws);
+    dq.noalias() = ws.J.transpose() * ws.llt.solve(e);  // minimum-norm step
+    bool held = false;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      active[k] = !((q(i) <= bounds.lo[k] && dq(i) < 0.0) || (q(i) >= bounds.hi[k] && dq(i) > 0.0));
+      held |= !active[k];
+    }
+    if (held) {  // hold those joints at their bound; the others take the step
+      factor(ws.J, &active, ws);
+      dq.noalias() = ws.J.transpose() * ws.llt.solve(e);
+      for (Eigen::Index i = 0; i < n; ++i) {
+        if (!active[static_cast<std::size_t>(i)]) dq(i) = 0.0;
+      }
+    }
+    const double largest = dq.cwiseAbs().maxCoeff();
+    if (largest > options.max_step) dq *= options.max_step / largest;  // trust region
+    step_to(1.0);  // projection onto the limits
+  }
+}
+
+NewtonOutcome solve_cold(const DhChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
+                         const Vector3d& p_target, const JointVector& seed, const IkOptions& options, JointVector& q,
+                         NewtonWorkspace& ws) {
+  const Eigen::Index n = chain.dof();
+  GEOTRAJ_CHECK(seed.size() == n);
+  q = seed;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    q(i) = std::clamp(q(i), bounds.lo[k], bounds.hi[k]);
+  }
+  NewtonOutcome best = newton(chain, bounds, R_target, p_target, options, true, q, ws);
+  if (best.converged || options.restarts <= 0) return best;
+  SplitMix64 random(options.restart_seed);
+  JointVector best_q = q, trial(n);
+  bool last_is_best = true;
+  for (int r = 0; r < options.restarts; ++r) {
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      trial(i) = bounds.lo[k] + random.uniform() * bounds.range[k];
+    }
+    const NewtonOutcome out = newton(chain, bounds, R_target, p_target, options, true, trial, ws);
+    const int iterations = best.iterations + out.iterations;
+    last_is_best = out.converged || out.position_error + out.orientation_error <
+                                        best.position_error + best.orientation_error;
+    if (last_is_best) {
+      best = out;
+      best_q = trial;
+    }
+    best.iterations = iterations;
+    if (best.converged) break;
+  }
+  q = best_q;
+  if (!last_is_best) chain.jacobian(q, ws.R, ws.p, ws.z, ws.o, ws.J);  // ws describes the returned q
+  return best;
+}
+
+}  // namespace detail
+
+IkResult solve_ik(const RobotModel& model, const Eigen::Isometry3d& X_WT_target, const JointVector& seed,
+                  const IkOptions& options) {
+  GEOTRAJ_CHECK(seed.size() == static_cast<Eigen::Index>(model.dof()));
+  const detail::DhChain chain(model);
+  const detail::JointBounds bounds(model);
+  const Eigen::Matrix3d R_target = X_WT_target.linear();
+  const Eigen::Vector3d p_target = X_WT_target.translation();
+  IkResult result;
+  detail::NewtonWorkspace ws;
+  if (model.dof() < 6) {  // a general pose has no solution: report the seed
+    result.q = seed;
+    chain.pose(seed, ws.R, ws.p);
+    result.position_error = (p_target - ws.p).norm();
+    result.orientation_error = detail::rotation_vector(R_target * ws.R.transpose()).norm();
+  } else {
+    const detail::NewtonOutcome out =
+        detail::solve_cold(chain, bounds, R_target, p_target, seed, options, result.q, ws);
+    result.converged = out.converged;
+    result.iterations = out.iterations;
+    result.position_error = out.position_error;
+    result.orientation_error = out.orientation_error;
+  }
+  result.within_limits = true;
+  for (std::size_t i = 0; i < model.dof(); ++i) {
+    const double qi = result.q(static_cast<Eigen::Index>(i));
+    result.within_limits &= qi >= bounds.lo[i] && qi <= bounds.hi[i];
+  }
+  return result;
+}
+
+}  // namespace geotraj::core

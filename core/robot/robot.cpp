@@ -1,0 +1,170 @@
+// Robot models: validation and the built-in arms. See robot.hpp.
+#include "core/robot/robot.hpp"
+#include "core/format.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <string>
+
+namespace geotraj::core {
+namespace {
+
+std::string idx(const char* what, std::size_t i, const char* field) {
+  return std::string(what) + "[" + std::to_string(i) + "]." + field;
+}
+
+
+void check_rotation(const Eigen::Isometry3d& X, const char* field, Violations& out) {
+  const Eigen::Matrix3d R = X.linear();
+  if (!R.allFinite() || !X.translation().allFinite()) {
+    out.push_back({std::string(field), "must be finite"});
+    return;
+  }
+  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-9 || R.determinant() < 0.0) {
+    out.push_back({std::string(field) + ".orientation", "is not a rotation (give a unit quaternion)"});
+  }
+}
+
+constexpr double deg = std::numbers::pi / 180.0;
+
+JointLimits revolute_limits(double range_deg, double speed_deg_s, double accel_deg_s2) {
+  return JointLimits{-range_deg * deg, range_deg * deg, speed_deg_s * deg, accel_deg_s2 * deg, std::nullopt};
+}
+
+// Mitsubishi PA-10 (PA10-7C), the thesis's demonstration arm (7.2.2). Modified DH (Craig,
+// Eq. 1.3): alternating +-90 degree twists, shoulder height 0.317 m, upper arm 0.45 m,
+// forearm 0.48 m, wrist to flange 0.07 m (the tool offset). Joint ranges and speeds are the
+// manufacturer's PA10-7C specification (S1 177, S2 94, S3 174, E1 137, E2 255, W1 165,
+// W2 255 degrees; 57 deg/s on S1, S2, 114 deg/s on S3, E1, 360 deg/s on E2, W1, W2).
+// Acceleration limits are not published: 2 x the speed limit per second is assumed.
+RobotModel pa10() {
+  RobotModel m;
+  m.name = "pa10";
+  m.description =
+      "Mitsubishi PA-10 (PA10-7C), 7-DOF redundant arm of the thesis's demonstration (7.2.2). Modified DH "
+      "(Craig, thesis Eq. 1.3): shoulder 0.317 m, upper arm 0.45 m, forearm 0.48 m, flange 0.07 m (tool). "
+      "Ranges and speeds: Mitsubishi Heavy Industries PA10-7C specification. Accelerations: not published; "
+      "assumed 2 x the speed limit per second.";
+  m.convention = DhConvention::kModified;
+  const double h = std::numbers::pi / 2.0;
+  //        a    alpha  d      theta
+  m.links = {{0.0, 0.0, 0.317, 0.0},  {0.0, -h, 0.0, 0.0}, {0.0, h, 0.45, 0.0}, {0.0, -h, 0.0, 0.0},
+             {0.0, h, 0.48, 0.0},     {0.0, -h, 0.0, 0.0}, {0.0, h, 0.0, 0.0}};
+  m.limits = {revolute_limits(177, 57, 114),  revolute_limits(94, 57, 114),   revolute_limits(174, 114, 228),
+              revolute_limits(137, 114, 228), revolute_limits(255, 360, 720), revolute_limits(165, 360, 720),
+              revolute_limits(255, 360, 720)};
+  m.tool.translation() = Eigen::Vector3d(0.0, 0.0, 0.07);
+  // The thesis's start pose (frame 1 of Table 7.8, "home": p_WT = (0.106, 0, 0.975) m with
+  // the base at the world origin, tool z along +x, tool y along -y, R_WT = [-B N T]) to
+  // 2e-7 m and 4e-7 rad: the arm in the x-z plane (S1 = S3 = E2 = 0), shoulder back
+  // -43.6 deg, elbow 89.8 deg, wrist 43.8 deg (pitches summing to 90 deg), and W2 = -180 deg
+  // (W2 = +180 deg is the same pose, but the demo paths then turn W2 to within 0.02 rad of
+  // its +255 deg limit; from -180 deg they keep it 1.3 rad away).
+  m.home = {0.0, -0.761313, 0.0, 1.567648, 0.0, 0.764461, -std::numbers::pi};
+  return m;
+}
+
+// Universal Robots UR5 (CB3), 6 DOF, standard DH as published by Universal Robots ("DH
+// parameters for calculations of kinematics and dynamics"): d1 0.089159, a2 -0.425,
+// a3 -0.39225, d4 0.10915, d5 0.09465, d6 0.0823 m; alpha 90, 0, 0, 90, -90, 0 degrees.
+// Ranges +-360 degrees and speeds 180 deg/s per the UR5 technical specification.
+// Acceleration limits are not published: 2 x the speed limit per second is assumed.
+RobotModel ur5() {
+  RobotModel m;
+  m.name = "ur5";
+  m.description =
+      "Universal Robots UR5 (CB3), 6-DOF. Standard DH from Universal Robots' published DH parameters. Ranges "
+      "+-360 deg and speeds 180 deg/s: UR5 technical specification. Accelerations: not published; assumed 2 x "
+      "the speed limit per second.";
+  m.convention = DhConvention::kStandard;
+  const double h = std::numbers::pi / 2.0;
+  //        a         alpha  d         theta
+  m.links = {{0.0, h, 0.089159, 0.0},  {-0.425, 0.0, 0.0, 0.0}, {-0.39225, 0.0, 0.0, 0.0},
+             {0.0, h, 0.10915, 0.0},   {0.0, -h, 0.09465, 0.0}, {0.0, 0.0, 0.0823, 0.0}};
+  for (int i = 0; i < 6; ++i) m.limits.push_back(revolute_limits(360, 180, 360));
+  m.home = {0.0, -h, h, -h, -h, 0.0};
+  return m;
+}
+
+}  // namespace
+
+Violations validate_robot(const RobotModel& model) {
+  Violations out;
+  if (model.links.empty()) out.push_back({"links", "must list at least one joint"});
+  if (model.links.size() > kMaxJoints) {
+    out.push_back({"links", "has " + std::to_string(model.links.size()) + " joints; at most " +
+                                std::to_string(kMaxJoints) + " are supported"});
+  }
+  if (model.limits.size() != model.links.size()) {
+    out.push_back({"limits", "has " + std::to_string(model.limits.size()) + " entries for " +
+                                 std::to_string(model.links.size()) + " links: give one per joint"});
+  }
+  for (std::size_t i = 0; i < model.links.size(); ++i) {
+    const DhLink& l = model.links[i];
+    const std::pair<const char*, double> values[] = {
+        {"a", l.a}, {"alpha", l.alpha}, {"d", l.d}, {"theta", l.theta}, {"offset", l.offset}};
+    for (const auto& [name, v] : values) {
+      if (!std::isfinite(v)) out.push_back({idx("links", i, name), "must be finite, got " + number(v)});
+    }
+  }
+  for (std::size_t i = 0; i < model.limits.size(); ++i) {
+    const JointLimits& l = model.limits[i];
+    if (!std::isfinite(l.min_position)) out.push_back({idx("limits", i, "minPosition"), "must be finite"});
+    if (!std::isfinite(l.max_position)) out.push_back({idx("limits", i, "maxPosition"), "must be finite"});
+    if (std::isfinite(l.min_position) && std::isfinite(l.max_position) && l.min_position > l.max_position) {
+      out.push_back({idx("limits", i, "minPosition"),
+                     number(l.min_position) + " is above maxPosition " + number(l.max_position)});
+    }
+    if (!(std::isfinite(l.max_velocity) && l.max_velocity > 0.0)) {
+      out.push_back({idx("limits", i, "maxVelocity"), "must be finite and > 0, got " + number(l.max_velocity)});
+    }
+    if (!(std::isfinite(l.max_acceleration) && l.max_acceleration > 0.0)) {
+      out.push_back(
+          {idx("limits", i, "maxAcceleration"), "must be finite and > 0, got " + number(l.max_acceleration)});
+    }
+    if (l.max_jerk && !(std::isfinite(*l.max_jerk) && *l.max_jerk > 0.0)) {
+      out.push_back({idx("limits", i, "maxJerk"), "must be finite and > 0 when given, got " + number(*l.max_jerk)});
+    }
+  }
+  check_rotation(model.base, "base", out);
+  check_rotation(model.tool, "tool", out);
+  if (!model.home.empty()) {
+    if (model.home.size() != model.links.size()) {
+      out.push_back({"home", "has " + std::to_string(model.home.size()) + " values for " +
+                                 std::to_string(model.links.size()) + " joints"});
+    } else if (model.limits.size() == model.links.size()) {
+      for (std::size_t i = 0; i < model.home.size(); ++i) {
+        const double q = model.home[i];
+        if (!std::isfinite(q) || q < model.limits[i].min_position || q > model.limits[i].max_position) {
+          out.push_back({"home[" + std::to_string(i) + "]", number(q) + " is outside the joint's limits [" +
+                                                                  number(model.limits[i].min_position) + ", " +
+                                                                  number(model.limits[i].max_position) + "]"});
+        }
+      }
+    }
+  }
+  return out;
+}
+
+const std::vector<RobotModel>& builtin_robots() {
+  static const std::vector<RobotModel> robots = {pa10(), ur5()};
+  return robots;
+}
+
+const RobotModel* find_builtin_robot(std::string_view name) {
+  for (const auto& m : builtin_robots()) {
+    if (m.name == name) return &m;
+  }
+  return nullptr;
+}
+
+JointVector home_configuration(const RobotModel& model) {
+  JointVector q = JointVector::Zero(static_cast<Eigen::Index>(model.dof()));
+  if (model.home.size() == model.dof()) {
+    for (std::size_t i = 0; i < model.dof(); ++i) q(static_cast<Eigen::Index>(i)) = model.home[i];
+  }
+  return q;
+}
+
+}  // namespace geotraj::core

@@ -1,0 +1,151 @@
+// Jerk-limited (or smoothness-weighted) time-optimal timing along a path: a nonlinear
+// programme solved by a purpose-built banded primal-dual interior point method (falling back
+// to Ipopt when it does not converge), warm-started from the exact sweep of
+// core/planning/time_optimal.hpp.
+//
+// Formulation: the exact problem's, plus jerk. On the grid s_0 = 0 < ... < s_N of one
+// portion (ds_i = s_{i+1} - s_i [m]) the unknowns are b_i = s_dot^2(s_i) [m^2/s^2] at the
+// interior points (rest to rest: b_0 = b_N = 0 are constants). As in the sweep, b is linear
+// in s on each interval and the acceleration constant:
+//   u_i = (b_{i+1} - b_i) / (2 ds_i)                      [m/s^2]
+//   t_i = 2 ds_i / (sqrt(b_i) + sqrt(b_{i+1}))            [s]
+// and the sweep's limits, in the same places, are linear in b:
+//   joint velocity, maxSpeed, centripetal  bounds on b_i (the sweep's point caps)
+//   joint acceleration  |q_s,j(s_k) u_i + q_ss,j(s_k) b_k| <= a_max,j at BOTH ends k = i, i + 1
+//   tangential          |u_i| <= maxAcceleration
+// so the sweep's b is feasible, and without jerk limits the programme is convex (T is
+// convex in b) with the sweep's b as its minimum.
+// Jerk. The acceleration steps from u_{i-1} to u_i at s_i; the step is spread over the time
+// between the two intervals' midpoints, tau_i = (t_{i-1} + t_i) / 2, giving the jerk at each
+// grid point (u_{-1} = u_N = 0 and t_{-1} = t_N = 0: the rests)
+//   j_i = (u_i - u_{i-1}) / tau_i                                          [m/s^3]
+// and the joint jerk q_dddot = q_s s_dddot + 3 q_ss s_dot s_ddot + q_sss s_dot^3 with
+// s_dot = sqrt(b_i), s_ddot = (u_{i-1} + u_i) / 2 and q_sss by central differences of q_ss:
+//   joint jerk   |q_s,j j_i + 3 q_ss,j sqrt(b_i) (u_{i-1} + u_i) / 2 + q_sss,j b_i^(3/2)| <= j_max,j
+//   Cartesian    |j_i| <= maxJerk
+// at every grid point. Deviation (from a profile of constant-jerk pieces): the result is
+// the sweep's kind of profile, one constant-acceleration piece per interval, whose
+// acceleration steps by at most j_max tau_i at s_i; j_i is the jerk of the profile whose
+// acceleration ramps linearly between interval midpoints (the grid's resolution in time).
+// Objective: T + w sum_i j_i^2 tau_i (T = sum_i t_i = sum_i tau_i; w = smoothness_weight
+// [s^5/m^2] times the integral of the squared jerk [m^2/s^5]). Exact first and second
+// derivatives; Jacobian and Hessian are banded (each jerk couples b_{i-1}, b_i, b_{i+1}).
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <stop_token>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/planning/time_optimal.hpp"
+#include "optim/common/report.hpp"
+
+namespace geotraj::optim {
+
+/// Which solver runs the NLP.
+enum class JerkSolver {
+  /// The banded interior point method, then Ipopt from the same start with the budget left
+  /// when it does not converge (neither converged nor out of time).
+  kAuto,
+  kBanded,  ///< the banded interior point method only
+  kIpopt,   ///< Ipopt (MUMPS) only
+};
+
+/// Options of the jerk-limited timing (Ceres-style value).
+struct JerkTimingOptions {
+  /// Joint jerk limits [rad/s^3 or m/s^3] per joint (+infinity: none); empty: none.
+  core::JointVector joint_jerk;
+  std::optional<double> max_jerk;   ///< Cartesian tangential jerk [m/s^3]
+  double smoothness_weight = 0.0;   ///< w [s^5/m^2] of the objective above, >= 0
+  /// Time budget [s]: the banded method's wall-clock deadline, checked every iteration, and
+  /// Ipopt's max_cpu_time (the budget left, after a banded attempt).
+  double time_budget_s = 1.0;
+  /// Cancellation (the RPC was cancelled): both solvers stop as at the budget's end.
+  std::stop_token stop;
+  /// Per solver (after a banded attempt that did not converge Ipopt gets as many).
+  int max_iterations = 500;
+  /// Per grid point, sigma in (0, 1]: that point's joint velocity limits are multiplied by
+  /// sigma, its joint and centripetal acceleration limits by sigma^2 (the sample check's
+  /// tightening, as in plan_time_optimal); empty: 1 everywhere, else one per grid point.
+  std::vector<double> limit_scale;
+  /// The solver starts from the start's b times this, in (0, 1]: the same motion slower
+  /// (velocities x sqrt, accelerations x, jerks x ^(3/2)), strictly inside the limits the
+  /// start meets. An interior point method started on the sweep's many active limits takes
+  /// several times the iterations.
+  double start_scale = 0.5;
+  /// Both solvers' tol (Ipopt's scaled KKT error; the objective is in [s]).
+  double tolerance = 1e-8;
+  /// Leave out the jerk rows that the kept ones and the velocity and acceleration limits
+  /// imply (they cannot bind, so the feasible set and the optimum are unchanged; each
+  /// solver's system shrinks by two rows each). Off: every row, for comparison.
+  bool drop_implied_jerk_rows = true;
+  /// Run Ipopt's second-order derivative checker at the start point and print its report
+  /// (and Ipopt's iteration log) on stdout: a debug aid, slow (Ipopt runs, whatever `solver`).
+  bool derivative_test = false;
+  /// The solver (kAuto: the banded interior point method, Ipopt when it does not converge).
+  /// OptimizerReport::message names the solver whose result is returned.
+  JerkSolver solver = JerkSolver::kAuto;
+};
+
+/// The outcome for one portion.
+struct JerkTiming {
+  core::SpeedProfile profile;  ///< one constant-acceleration piece per interval, exact times
+  std::vector<double> b;       ///< s_dot^2 at the grid points [m^2/s^2] (b.front() = b.back() = 0)
+  std::vector<double> u;       ///< acceleration on each interval [m/s^2]
+  std::vector<double> dt;      ///< time of each interval [s]
+  std::vector<double> jerk;    ///< j_i at each grid point [m/s^3] (above)
+  double duration = 0.0;       ///< [s]
+  /// Largest excess over a limit at the returned point, in the limit's unit (0: feasible);
+  /// every row, the left-out implied jerk rows included.
+  double max_constraint_violation = 0.0;
+  std::size_t jerk_rows = 0;          ///< jerk rows of the programme ((N + 1) x limited quantities)
+  std::size_t implied_jerk_rows = 0;  ///< of them left out as implied (drop_implied_jerk_rows)
+  /// Objective T + w sum j^2 tau [s] before (the exact sweep's b) and after.
+  OptimizerReport report;
+};
+
+/// Solves one portion's NLP from the exact solution `start` of the same grid and limits
+/// (core::solve_time_optimal). The status is honest: kConverged only when the solver that
+/// ran last converged (to its tolerance, or Ipopt's acceptable level); kTimeLimit when
+/// time_budget_s ran out, kIterationLimit at max_iterations (the last iterate is returned,
+/// with its max_constraint_violation); kFailed otherwise (the start's profile is returned).
+/// report.iterations sums both solvers' iterations when Ipopt ran after the banded method.
+/// Preconditions: grid.size() >= 3, `start` solved on `grid`.
+JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const core::TimeOptimalLimits& limits,
+                                const core::TimeOptimalSolution& start, const JerkTimingOptions& options);
+
+/// A whole plan: the exact plan (core::plan_time_optimal) re-timed portion by portion.
+/// Relative margin inside every velocity and acceleration limit that plan_time_optimal_jerk
+/// keeps at its grid points (the solvers meet the constraints to their tolerance only).
+inline constexpr double kJerkLimitMargin = 1e-6;
+
+struct JerkLimitedPlan {
+  core::MotionPlan motion;
+  core::TimeOptimalPlan exact;           ///< the warm start and its binding report
+  std::vector<JerkTiming> portions;
+  OptimizerReport report;                ///< summed iterations, the worst status, wall time [s]
+  int refinements = 0;                   ///< re-solves after the sample check
+  double worst_sample_usage = 0.0;       ///< largest value / limit over every sample checked
+};
+
+/// plan_time_optimal, then optimise_jerk_timing on every portion with the robot's
+/// JointLimits::max_jerk (where given) and spec.max_jerk, scaled by speedScale^3; then, as
+/// plan_time_optimal does for the sweep, every sample at the cycle rate is checked against
+/// the joint velocity, joint acceleration and centripetal limits
+/// (core::check_time_optimal_samples) and, where one breaks a limit, the limits at that
+/// interval's grid points are tightened (JerkTimingOptions::limit_scale) and the NLP runs
+/// again from its last result, at most exact_options.max_refinements times.
+/// Guarantee: every streamed sample within those limits to exact_options.sample_tolerance;
+/// maxSpeed and the tangential limit everywhere; the jerk limits at the grid points (the
+/// grid's time resolution, above).
+/// Errors: plan_time_optimal's; `motion` when the samples still break a limit after the
+/// last refinement, or the IK fails at a sample.
+core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
+                                                       const core::OrientationPlan& orientation,
+                                                       const core::MotionSpec& spec, const core::RobotModel* robot,
+                                                       const core::JointVector& seed,
+                                                       const core::TimeOptimalOptions& exact_options = {},
+                                                       JerkTimingOptions options = {});
+
+}  // namespace geotraj::optim

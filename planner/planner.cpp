@@ -1,0 +1,324 @@
+#include "planner/planner.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <utility>
+
+#include "core/geometry/analysis.hpp"
+#include "core/motion/orientation.hpp"
+#include "core/robot/kinematics.hpp"
+#include "optim/timing/time_optimal_jerk.hpp"
+
+namespace geotraj::planner {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+Error invalid(core::Violations violations) { return Error{ErrorKind::kInvalidArgument, std::move(violations), {}, {}}; }
+
+void observe(const Budget& budget, std::string_view optimizer, Clock::time_point started) {
+  if (budget.on_optimizer) budget.on_optimizer(optimizer, seconds_since(started));
+}
+
+// Samples between two checks of the budget in the joint-space pass: an IK sample costs about
+// a microsecond when the pose is within reach and milliseconds when the solver fails on one
+// out of reach, so a check every 16 keeps an abandoned call's overrun to tens of
+// milliseconds at a cost below 0.5 %. Without IK a sample costs about a microsecond: every
+// 1,024.
+constexpr std::size_t kSamplesPerCheck = 16;
+constexpr std::size_t kToolSamplesPerCheck = 1024;
+
+// The deadline every optimiser of the request shares: the earlier of the budget's and
+// optimize.timeBudgetS from the start of the plan.
+Clock::time_point optimizer_deadline(const Request& request, const Budget& budget) {
+  if (!request.optimize) return budget.deadline;
+  const auto budget_s = std::chrono::duration<double>(std::min(request.optimize->budget_s, 1e9));
+  return std::min(budget.deadline, Clock::now() + std::chrono::duration_cast<Clock::duration>(budget_s));
+}
+
+// The request's path after the optimisers it asks for (tangent scales, then breakpoints),
+// their reports in `reports`.
+Expected<core::PathSpec> optimized_path(const Request& request, const Budget& budget, Clock::time_point deadline,
+                                        OptimizerReports& reports) {
+  core::PathSpec path = std::get<core::PathSpec>(request.geometry);
+  if (!request.optimize) return path;
+  if (auto options = request.optimize->tangent_scales) {
+    options->deadline = deadline;
+    options->stop = budget.stop;
+    const auto started = Clock::now();
+    auto result = optim::optimize_tangent_scales(path, *options);
+    observe(budget, "tangent_scales", started);
+    if (!result) return tl::unexpected(invalid(std::move(result.error())));
+    path = result->spec;
+    reports.tangent_scales = std::move(*result);
+  }
+  if (auto options = request.optimize->breakpoints) {
+    options->deadline = deadline;
+    options->stop = budget.stop;
+    const auto started = Clock::now();
+    auto result = optim::optimize_breakpoints(path, *options);
+    observe(budget, "breakpoints", started);
+    if (!result) return tl::unexpected(invalid(std::move(result.error())));  // absolute paths already
+    path = result->spec;
+    reports.breakpoints = std::move(*result);
+  }
+  if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+  return path;
+}
+
+Expected<core::Path> build(const core::PathSpec& spec) {
+  auto path = core::build_path(spec);
+  if (!path) return tl::unexpected(invalid(core::prefixed(std::move(path.error()), "path.")));
+  return std::move(*path);
+}
+
+// A time-optimal planner's error: the path cannot be followed at any speed (`motion`: where,
+// and which limit; `motion.durationS`: the motion the limits allow is too long to sample),
+// or bad fields.
+Error timing_error(core::Violations violations) {
+  const bool impossible = std::all_of(violations.begin(), violations.end(), [](const core::FieldViolation& v) {
+    return v.field == "motion" || v.field == "motion.durationS";
+  });
+  return Error{impossible ? ErrorKind::kTimingImpossible : ErrorKind::kInvalidArgument, std::move(violations), {}, {}};
+}
+
+// The fastest timing along the path within the joint limits (with a robot) and the
+// Cartesian ones given (thesis 6.4, TOPP in b = s_dot^2: core/planning/time_optimal.hpp), with jerk
+// limits by the NLP warm-started from it (optim/timing/time_optimal_jerk.hpp), within the
+// optimisers' shared deadline.
+Expected<core::MotionPlan> time_optimal_timing(const core::Path& path, const core::OrientationPlan& orientation,
+                                               const core::MotionSpec& motion, const Robot* robot, bool jerk_limited,
+                                               const Budget& budget, Clock::time_point deadline,
+                                               OptimizerReports& reports) {
+  if (robot == nullptr && !motion.max_acceleration) {
+    return tl::unexpected(invalid(core::Violations{
+        {"motion.maxAcceleration", "is needed for a time-optimal motion without a robot (and maxSpeed, optional)"}}));
+  }
+  const auto started = Clock::now();
+  const core::RobotModel* model = robot ? &robot->model : nullptr;
+  const core::JointVector seed = robot ? robot->seed : core::JointVector();
+  core::MotionPlan plan;
+  TimingReport timing;
+  if (jerk_limited) {
+    optim::JerkTimingOptions options;
+    options.time_budget_s = std::max(0.0, std::chrono::duration<double>(deadline - started).count());
+    options.stop = budget.stop;
+    auto result = optim::plan_time_optimal_jerk(path, orientation, motion, model, seed, {}, options);
+    if (!result) return tl::unexpected(timing_error(std::move(result.error())));
+    plan = std::move(result->motion);
+    timing.binding = result->exact.binding;
+    timing.report = result->report;
+  } else {
+    auto result = core::plan_time_optimal(path, orientation, motion, model, seed);
+    if (!result) return tl::unexpected(timing_error(std::move(result.error())));
+    plan = std::move(result->motion);
+    timing.binding = std::move(result->binding);
+    timing.report.status = optim::OptimizerStatus::kConverged;
+    timing.report.iterations = result->refinements + 1;
+  }
+  observe(budget, jerk_limited ? "time_optimal_jerk" : "time_optimal", started);
+  if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+  timing.report.seconds = seconds_since(started);
+  // Before: the move time the request would have had without the optimiser.
+  double before = motion.duration_s;
+  if (before == 0.0) {
+    if (auto conservative = core::plan_motion(path, motion)) before = conservative->duration_s;
+  }
+  timing.report.objective_before = before;
+  timing.report.objective_after = plan.duration_s;
+  reports.timing = std::move(timing);
+  return plan;
+}
+
+// The trajectory of a request with a motion.
+Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget& budget, Clock::time_point deadline,
+                                           OptimizerReports& reports) {
+  const core::MotionSpec& motion = *request.motion;
+  const Robot* robot = request.robot.get();
+  if (const auto* move = std::get_if<core::JointMoveSpec>(&request.geometry)) {
+    auto plan = core::plan_joint_move(robot->model, *move, motion);
+    if (!plan) return tl::unexpected(invalid(std::move(plan.error())));
+    return core::Trajectory(std::in_place_type<core::JointMovePlan>, std::move(*plan));
+  }
+  if (const auto* move = std::get_if<core::LinearMoveSpec>(&request.geometry)) {
+    auto plan = core::plan_linear_move(*move, motion);
+    if (!plan) return tl::unexpected(invalid(std::move(plan.error())));
+    return core::Trajectory(std::in_place_type<core::LinearMovePlan>, std::move(*plan));
+  }
+  auto spec = optimized_path(request, budget, deadline, reports);
+  if (!spec) return tl::unexpected(std::move(spec.error()));
+  auto path = build(*spec);
+  if (!path) return tl::unexpected(std::move(path.error()));
+  // A straight start keeps the tool as the robot holds it at its initial joints (or the
+  // world axes without a robot): see plan_orientation.
+  const Eigen::Quaterniond start_W = robot ? Eigen::Quaterniond(core::forward_kinematics(robot->model, robot->seed).rotation())
+                                           : Eigen::Quaterniond::Identity();
+  auto orientation = core::plan_orientation(*path, start_W);
+  if (!orientation) return tl::unexpected(invalid(core::prefixed(std::move(orientation.error()), "path.")));
+  // As fast as the limits allow: the time-optimal timing, with a robot (joint limits) or
+  // without (Cartesian limits; the S-curve keeps its minimum-time double S, whose jerk bound
+  // the sweep does not model, unless jerkLimited asks for the NLP).
+  const bool jerk_limited = request.optimize && request.optimize->jerk_limited;
+  const bool minimum_time = motion.duration_s == 0.0 && (robot || motion.profile == core::ProfileShape::kTrapezoidal);
+  const bool time_optimal = (request.optimize && request.optimize->time_optimal) || jerk_limited || minimum_time;
+  if (time_optimal) {
+    auto timing = time_optimal_timing(*path, *orientation, motion, robot, jerk_limited, budget, deadline, reports);
+    if (!timing) return tl::unexpected(std::move(timing.error()));
+    return core::Trajectory(std::in_place_type<core::PathMotion>,
+                            core::PathMotion{std::move(*path), std::move(*timing), std::move(*orientation)});
+  }
+  auto timing = core::plan_motion(*path, motion);
+  if (!timing) return tl::unexpected(invalid(std::move(timing.error())));
+  return core::Trajectory(std::in_place_type<core::PathMotion>,
+                          core::PathMotion{std::move(*path), std::move(*timing), std::move(*orientation)});
+}
+
+void add(ToolPeaks& peaks, const core::TrajectorySample& sample) {
+  peaks.speed = std::max(peaks.speed, sample.speed);
+  peaks.acceleration = std::max(peaks.acceleration, sample.tool.a_WT.norm());
+  peaks.angular_speed = std::max(peaks.angular_speed, sample.tool.omega_WT.norm());
+}
+
+// The joint-space pass over every sample (IK at each): the joint report and the tool's peaks.
+Expected<std::pair<core::JointMotionReport, ToolPeaks>> robot_pass(const core::Trajectory& trajectory,
+                                                                   const Robot& robot, const Budget& budget) {
+  core::TrajectorySampler sampler(trajectory, &robot.model, robot.seed);
+  core::JointReportBuilder builder(robot.model, robot.branch_tolerance);
+  core::TrajectorySample sample;
+  ToolPeaks peaks;
+  while (sampler.next(sample)) {
+    const std::size_t k = sampler.index() - 1;
+    builder.add(k, sample.t, sample.s, sample.joints);
+    add(peaks, sample);
+    if (k % kSamplesPerCheck == 0) {
+      if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+    }
+  }
+  return std::make_pair(builder.report(), peaks);
+}
+
+// The tool's peaks without a robot: the samples without IK.
+Expected<ToolPeaks> tool_pass(const core::Trajectory& trajectory, const Budget& budget) {
+  core::TrajectorySampler sampler(trajectory, nullptr, {});
+  core::TrajectorySample sample;
+  ToolPeaks peaks;
+  while (sampler.next(sample)) {
+    add(peaks, sample);
+    if (sampler.index() % kToolSamplesPerCheck == 0) {
+      if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+    }
+  }
+  return peaks;
+}
+
+// A motion with more samples than the server allows: it is streamed, followed by a robot
+// (the IK runs at every sample) or summarised from its samples.
+std::optional<Error> sample_limit(const core::Trajectory& trajectory, const Limits& limits) {
+  const auto count = core::sample_count(trajectory);
+  if (count <= limits.max_samples) return std::nullopt;
+  return invalid(core::Violations{
+      {"motion.durationS", "the motion has " + std::to_string(count) + " samples (" +
+                               std::to_string(core::duration(trajectory)) +
+                               " s at the cycle rate); this server streams and checks at most " +
+                               std::to_string(limits.max_samples) + " per call" +
+                               (limits.max_samples_name.empty() ? "" : " (" + limits.max_samples_name + ")") +
+                               ": shorten it or lower cycleRateHz"}});
+}
+
+PathReport report_of(const core::Path& path) {
+  PathReport report;
+  report.achieved = core::achieved_geometry(path);
+  report.closed_loop = core::closed_loop_error(path, report.achieved);
+  report.geometry = core::geometry_report(path);
+  return report;
+}
+
+}  // namespace
+
+std::optional<Error> check(const Budget& budget) {
+  // A passed deadline first: an RPC is also cancelled then, and the kind should say why.
+  if (budget.expired()) return Error{ErrorKind::kDeadlineExceeded, {}, {}, {}};
+  if (budget.stop_requested()) return Error{ErrorKind::kStopped, {}, {}, {}};
+  return std::nullopt;
+}
+
+const core::Path* Plan::followed_path() const {
+  if (path) return &*path;
+  if (trajectory) {
+    if (const auto* motion = std::get_if<core::PathMotion>(&*trajectory)) return &motion->path;
+  }
+  return nullptr;
+}
+
+Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose) {
+  if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+  const auto deadline = optimizer_deadline(request, budget);
+  Plan result;
+  result.robot = request.robot;
+  if (!request.motion) {  // the path's geometry only
+    auto spec = optimized_path(request, budget, deadline, result.optimizers);
+    if (!spec) return tl::unexpected(std::move(spec.error()));
+    auto path = build(*spec);
+    if (!path) return tl::unexpected(std::move(path.error()));
+    if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+    if (purpose == Purpose::kPlan) result.path_report = report_of(*path);
+    result.path = std::move(*path);
+    return result;
+  }
+  auto trajectory = plan_trajectory(request, budget, deadline, result.optimizers);
+  if (!trajectory) return tl::unexpected(std::move(trajectory.error()));
+  if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+  result.trajectory = std::move(*trajectory);
+  if (purpose == Purpose::kPlan) {
+    if (const core::Path* path = result.followed_path()) result.path_report = report_of(*path);
+  }
+  if (auto refused = sample_limit(*result.trajectory, limits)) return tl::unexpected(std::move(*refused));
+  if (request.robot) {
+    auto pass = robot_pass(*result.trajectory, *request.robot, budget);
+    if (!pass) return tl::unexpected(std::move(pass.error()));
+    auto& [joints, peaks] = *pass;
+    // reportOnly streams a motion that breaks joint limits (for simulation and analysis),
+    // never one whose IK failed or jumped branches: those joints would be meaningless.
+    const bool only_limits = std::all_of(joints.violations.begin(), joints.violations.end(), [](const auto& e) {
+      return e.kind != core::LimitKind::kIk && e.kind != core::LimitKind::kBranch;
+    });
+    const bool allowed = request.robot->report_only && (purpose == Purpose::kPlan || only_limits);
+    if (!joints.feasible() && !allowed) {
+      return tl::unexpected(Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, request.robot->model.name});
+    }
+    if (purpose == Purpose::kPlan) result.tool = peaks;
+    result.joints = std::move(joints);
+  } else if (purpose == Purpose::kPlan) {
+    auto peaks = tool_pass(*result.trajectory, budget);
+    if (!peaks) return tl::unexpected(std::move(peaks.error()));
+    result.tool = *peaks;
+  }
+  if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+  return result;
+}
+
+Expected<std::vector<core::FrameConstraints>> convert(const core::PathSpec& path) {
+  auto frames = core::convert_path(path);
+  if (!frames) return tl::unexpected(invalid(core::prefixed(std::move(frames.error()), "path.")));
+  return std::move(*frames);
+}
+
+Expected<Analysis> analyze(const Request& request, std::size_t points, const Budget& budget) {
+  if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+  OptimizerReports reports;
+  auto spec = optimized_path(request, budget, optimizer_deadline(request, budget), reports);
+  if (!spec) return tl::unexpected(std::move(spec.error()));
+  auto path = build(*spec);
+  if (!path) return tl::unexpected(std::move(path.error()));
+  if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+  Analysis analysis{std::move(*path), {}};
+  auto profile = core::analyze(analysis.path, points, [&budget] { return budget.stop_requested() || budget.expired(); });
+  if (!profile) return tl::unexpected(std::move(*check(budget)));
+  analysis.points = std::move(*profile);
+  return analysis;
+}
+
+}  // namespace geotraj::planner

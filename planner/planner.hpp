@@ -1,0 +1,176 @@
+// The application layer between the wire and the math: one request value in (everything a
+// PlanRequest says, already converted), one plan out. It decides what runs and in which
+// order (the optimisers of the path, the path, the orientation, the timing, the robot's
+// joint-space pass) under one budget (a deadline and a stop token), and returns the plan
+// with its reports or an error that carries its kind as a value. No gRPC, no protobuf: the
+// server converts the request once, plans, converts the result once and maps the error kind
+// to a status once (server/rpc/service.cpp).
+//
+// Field paths in every violation are absolute from the request's root, in proto JSON names
+// (`path.frames[1].curvature`, `motion.maxAcceleration`, `optimize.tangentScales.minScale`).
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <stop_token>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/geometry/analysis.hpp"
+#include "core/geometry/geometry_report.hpp"
+#include "core/geometry/key_frame.hpp"
+#include "core/geometry/path.hpp"
+#include "core/motion/motion.hpp"
+#include "core/planning/joint_motion.hpp"
+#include "core/planning/moves.hpp"
+#include "core/planning/time_optimal.hpp"
+#include "core/planning/trajectory.hpp"
+#include "core/robot/robot.hpp"
+#include "optim/breakpoints/breakpoints.hpp"
+#include "optim/common/report.hpp"
+#include "optim/tangent_scales/tangent_scales.hpp"
+
+namespace geotraj::planner {
+
+/// The robot of a request, resolved (a catalog name looked up, base and tool applied).
+struct Robot {
+  core::RobotModel model;
+  core::JointVector seed;          ///< the initial joints, or the model's home [rad, m]
+  bool report_only = false;        ///< report broken limits instead of refusing the plan
+  double branch_tolerance = 1e-3;  ///< [m]
+  bool inline_model = false;       ///< given as `robot.model` (not by name): where its errors point
+};
+
+/// The optimisers a request asks for (OptimizeSpec), converted.
+struct Optimize {
+  std::optional<optim::TangentScaleOptions> tangent_scales;
+  std::optional<optim::BreakpointOptions> breakpoints;
+  bool time_optimal = false;  ///< optimize.timing.timeOptimal
+  bool jerk_limited = false;  ///< optimize.timing.jerkLimited
+  double budget_s = 10.0;     ///< all optimisers of the request together [s]
+};
+
+/// What a request plans: the key frames of a path, a joint move or a straight-line move.
+using Geometry = std::variant<core::PathSpec, core::JointMoveSpec, core::LinearMoveSpec>;
+
+/// Everything a plan request says, converted once by the wire layer.
+struct Request {
+  Geometry geometry;
+  std::optional<core::MotionSpec> motion;  ///< absent: the path's geometry only
+  std::shared_ptr<const Robot> robot;      ///< shared: a plan's samplers refer to its model
+  std::optional<Optimize> optimize;
+};
+
+/// The server's bounds on one call's work.
+struct Limits {
+  std::size_t max_samples = 1'000'000;  ///< samples of one motion: streamed, followed by a robot or summarised
+  std::string max_samples_name;         ///< how a refusal names that limit ("geotrajd --max-stream-samples")
+};
+
+/// One budget for all long work of a call: the caller's deadline and a stop token (the RPC's
+/// cancellation). Every stage checks it, and every optimiser and sampling pass watches both.
+struct Budget {
+  std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+  std::stop_token stop;
+  /// Observes each optimiser's run (name, wall-clock seconds), e.g. for metrics.
+  std::function<void(std::string_view, double)> on_optimizer;
+
+  bool stop_requested() const { return stop.stop_requested(); }
+  bool expired() const { return std::chrono::steady_clock::now() >= deadline; }
+};
+
+/// What kind of failure an Error is: the server maps each to one status code.
+enum class ErrorKind {
+  kInvalidArgument,     ///< `violations`: fields of the request and what is wrong with them
+  kTimingImpossible,    ///< `violations` on `motion`: no positive speed follows the path there
+  kRobotCannotFollow,   ///< `limits`: the robot's broken limits (not reportOnly)
+  kStopped,             ///< the budget's stop token was requested (the call was cancelled)
+  kDeadlineExceeded,    ///< the budget's deadline passed before the work was done
+};
+
+struct Error {
+  ErrorKind kind = ErrorKind::kInvalidArgument;
+  core::Violations violations;
+  std::vector<core::LimitEvent> limits;  ///< kRobotCannotFollow
+  std::string robot;                     ///< kRobotCannotFollow: the model's name
+};
+
+template <class T>
+using Expected = tl::expected<T, Error>;
+
+/// The tool's peaks over a motion's samples: speed, whole acceleration and angular speed.
+struct ToolPeaks {
+  double speed = 0.0;          ///< [m/s]
+  double acceleration = 0.0;   ///< |a_WT| [m/s^2]
+  double angular_speed = 0.0;  ///< |omega_WT| [rad/s]
+};
+
+/// What the timing optimiser did, with which limit binds where along the path.
+struct TimingReport {
+  optim::OptimizerReport report;
+  std::vector<core::BindingStretch> binding;
+};
+
+/// The reports of the optimisers that ran.
+struct OptimizerReports {
+  std::optional<optim::TangentScaleResult> tangent_scales;
+  std::optional<optim::BreakpointResult> breakpoints;
+  std::optional<TimingReport> timing;
+};
+
+/// The path's geometry as planned: the achieved frames, the closed loop and the geometry
+/// between the frames with its warnings.
+struct PathReport {
+  std::vector<core::AchievedFrame> achieved;
+  core::ClosedLoopError closed_loop;
+  core::GeometryReport geometry;
+};
+
+/// What a request plans for.
+enum class Purpose {
+  kPlan,    ///< PlanTrajectory: reports, the robot's joint report (reportOnly keeps every limit
+            ///< broken), the tool's peaks over the samples
+  kStream,  ///< StreamSamples: the robot must follow (reportOnly streams broken joint limits
+            ///< only, never a failed IK or a branch jump)
+};
+
+/// A plan: the trajectory (with a motion) or the path alone, and what was measured on it.
+struct Plan {
+  std::optional<core::Trajectory> trajectory;  ///< with a motion
+  std::optional<core::Path> path;              ///< without a motion: the path's geometry only
+  std::shared_ptr<const Robot> robot;
+  std::optional<PathReport> path_report;       ///< kPlan, when the plan follows a path
+  OptimizerReports optimizers;
+  std::optional<core::JointMotionReport> joints;  ///< with a robot
+  std::optional<ToolPeaks> tool;                  ///< kPlan with a motion
+
+  /// The path the plan follows, if any.
+  const core::Path* followed_path() const;
+};
+
+/// Plans `request` for `purpose` within `budget` and `limits`.
+Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& limits,
+                    Purpose purpose = Purpose::kPlan);
+
+/// The optimised path of `request` (its tangent scales and breakpoints, within the budget),
+/// sampled at `points` points uniform in u. Precondition: the geometry is a path.
+struct Analysis {
+  core::Path path;
+  std::vector<core::ProfilePoint> points;
+};
+Expected<Analysis> analyze(const Request& request, std::size_t points, const Budget& budget);
+
+/// Chapter 5 alone (ConvertConstraints): every key frame's parametric constraints, per side,
+/// under the path's reading of unspecified constraints.
+Expected<std::vector<core::FrameConstraints>> convert(const core::PathSpec& path);
+
+/// The error of a stopped or expired budget, if either.
+std::optional<Error> check(const Budget& budget);
+
+}  // namespace geotraj::planner

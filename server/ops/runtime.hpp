@@ -1,0 +1,136 @@
+// What every call of the service shares: the limits it enforces, the bearer tokens it
+// accepts, the counts of calls in flight (the admission cap), the draining switch, the
+// metrics and the log. One Runtime per server; the service and start/stop share it.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <grpcpp/support/server_callback.h>
+#include <grpcpp/support/status.h>
+#include <tl/expected.hpp>
+
+#include "server/ops/log.hpp"
+#include "server/ops/metrics.hpp"
+#include "server/ops/worker_pool.hpp"
+#include "server/server.hpp"
+
+namespace geotraj::server {
+
+/// The five RPCs of geotraj.v1.TrajectoryService.
+enum class Method { kConvertConstraints, kPlanTrajectory, kStreamSamples, kAnalyzePath, kListRobots };
+
+std::string_view method_name(Method method);
+
+/// What a bearer token may call: `plan` (every unary RPC), `stream` (StreamSamples, which
+/// drives a robot).
+struct TokenScopes {
+  bool plan = false;
+  bool stream = false;
+};
+
+/// The bearer tokens a server accepts, with their scopes. Empty: no token is asked for.
+class TokenTable {
+ public:
+  /// Reads a tokens file: one token per line, optionally followed by its scopes
+  /// (`TOKEN plan,stream`; none: every scope); blank lines and lines starting with # are
+  /// skipped. Errors name the file and the line, never the token.
+  static tl::expected<TokenTable, std::string> from_file(const std::string& path);
+  /// Adds one token with every scope (the GEOTRAJ_AUTH_TOKEN environment variable).
+  tl::expected<void, std::string> add(std::string token, TokenScopes scopes, const std::string& origin);
+
+  bool empty() const { return tokens_.empty(); }
+  std::size_t size() const { return tokens_.size(); }
+
+  /// The refusal for a call with these client metadata, or nullopt when it may go on:
+  /// UNAUTHENTICATED without a valid `authorization: Bearer <token>`, PERMISSION_DENIED when
+  /// the token's scopes do not cover `method`. Tokens are compared in constant time.
+  std::optional<grpc::Status> check(const grpc::CallbackServerContext& context, Method method) const;
+
+ private:
+  struct Entry {
+    std::string token;
+    TokenScopes scopes;
+  };
+  std::vector<Entry> tokens_;
+};
+
+/// State shared by the calls of one server.
+class Runtime {
+ public:
+  Runtime(ServiceLimits limits, TokenTable tokens, Logger logger);
+
+  const ServiceLimits& limits() const { return limits_; }
+  /// Where long work runs (worker_pool.hpp).
+  WorkerPool& workers() { return workers_; }
+  Metrics& metrics() { return metrics_; }
+  const Logger& logger() const { return logger_; }
+  const TokenTable& tokens() const { return tokens_; }
+
+  /// From now on, new calls are refused with UNAVAILABLE (the server is going away).
+  void start_draining() { draining_.store(true); }
+  bool draining() const { return draining_.load(); }
+  /// Calls admitted and not yet finished (streams and unary calls; health watches aside).
+  int calls_in_flight() const {
+    return std::max(0, active_streams_.load() - active_watches_.load()) + active_unary_.load();
+  }
+
+  /// Admits one grpc.health.v1.Health/Watch against --max-streams: nullopt when admitted
+  /// (release it with end_watch()), else RESOURCE_EXHAUSTED naming the flag.
+  std::optional<grpc::Status> begin_watch();
+  void end_watch();
+
+ private:
+  friend class Call;
+  const ServiceLimits limits_;
+  const TokenTable tokens_;
+  const Logger logger_;
+  Metrics metrics_;
+  std::atomic<bool> draining_{false};
+  std::atomic<int> active_streams_{0};
+  std::atomic<int> active_unary_{0};
+  std::atomic<int> active_watches_{0};  // admitted ones are counted in active_streams_ too
+  WorkerPool workers_;  // last: its threads stop before the rest goes
+};
+
+/// One RPC from its admission to its end: takes a request id (the client's `x-request-id`
+/// when valid, else a new one) and sends it back in the initial metadata; refuses the call
+/// when the server drains, the token does not allow it, or the cap on calls in flight is
+/// reached; on finish() records the metrics and writes the call's log line.
+class Call {
+ public:
+  Call(Runtime& runtime, grpc::CallbackServerContext& context, Method method);
+  Call(Call&& other) noexcept;
+  Call& operator=(Call&&) = delete;
+  Call(const Call&) = delete;
+  ~Call();
+
+  /// Why the call is refused (and counted as rejected), or nullopt when admitted.
+  const std::optional<grpc::Status>& refusal() const { return refusal_; }
+  /// Records the end of the call with its final status; `samples` sent (streams).
+  void finish(const grpc::Status& status, std::uint64_t samples = 0);
+
+  const std::string& request_id() const { return request_id_; }
+  Runtime& runtime() const { return *runtime_; }
+
+ private:
+  // Sets refusal_, or counts the call in flight (admitted_).
+  void admit(const grpc::CallbackServerContext& context, bool streaming, std::string_view name);
+
+  Runtime* runtime_;
+  Method method_;
+  std::string request_id_;
+  std::string peer_;
+  std::chrono::steady_clock::time_point started_;
+  std::optional<grpc::Status> refusal_;
+  bool admitted_ = false;  // counted in the runtime's calls in flight
+  bool finished_ = false;
+};
+
+}  // namespace geotraj::server

@@ -1,0 +1,991 @@
+// The conversion file (see convert.hpp): proto <-> core values and the wire checks.
+#include "server/wire/convert.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <string>
+#include <type_traits>
+#include <utility>
+#include <variant>
+
+#include "core/geometry/validate.hpp"
+#include "core/robot/kinematics.hpp"
+#include "core/format.hpp"
+
+#include <google/protobuf/util/json_util.h>
+
+namespace geotraj::server {
+namespace {
+
+using Eigen::Vector3d;
+
+// --- small value conversions -------------------------------------------------------------
+
+Vector3d to_core(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+void set(v1::Vec3* out, const Vector3d& v) {
+  out->set_x(v.x());
+  out->set_y(v.y());
+  out->set_z(v.z());
+}
+
+
+std::string at_frame(std::size_t i) { return "path.frames[" + std::to_string(i) + "]"; }
+
+// --- wire checks ----------------------------------------------------------------------------
+
+// The wire checks of one request, with the fields whose core checks would only repeat them.
+struct WireCheck {
+  core::Violations violations;
+  std::set<std::string> suppressed;  ///< core field paths (relative to `path`) to drop
+
+  void add(std::string field, std::string description) {
+    violations.push_back({std::move(field), std::move(description)});
+  }
+};
+
+// Records a violation when `value` is not a value of the enum (proto3 enums are open:
+// unknown numbers survive parsing), naming the values that are.
+void check_enum(WireCheck& check, const std::string& field, int value,
+                const google::protobuf::EnumDescriptor* descriptor) {
+  if (descriptor->FindValueByNumber(value) != nullptr) return;
+  std::string names;
+  for (int i = 0; i < descriptor->value_count(); ++i) {
+    if (!names.empty()) names += ", ";
+    names += descriptor->value(i)->name();
+  }
+  check.add(field, "unknown value " + std::to_string(value) + "; use one of " + names);
+}
+
+// A quaternion whose norm is within this of 1 is accepted as a rotation.
+constexpr double kUnitQuaternionTolerance = 1e-3;
+
+void check_frame(WireCheck& check, const v1::KeyFrame& frame, std::size_t i) {
+  const std::string at = at_frame(i);
+  const std::string core_at = "frames[" + std::to_string(i) + "]";
+  if (!frame.has_position()) check.add(at + ".position", "is required: the position of the key frame in metres");
+  if (!frame.has_tangent()) {
+    check.add(at + ".tangent", "is required: the unit tangent of the path at the key frame");
+    // Without a tangent, core's checks of the normal and binormal against it are noise.
+    check.suppressed.insert(core_at + ".normal");
+    check.suppressed.insert(core_at + ".binormal");
+  }
+  check_enum(check, at + ".orientationMode", frame.orientation_mode(), v1::OrientationMode_descriptor());
+  const bool custom = frame.orientation_mode() == v1::ORIENTATION_MODE_CUSTOM;
+  if (custom && !frame.has_orientation()) {
+    check.add(at + ".orientation",
+              "is required with orientationMode ORIENTATION_MODE_CUSTOM: the tool orientation to turn to");
+  }
+  if (!custom && frame.has_orientation() && v1::OrientationMode_IsValid(frame.orientation_mode())) {
+    check.add(at + ".orientation", "is only used with orientationMode ORIENTATION_MODE_CUSTOM; orientationMode is " +
+                                       v1::OrientationMode_Name(frame.orientation_mode()));
+  }
+  if (frame.has_orientation()) {
+    const auto& q = frame.orientation();
+    const double norm = std::sqrt(q.w() * q.w() + q.x() * q.x() + q.y() * q.y() + q.z() * q.z());
+    if (!std::isfinite(norm) || std::abs(norm - 1.0) > kUnitQuaternionTolerance) {
+      check.add(at + ".orientation", "must be a unit quaternion (norm within " + core::number(kUnitQuaternionTolerance, 6) +
+                                         " of 1), got (w, x, y, z) = (" + core::number(q.w(), 6) + ", " + core::number(q.x(), 6) + ", " +
+                                         core::number(q.y(), 6) + ", " + core::number(q.z(), 6) + ") of norm " + core::number(norm, 6));
+    }
+  }
+}
+
+void check_path(WireCheck& check, const v1::PathSpec& path) {
+  for (int i = 0; i < path.frames_size(); ++i) check_frame(check, path.frames(i), static_cast<std::size_t>(i));
+  check_enum(check, "path.derivativeConvention", path.derivative_convention(),
+             v1::DerivativeConvention_descriptor());
+  check_enum(check, "path.blend", path.blend(), v1::BlendMethod_descriptor());
+  check_enum(check, "path.unspecified", path.unspecified(), v1::UnspecifiedConstraints_descriptor());
+}
+
+// --- proto -> core --------------------------------------------------------------------------
+
+core::KeyFrame to_core(const v1::KeyFrame& f) {
+  core::KeyFrame k;
+  k.p_W = to_core(f.position());
+  if (f.has_tangent()) k.T_W = to_core(f.tangent());
+  if (f.has_normal()) k.N_W = to_core(f.normal());
+  if (f.has_binormal()) k.B_W = to_core(f.binormal());
+  if (f.has_curvature()) k.kappa = f.curvature();
+  if (f.has_curvature_derivative()) k.kappa_d = f.curvature_derivative();
+  if (f.has_torsion()) k.tau = f.torsion();
+  if (f.has_torsion_derivative()) k.tau_d = f.torsion_derivative();
+  if (f.has_tangent_scale()) k.tangent_scale = f.tangent_scale();
+  if (f.has_leave_tangent_scale()) k.leave_tangent_scale = f.leave_tangent_scale();
+  k.cusp = f.cusp();
+  k.inflection = f.inflection();
+  k.stop = f.stop();
+  switch (f.orientation_mode()) {
+    case v1::ORIENTATION_MODE_FRAME_BASED: k.orientation_mode = core::OrientationMode::kFrameBased; break;
+    case v1::ORIENTATION_MODE_CUSTOM: k.orientation_mode = core::OrientationMode::kCustom; break;
+    case v1::ORIENTATION_MODE_FRENET: k.orientation_mode = core::OrientationMode::kFrenet; break;
+    case v1::ORIENTATION_MODE_PARALLEL_TRANSPORT: k.orientation_mode = core::OrientationMode::kParallelTransport; break;
+    default: k.orientation_mode = core::OrientationMode::kFixed; break;  // FIXED and UNSPECIFIED
+  }
+  if (f.has_orientation()) {
+    // Wire order (w, x, y, z) by name; Eigen stores (x, y, z, w).
+    const auto& q = f.orientation();
+    k.orientation = Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z()).normalized();
+  }
+  return k;
+}
+
+core::PathSpec to_core(const v1::PathSpec& p) {
+  core::PathSpec spec;
+  spec.frames.reserve(static_cast<std::size_t>(p.frames_size()));
+  for (const auto& f : p.frames()) spec.frames.push_back(to_core(f));
+  spec.convention = p.derivative_convention() == v1::DERIVATIVE_CONVENTION_PER_PARAMETER
+                        ? core::DerivativeConvention::kPerParameter
+                        : core::DerivativeConvention::kPerArcLength;
+  spec.blend = p.blend() == v1::BLEND_METHOD_TRAPEZOIDAL ? core::BlendMethod::kTrapezoidal
+                                                         : core::BlendMethod::kPolynomial;
+  for (const auto& b : p.breakpoints()) {
+    core::SegmentBreakpoints s;
+    s.segment = b.segment();
+    s.all.assign(b.all().begin(), b.all().end());
+    s.x.assign(b.x().begin(), b.x().end());
+    s.y.assign(b.y().begin(), b.y().end());
+    s.z.assign(b.z().begin(), b.z().end());
+    spec.breakpoints.push_back(std::move(s));
+  }
+  spec.closed = p.closed();
+  if (p.has_max_curvature()) spec.max_curvature = p.max_curvature();
+  switch (p.unspecified()) {
+    case v1::UNSPECIFIED_CONSTRAINTS_THESIS_ZEROS: spec.unspecified = core::UnspecifiedConstraints::kThesisZeros; break;
+    case v1::UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE: spec.unspecified = core::UnspecifiedConstraints::kLowestDegree; break;
+    default: spec.unspecified = core::UnspecifiedConstraints::kSmoothest; break;  // SMOOTHEST and UNSPECIFIED
+  }
+  return spec;
+}
+
+// N for a field path under `path.frames[N]`, -1 for the path's other fields.
+long frame_index(const std::string& field) {
+  static const std::string prefix = "path.frames[";
+  if (field.rfind(prefix, 0) != 0) return -1;
+  return std::strtol(field.c_str() + prefix.size(), nullptr, 10);
+}
+
+// The path of a request after every wire check: the path's own, then `request_checks` on
+// the request's other fields. When any fails, core's validation of what could be read
+// joins them (after the path's wire checks, before the request's), so that one answer
+// lists everything.
+template <class RequestChecks>
+core::Expected<core::PathSpec> read_path(bool has_path, const v1::PathSpec& path, RequestChecks request_checks) {
+  WireCheck check;
+  if (has_path) {
+    check_path(check, path);
+  } else {
+    check.add("path", "is required: the key frames of the path (at least 2)");
+  }
+  WireCheck request_level;
+  request_checks(request_level);
+  if (check.violations.empty() && request_level.violations.empty()) return to_core(path);
+  if (has_path) {
+    auto validated = core::validate_path(to_core(path));
+    if (!validated) {
+      for (auto& v : validated.error()) {
+        if (check.suppressed.count(v.field) == 0) check.add("path." + v.field, std::move(v.description));
+      }
+    }
+  }
+  // The path's violations in frame order (the wire checks and core's interleaved).
+  std::stable_sort(check.violations.begin(), check.violations.end(),
+                   [](const auto& a, const auto& b) { return frame_index(a.field) < frame_index(b.field); });
+  for (auto& v : request_level.violations) check.violations.push_back(std::move(v));
+  return tl::unexpected(std::move(check.violations));
+}
+
+// --- core -> proto --------------------------------------------------------------------------
+
+void to_proto(const core::SideConstraints& side, v1::SideConstraints* out) {
+  for (int k = 0; k < side.order; ++k) set(out->add_derivatives(), side.d[static_cast<std::size_t>(k)]);
+  set(out->mutable_tangent(), side.T);
+  if (!side.N.isZero()) {
+    set(out->mutable_normal(), side.N);
+    set(out->mutable_binormal(), side.T.cross(side.N));
+  }
+}
+
+// The Frenet apparatus, each quantity only where it is defined; derivatives per arc length
+// or per unit u.
+template <class Out>
+void set_geometry(const core::LocalGeometry& g, bool per_arc_length, Out* out) {
+  if (!g.regular) return;
+  set(out->mutable_tangent(), g.T);
+  out->set_curvature(g.kappa);
+  if (!g.has_normal) return;
+  set(out->mutable_normal(), g.N);
+  set(out->mutable_binormal(), g.B);
+  out->set_torsion(g.tau);
+  out->set_curvature_derivative(per_arc_length ? g.kappa_ds : g.kappa_du);
+  out->set_torsion_derivative(per_arc_length ? g.tau_ds : g.tau_du);
+}
+
+void to_proto(const core::LocalGeometry& g, bool per_arc_length, v1::FrenetGeometry* out) {
+  out->set_speed(g.speed);
+  set_geometry(g, per_arc_length, out);
+}
+
+v1::BlendMethod to_proto(core::BlendMethod b) {
+  return b == core::BlendMethod::kTrapezoidal ? v1::BLEND_METHOD_TRAPEZOIDAL : v1::BLEND_METHOD_POLYNOMIAL;
+}
+
+}  // namespace
+
+core::Expected<core::PathSpec> path_from_request(const v1::ConvertRequest& request) {
+  return read_path(request.has_path(), request.path(), [](WireCheck&) {});
+}
+
+core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request) {
+  return read_path(request.has_path(), request.path(), [&request](WireCheck& check) {
+    if (request.has_analysis_points() &&
+        (request.analysis_points() < kMinAnalysisPoints || request.analysis_points() > kMaxAnalysisPoints)) {
+      check.add("analysisPoints", "must be between " + std::to_string(kMinAnalysisPoints) + " and " +
+                                      std::to_string(kMaxAnalysisPoints) +
+                                      " (both ends of the path are points), got " +
+                                      std::to_string(request.analysis_points()));
+    }
+    if (request.has_samples_per_batch() &&
+        (request.samples_per_batch() == 0 || request.samples_per_batch() > kMaxSamplesPerBatch)) {
+      check.add("samplesPerBatch", "must be between 1 and " + std::to_string(kMaxSamplesPerBatch) + " when given, got " +
+                                       std::to_string(request.samples_per_batch()));
+    }
+  });
+}
+
+core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& request) {
+  const auto& m = request.motion();
+  WireCheck check;
+  check_enum(check, "motion.profile", m.profile(), v1::MotionProfile_descriptor());
+  check_enum(check, "motion.timeParameterization", m.time_parameterization(), v1::TimeParameterization_descriptor());
+  if (!check.violations.empty()) return tl::unexpected(std::move(check.violations));
+  core::MotionSpec spec;
+  spec.duration_s = m.duration_s();
+  spec.profile = m.profile() == v1::MOTION_PROFILE_S_CURVE ? core::ProfileShape::kSCurve
+                                                           : core::ProfileShape::kTrapezoidal;
+  if (m.has_ramp_fraction()) spec.ramp_fraction = m.ramp_fraction();
+  if (m.has_ramp_time_s()) spec.ramp_time_s = m.ramp_time_s();
+  spec.ramp_fraction_given = m.has_ramp_fraction();
+  if (m.has_cycle_rate_hz()) spec.cycle_rate_hz = m.cycle_rate_hz();
+  switch (m.time_parameterization()) {
+    case v1::TIME_PARAMETERIZATION_TAYLOR_SECOND_ORDER:
+      spec.time_parameterization = core::TimeParameterization::kTaylorSecondOrder;
+      break;
+    case v1::TIME_PARAMETERIZATION_TAYLOR_FIRST_ORDER:
+      spec.time_parameterization = core::TimeParameterization::kTaylorFirstOrder;
+      break;
+    case v1::TIME_PARAMETERIZATION_LINEAR: spec.time_parameterization = core::TimeParameterization::kLinear; break;
+    case v1::TIME_PARAMETERIZATION_SMOOTH: spec.time_parameterization = core::TimeParameterization::kSmooth; break;
+    default: spec.time_parameterization = core::TimeParameterization::kArcLength; break;  // ARC_LENGTH, UNSPECIFIED
+  }
+  if (m.has_speed_scale()) spec.speed_scale = m.speed_scale();
+  if (m.has_max_speed()) spec.max_speed = m.max_speed();
+  if (m.has_max_acceleration()) spec.max_acceleration = m.max_acceleration();
+  if (m.has_max_jerk()) spec.max_jerk = m.max_jerk();
+  // A joint move's minimum time comes from the joint limits: core::plan_joint_move checks
+  // the spec without asking for the Cartesian ones.
+  if (request.has_joint_move()) return spec;
+  // With a robot, or when asked, a minimum time is the time-optimal timing: the joint limits
+  // (and whichever Cartesian limits are given) set it, so the Cartesian ones are optional.
+  core::MotionSpec checked = spec;
+  if (spec.duration_s == 0.0 && (request.has_robot() || request.optimize().timing().time_optimal())) {
+    checked.duration_s = 1.0;
+    checked.profile = core::ProfileShape::kTrapezoidal;
+  }
+  auto violations = core::validate_motion(checked);
+  if (!violations.empty()) return tl::unexpected(std::move(violations));
+  return spec;
+}
+
+std::size_t samples_per_batch(const v1::PlanRequest& request) {
+  return request.has_samples_per_batch() ? request.samples_per_batch() : kDefaultSamplesPerBatch;
+}
+
+void to_proto(const core::MotionPlan& plan, v1::MotionSummary& summary) {
+  summary.set_duration_s(plan.duration_s);
+  summary.set_peak_speed(plan.peak_speed);
+  summary.set_peak_acceleration(plan.peak_acceleration);
+  summary.set_sample_count(plan.sample_count);
+}
+
+std::size_t analysis_points(const v1::PlanRequest& request) {
+  return request.has_analysis_points() ? request.analysis_points() : kDefaultAnalysisPoints;
+}
+
+void to_proto(const std::vector<core::FrameConstraints>& frames, v1::ConvertResponse& response) {
+  for (const auto& f : frames) {
+    auto* out = response.add_frames();
+    set(out->mutable_position(), f.p_W);
+    to_proto(f.approach, out->mutable_approach());
+    to_proto(f.leave, out->mutable_leave());
+  }
+}
+
+namespace {
+
+void set(v1::Extremum* out, const core::Extremum& e) {
+  out->set_value(e.value);
+  out->set_u(e.u);
+  out->set_s(e.s);
+}
+
+v1::PlanWarningCode to_proto(core::PathWarningCode code) {
+  switch (code) {
+    case core::PathWarningCode::kNearCusp: return v1::PLAN_WARNING_CODE_NEAR_CUSP;
+    case core::PathWarningCode::kTightBend: return v1::PLAN_WARNING_CODE_TIGHT_BEND;
+    case core::PathWarningCode::kTurnsBack: return v1::PLAN_WARNING_CODE_TURNS_BACK;
+  }
+  return v1::PLAN_WARNING_CODE_UNSPECIFIED;
+}
+
+}  // namespace
+
+void to_proto(const core::Path& path, const std::vector<core::AchievedFrame>& achieved,
+              const core::ClosedLoopError& closed_loop, const core::GeometryReport& geometry,
+              v1::PlanResponse& response) {
+  const std::size_t frame_count = path.frames.size();
+  for (std::size_t i = 0; i < path.segment_count(); ++i) {
+    auto* s = response.add_segments();
+    const std::size_t to = (i + 1) % frame_count;
+    s->set_index(static_cast<std::uint32_t>(i));
+    s->set_from_frame(static_cast<std::uint32_t>(i));
+    s->set_to_frame(static_cast<std::uint32_t>(to));
+    s->set_arc_length(path.segment_lengths[i]);
+    s->set_blend(to_proto(path.spec.blend));
+    std::visit(
+        [s](const auto& seg) {
+          using T = std::decay_t<decltype(seg)>;
+          if constexpr (std::is_same_v<T, core::BezierSegment>) {
+            s->set_degree(static_cast<std::uint32_t>(seg.degree));
+          } else {
+            for (const auto& axis : seg.axes) s->add_trapezoid_orders(static_cast<std::uint32_t>(axis.n));
+          }
+        },
+        path.segments[i]);
+    s->set_start_order(static_cast<std::uint32_t>(path.frames[i].leave.order));
+    s->set_end_order(static_cast<std::uint32_t>(path.frames[to].approach.order));
+    const core::SegmentGeometry& g = geometry.segments[i];
+    set(s->mutable_peak_curvature(), g.peak_curvature);
+    set(s->mutable_peak_torsion(), g.peak_torsion);
+    set(s->mutable_min_speed(), g.min_speed);
+    s->set_turning(g.turning);
+  }
+  for (const auto& w : geometry.warnings) {
+    auto* out = response.add_warnings();
+    out->set_code(to_proto(w.code));
+    out->set_segment(static_cast<std::uint32_t>(w.segment));
+    out->set_u(w.u);
+    out->set_s(w.s);
+    out->set_value(w.value);
+    out->set_message(w.message);
+  }
+  response.set_arc_length(path.length());
+
+  const bool per_arc_length = path.spec.convention == core::DerivativeConvention::kPerArcLength;
+  for (const auto& a : achieved) {
+    auto* out = response.add_frames();
+    set(out->mutable_position(), a.p_W);
+    if (a.approach) to_proto(*a.approach, per_arc_length, out->mutable_approach());
+    if (a.leave) to_proto(*a.leave, per_arc_length, out->mutable_leave());
+  }
+
+  auto* loop = response.mutable_closed_loop();
+  loop->set_max_error(closed_loop.max_error);
+  loop->set_worst_field(closed_loop.worst_field);
+}
+
+void to_proto(const core::Path& path, const std::vector<core::ProfilePoint>& points, v1::PathProfile& profile) {
+  profile.mutable_points()->Reserve(static_cast<int>(points.size()));
+  for (const auto& p : points) {
+    auto* out = profile.add_points();
+    out->set_u(p.u);
+    out->set_s(p.s);
+    out->set_segment(static_cast<std::uint32_t>(p.segment));
+    set(out->mutable_position(), p.p_W);
+    out->set_speed(p.geometry.speed);
+    set_geometry(p.geometry, /*per_arc_length=*/true, out);
+  }
+  profile.set_arc_length(path.length());
+}
+
+// --- robots ---------------------------------------------------------------------------------
+
+namespace {
+
+// A Pose message as an isometry; violations under `field` (`robot.base`).
+Eigen::Isometry3d pose_from_proto(const v1::Pose& pose, const std::string& field, core::Violations& out) {
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  const Vector3d p = to_core(pose.position());
+  if (!p.allFinite()) out.push_back({field + ".position", "must be finite"});
+  X.translation() = p;
+  if (pose.has_orientation()) {
+    const auto& q = pose.orientation();
+    Eigen::Quaterniond quat(q.w(), q.x(), q.y(), q.z());  // wire order (w, x, y, z) by name
+    const double norm = quat.norm();
+    if (!std::isfinite(norm) || std::abs(norm - 1.0) > kUnitQuaternionTolerance) {
+      out.push_back({field + ".orientation", "must be a unit quaternion (w, x, y, z), got norm " + core::number(norm, 6)});
+    } else {
+      X.linear() = quat.normalized().toRotationMatrix();
+    }
+  }
+  return X;
+}
+
+void set(v1::Pose* out, const Eigen::Isometry3d& X) {
+  set(out->mutable_position(), X.translation());
+  const Eigen::Quaterniond q(X.linear());
+  auto* o = out->mutable_orientation();
+  o->set_w(q.w());
+  o->set_x(q.x());
+  o->set_y(q.y());
+  o->set_z(q.z());
+}
+
+v1::LimitKind to_proto(core::LimitKind k) {
+  switch (k) {
+    case core::LimitKind::kPosition: return v1::LIMIT_KIND_POSITION;
+    case core::LimitKind::kVelocity: return v1::LIMIT_KIND_VELOCITY;
+    case core::LimitKind::kAcceleration: return v1::LIMIT_KIND_ACCELERATION;
+    case core::LimitKind::kIk: return v1::LIMIT_KIND_IK;
+    case core::LimitKind::kBranch: return v1::LIMIT_KIND_BRANCH;
+  }
+  return v1::LIMIT_KIND_UNSPECIFIED;
+}
+
+}  // namespace
+
+const core::RobotModel* RobotCatalog::find(std::string_view name) const {
+  for (const auto& m : models) {
+    if (m.name == name) return &m;
+  }
+  return nullptr;
+}
+
+core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& model, const std::string& prefix) {
+  WireCheck check;
+  check_enum(check, prefix + "dhConvention", model.dh_convention(), v1::DhConvention_descriptor());
+  core::RobotModel m;
+  m.name = model.name();
+  m.description = model.description();
+  m.convention = model.dh_convention() == v1::DH_CONVENTION_MODIFIED ? core::DhConvention::kModified
+                                                                     : core::DhConvention::kStandard;
+  for (int i = 0; i < model.links_size(); ++i) {
+    const auto& l = model.links(i);
+    check_enum(check, prefix + "links[" + std::to_string(i) + "].jointType", l.joint_type(),
+               v1::JointType_descriptor());
+    m.links.push_back({l.a(), l.alpha(), l.d(), l.theta(),
+                       l.joint_type() == v1::JOINT_TYPE_PRISMATIC ? core::JointType::kPrismatic
+                                                                  : core::JointType::kRevolute,
+                       l.offset()});
+  }
+  for (const auto& l : model.limits()) {
+    core::JointLimits limits{l.min_position(), l.max_position(), l.max_velocity(), l.max_acceleration(),
+                             std::nullopt};
+    if (l.has_max_jerk()) limits.max_jerk = l.max_jerk();
+    m.limits.push_back(limits);
+  }
+  m.home.assign(model.home().begin(), model.home().end());
+  core::Violations poses;
+  if (model.has_base()) m.base = pose_from_proto(model.base(), prefix + "base", poses);
+  if (model.has_tool()) m.tool = pose_from_proto(model.tool(), prefix + "tool", poses);
+  for (auto& v : poses) check.violations.push_back(std::move(v));
+  for (auto& v : core::prefixed(core::validate_robot(m), prefix)) check.violations.push_back(std::move(v));
+  if (!check.violations.empty()) return tl::unexpected(std::move(check.violations));
+  return m;
+}
+
+core::Expected<core::RobotModel> robot_model_from_json(std::string_view json) {
+  v1::RobotModel model;
+  const auto status = google::protobuf::util::JsonStringToMessage(std::string(json), &model);
+  if (!status.ok()) {
+    return tl::unexpected(core::Violations{{"", "is not a RobotModel in proto3 JSON: " + std::string(status.message())}});
+  }
+  if (model.name().empty()) return tl::unexpected(core::Violations{{"name", "is required: the model's name"}});
+  return robot_model_from_proto(model, "");
+}
+
+void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
+  out.set_name(model.name);
+  out.set_description(model.description);
+  out.set_dh_convention(model.convention == core::DhConvention::kModified ? v1::DH_CONVENTION_MODIFIED
+                                                                          : v1::DH_CONVENTION_STANDARD);
+  for (const auto& l : model.links) {
+    auto* link = out.add_links();
+    link->set_a(l.a);
+    link->set_alpha(l.alpha);
+    link->set_d(l.d);
+    link->set_theta(l.theta);
+    link->set_joint_type(l.type == core::JointType::kPrismatic ? v1::JOINT_TYPE_PRISMATIC : v1::JOINT_TYPE_REVOLUTE);
+    link->set_offset(l.offset);
+  }
+  for (const auto& l : model.limits) {
+    auto* limits = out.add_limits();
+    limits->set_min_position(l.min_position);
+    limits->set_max_position(l.max_position);
+    limits->set_max_velocity(l.max_velocity);
+    limits->set_max_acceleration(l.max_acceleration);
+    if (l.max_jerk) limits->set_max_jerk(*l.max_jerk);
+  }
+  set(out.mutable_base(), model.base);
+  set(out.mutable_tool(), model.tool);
+  for (double q : model.home) out.add_home(q);
+}
+
+core::Expected<planner::Robot> robot_from_request(const v1::PlanRequest& request, const RobotCatalog& catalog) {
+  const auto& spec = request.robot();
+  core::Violations out;
+  planner::Robot resolved;
+  resolved.inline_model = spec.has_model();
+  switch (spec.model_source_case()) {
+    case v1::RobotSpec::kName: {
+      const auto* model = catalog.find(spec.name());
+      if (model == nullptr) {
+        std::string names;
+        for (const auto& m : catalog.models) names += (names.empty() ? "" : ", ") + m.name;
+        out.push_back({"robot.name", "unknown robot '" + spec.name() + "'; the server knows: " + names});
+      } else {
+        resolved.model = *model;
+      }
+      break;
+    }
+    case v1::RobotSpec::kModel: {
+      auto model = robot_model_from_proto(spec.model(), "robot.model.");
+      if (model) {
+        resolved.model = std::move(*model);
+      } else {
+        out = std::move(model.error());
+      }
+      break;
+    }
+    default:
+      out.push_back({"robot", "needs a model: `name` of a built-in model (see ListRobots) or an inline `model`"});
+  }
+  if (spec.has_base()) resolved.model.base = pose_from_proto(spec.base(), "robot.base", out);
+  if (spec.has_tool()) resolved.model.tool = pose_from_proto(spec.tool(), "robot.tool", out);
+  resolved.report_only = spec.report_only();
+  if (spec.has_branch_tolerance()) {
+    resolved.branch_tolerance = spec.branch_tolerance();
+    if (!(std::isfinite(resolved.branch_tolerance) && resolved.branch_tolerance > 0.0)) {
+      out.push_back({"robot.branchTolerance", "must be finite and > 0 [m], got " + core::number(resolved.branch_tolerance, 6)});
+    }
+  }
+  const std::size_t n = resolved.model.dof();
+  if (n > 0) {
+    if (spec.initial_joints_size() == 0) {
+      resolved.seed = core::home_configuration(resolved.model);
+    } else if (static_cast<std::size_t>(spec.initial_joints_size()) != n) {
+      out.push_back({"robot.initialJoints", "has " + std::to_string(spec.initial_joints_size()) + " values for a " +
+                                                std::to_string(n) + "-joint robot"});
+    } else {
+      resolved.seed.resize(static_cast<Eigen::Index>(n));
+      for (std::size_t i = 0; i < n; ++i) {
+        const double q = spec.initial_joints(static_cast<int>(i));
+        const auto& l = resolved.model.limits[i];
+        if (!std::isfinite(q)) {
+          out.push_back({"robot.initialJoints[" + std::to_string(i) + "]", "must be finite, got " + core::number(q, 6)});
+        } else if (q < l.min_position || q > l.max_position) {
+          out.push_back({"robot.initialJoints[" + std::to_string(i) + "]",
+                         core::number(q, 6) + " is outside the joint's limits [" + core::number(l.min_position, 6) + ", " +
+                             core::number(l.max_position, 6) + "]"});
+        }
+        resolved.seed(static_cast<Eigen::Index>(i)) = q;
+      }
+    }
+  }
+  if (!out.empty()) return tl::unexpected(std::move(out));
+  return resolved;
+}
+
+void to_proto(const core::LimitEvent& event, v1::LimitEvent& out) {
+  out.set_kind(to_proto(event.kind));
+  out.set_joint(static_cast<std::uint32_t>(event.joint));
+  out.set_sample(event.sample);
+  out.set_t(event.t);
+  out.set_value(event.value);
+  out.set_limit(event.limit);
+  out.set_margin(event.margin);
+}
+
+std::string describe(const core::LimitEvent& e) {
+  const std::string where = " at t = " + core::number(e.t, 6) + " s (sample " + std::to_string(e.sample) + ")";
+  const std::string joint = "joint " + std::to_string(e.joint);
+  switch (e.kind) {
+    case core::LimitKind::kPosition:
+      return joint + " position " + core::number(e.value, 6) + " is outside its limits" + where + " (by " + core::number(-e.margin, 6) + ")";
+    case core::LimitKind::kVelocity:
+      return joint + " speed " + core::number(e.value, 6) + " exceeds maxVelocity " + core::number(e.limit, 6) + where;
+    case core::LimitKind::kAcceleration:
+      return joint + " acceleration " + core::number(e.value, 6) + " exceeds maxAcceleration " + core::number(e.limit, 6) + where;
+    case core::LimitKind::kIk:
+      return "the inverse kinematics did not converge" + where + " (position residual " + core::number(e.value, 6) +
+             " m): the pose is out of reach or at a singularity";
+    case core::LimitKind::kBranch:
+      return "joint interpolation strays " + core::number(e.value, 6) + " m from the path" + where +
+             " (tolerance " + core::number(e.limit, 6) + " m): a branch change or a singularity crossing";
+  }
+  return "limit event" + where;
+}
+
+void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out) {
+  out.set_name(robot_name);
+  out.set_samples(report.samples);
+  out.set_converged_samples(report.converged_samples);
+  out.set_max_ik_position_error(report.max_position_error);
+  out.set_max_ik_orientation_error(report.max_orientation_error);
+  out.set_feasible(report.feasible());
+  for (const auto& v : report.violations) to_proto(v, *out.add_violations());
+  if (report.converged_samples == 0) {
+    // No joint value was measured: the figures below would be their +-infinity starts.
+    for (std::size_t j = 0; j < report.joints.size(); ++j) out.add_joints()->set_joint(static_cast<std::uint32_t>(j));
+    return;
+  }
+  for (std::size_t j = 0; j < report.joints.size(); ++j) {
+    const auto& u = report.joints[j];
+    auto* r = out.add_joints();
+    r->set_joint(static_cast<std::uint32_t>(j));
+    r->set_min_position(u.min_position);
+    r->set_max_position(u.max_position);
+    r->set_peak_velocity(u.peak_velocity);
+    r->set_peak_acceleration(u.peak_acceleration);
+    r->set_velocity_usage(u.velocity_usage);
+    r->set_acceleration_usage(u.acceleration_usage);
+    r->set_position_margin(u.position_margin);
+  }
+  to_proto(report.tightest_position, *out.mutable_tightest_position());
+  to_proto(report.tightest_velocity, *out.mutable_tightest_velocity());
+  to_proto(report.tightest_acceleration, *out.mutable_tightest_acceleration());
+  out.set_max_midpoint_deviation(report.max_midpoint_deviation);
+  out.set_max_midpoint_deviation_t(report.max_midpoint_deviation_t);
+  out.set_min_manipulability(report.min_manipulability);
+  out.set_min_manipulability_t(report.min_manipulability_t);
+  for (const auto& b : report.binding) {
+    auto* stretch = out.add_binding();
+    stretch->set_kind(b.kind == core::LimitKind::kAcceleration ? v1::BINDING_KIND_JOINT_ACCELERATION
+                                                               : v1::BINDING_KIND_JOINT_VELOCITY);
+    stretch->set_joint(static_cast<std::uint32_t>(b.joint));
+    stretch->set_t_start(b.t_start);
+    stretch->set_t_end(b.t_end);
+    stretch->set_s_start(b.s_start);
+    stretch->set_s_end(b.s_end);
+    stretch->set_usage(b.peak_usage);
+    stretch->set_value(b.value);
+    stretch->set_limit(b.limit);
+  }
+}
+
+core::Expected<core::JointMoveSpec> joint_move_from_request(const v1::PlanRequest& request,
+                                                             const core::RobotModel& /*model*/,
+                                                             const core::JointVector& seed) {
+  const auto& move = request.joint_move();
+  core::JointMoveSpec spec;
+  if (move.start_size() == 0) {
+    spec.start.assign(seed.data(), seed.data() + seed.size());
+  } else {
+    spec.start.assign(move.start().begin(), move.start().end());
+  }
+  spec.goal.assign(move.goal().begin(), move.goal().end());
+  if (spec.goal.empty()) {
+    return tl::unexpected(core::Violations{{"jointMove.goal", "is required: the joint values at the goal, one per joint"}});
+  }
+  return spec;  // sizes and limits: core::plan_joint_move
+}
+
+core::Expected<core::LinearMoveSpec> linear_move_from_request(const v1::PlanRequest& request,
+                                                               const planner::Robot* robot) {
+  const auto& move = request.linear_move();
+  core::Violations out;
+  core::LinearMoveSpec spec;
+  auto tool_pose = [](const v1::Pose& pose) {
+    core::ToolPose p;
+    p.p_WT = to_core(pose.position());
+    if (pose.has_orientation()) {
+      const auto& q = pose.orientation();
+      p.q_WT = Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z());  // by name; core checks its norm
+    }
+    return p;
+  };
+  if (move.has_start()) {
+    spec.start = tool_pose(move.start());
+  } else if (robot != nullptr) {
+    const Eigen::Isometry3d X = core::forward_kinematics(robot->model, robot->seed);
+    spec.start.p_WT = X.translation();
+    spec.start.q_WT = Eigen::Quaterniond(X.linear());
+  } else {
+    out.push_back({"linearMove.start", "is required without a robot (with one, the pose of its initialJoints)"});
+  }
+  if (move.has_goal()) {
+    spec.goal = tool_pose(move.goal());
+  } else {
+    out.push_back({"linearMove.goal", "is required: the tool pose at the end of the move"});
+  }
+  if (!out.empty()) return tl::unexpected(std::move(out));
+  return spec;
+}
+
+void to_proto(const core::TrajectorySample& sample, v1::Sample& out) {
+  out.set_t(sample.t);
+  out.set_u(sample.u);
+  out.set_s(sample.s);
+  out.set_segment(static_cast<std::uint32_t>(sample.segment));
+  set(out.mutable_position(), sample.tool.X_WT.translation());
+  set(out.mutable_velocity(), sample.tool.v_WT);
+  set(out.mutable_acceleration(), sample.tool.a_WT);
+  out.set_speed(sample.speed);
+  auto* q = out.mutable_orientation();  // wire order (w, x, y, z) by name
+  q->set_w(sample.q_WT.w());
+  q->set_x(sample.q_WT.x());
+  q->set_y(sample.q_WT.y());
+  q->set_z(sample.q_WT.z());
+  set(out.mutable_angular_velocity(), sample.tool.omega_WT);
+  if (!sample.has_joints) return;
+  const core::JointSample& joints = sample.joints;
+  const auto n = joints.q.size();
+  auto* qs = out.mutable_joints();
+  auto* qd = out.mutable_joint_velocities();
+  auto* qdd = out.mutable_joint_accelerations();
+  qs->Reserve(static_cast<int>(n));
+  qd->Reserve(static_cast<int>(n));
+  qdd->Reserve(static_cast<int>(n));
+  for (Eigen::Index i = 0; i < n; ++i) {
+    qs->Add(joints.q(i));
+    qd->Add(joints.q_dot(i));
+    qdd->Add(joints.q_ddot(i));
+  }
+}
+
+// --- optimisation --------------------------------------------------------------------------
+
+namespace {
+
+v1::OptimizerStatus to_proto(optim::OptimizerStatus status) {
+  switch (status) {
+    case optim::OptimizerStatus::kConverged: return v1::OPTIMIZER_STATUS_CONVERGED;
+    case optim::OptimizerStatus::kIterationLimit: return v1::OPTIMIZER_STATUS_ITERATION_LIMIT;
+    case optim::OptimizerStatus::kTimeLimit: return v1::OPTIMIZER_STATUS_TIME_LIMIT;
+    case optim::OptimizerStatus::kNoImprovement: return v1::OPTIMIZER_STATUS_NO_IMPROVEMENT;
+    case optim::OptimizerStatus::kFailed: return v1::OPTIMIZER_STATUS_FAILED;
+  }
+  return v1::OPTIMIZER_STATUS_UNSPECIFIED;
+}
+
+// The fields every optimiser report has.
+template <class Report>
+void set_report(const optim::OptimizerReport& r, Report& out) {
+  out.set_objective_before(r.objective_before);
+  out.set_objective_after(r.objective_after);
+  out.set_iterations(static_cast<std::uint32_t>(std::max(r.iterations, 0)));
+  out.set_status(to_proto(r.status));
+  out.set_seconds(r.seconds);
+  out.set_message(r.message);
+}
+
+}  // namespace
+
+core::Expected<double> optimize_budget(const v1::PlanRequest& request, double max_seconds) {
+  const auto& o = request.optimize();
+  if (!o.has_time_budget_s()) return std::min(kDefaultOptimizeBudgetS, max_seconds);
+  if (!(std::isfinite(o.time_budget_s()) && o.time_budget_s() > 0.0)) {
+    return tl::unexpected(
+        core::Violations{{"optimize.timeBudgetS", "must be a finite time > 0 s when given, got " + core::number(o.time_budget_s(), 6)}});
+  }
+  if (o.time_budget_s() > max_seconds) {
+    return tl::unexpected(core::Violations{{"optimize.timeBudgetS", "asks for " + core::number(o.time_budget_s(), 6) +
+                                                                        " s; this server allows at most " +
+                                                                        core::number(max_seconds, 6) +
+                                                                        " s per call (geotrajd --max-optimize-seconds)"}});
+  }
+  return o.time_budget_s();
+}
+
+core::Expected<optim::TangentScaleOptions> tangent_scale_options(const v1::PlanRequest& request) {
+  const auto& t = request.optimize().tangent_scales();
+  WireCheck check;
+  check_enum(check, "optimize.tangentScales.objective", t.objective(), v1::TangentScaleObjective_descriptor());
+  if (!check.violations.empty()) return tl::unexpected(std::move(check.violations));
+  optim::TangentScaleOptions options;
+  switch (t.objective()) {
+    case v1::TANGENT_SCALE_OBJECTIVE_PEAK_CURVATURE: options.objective = optim::TangentScaleObjective::kPeakCurvature; break;
+    case v1::TANGENT_SCALE_OBJECTIVE_PEAK_TORSION: options.objective = optim::TangentScaleObjective::kPeakTorsion; break;
+    case v1::TANGENT_SCALE_OBJECTIVE_ARC_LENGTH: options.objective = optim::TangentScaleObjective::kArcLength; break;
+    default: options.objective = optim::TangentScaleObjective::kBendingEnergy; break;  // BENDING_ENERGY, UNSPECIFIED
+  }
+  if (t.has_min_scale()) options.min_scale = t.min_scale();
+  if (t.has_max_scale()) options.max_scale = t.max_scale();
+  if (t.has_length_weight()) options.length_weight = t.length_weight();
+  return options;  // ranges: optim::optimize_tangent_scales names them
+}
+
+core::Expected<optim::BreakpointOptions> breakpoint_options(const v1::PlanRequest& request) {
+  const auto& b = request.optimize().breakpoints();
+  WireCheck check;
+  check_enum(check, "optimize.breakpoints.objective", b.objective(), v1::BreakpointObjective_descriptor());
+  if (!check.violations.empty()) return tl::unexpected(std::move(check.violations));
+  optim::BreakpointOptions options;
+  switch (b.objective()) {
+    case v1::BREAKPOINT_OBJECTIVE_PEAK_CURVATURE: options.objective = optim::BreakpointObjective::kPeakCurvature; break;
+    case v1::BREAKPOINT_OBJECTIVE_PEAK_DERIVATIVES: options.objective = optim::BreakpointObjective::kPeakDerivatives; break;
+    default: options.objective = optim::BreakpointObjective::kPeakTorsion; break;  // PEAK_TORSION, UNSPECIFIED
+  }
+  return options;
+}
+
+void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out) {
+  set_report(result.report, out);
+  for (double scale : result.scales) out.add_tangent_scales(scale);
+  out.set_length_weight(result.length_weight);
+}
+
+void to_proto(const optim::OptimizerReport& report, const std::vector<core::BindingStretch>& binding,
+              v1::TimingReport& out) {
+  set_report(report, out);
+  for (const auto& b : binding) {
+    auto* stretch = out.add_binding();
+    switch (b.kind) {
+      case core::BindingKind::kJointVelocity: stretch->set_kind(v1::BINDING_KIND_JOINT_VELOCITY); break;
+      case core::BindingKind::kJointAcceleration: stretch->set_kind(v1::BINDING_KIND_JOINT_ACCELERATION); break;
+      case core::BindingKind::kCartesianSpeed: stretch->set_kind(v1::BINDING_KIND_CARTESIAN_SPEED); break;
+      case core::BindingKind::kTangentialAcceleration:
+        stretch->set_kind(v1::BINDING_KIND_CARTESIAN_TANGENTIAL_ACCELERATION);
+        break;
+      case core::BindingKind::kCentripetalAcceleration:
+        stretch->set_kind(v1::BINDING_KIND_CARTESIAN_CENTRIPETAL_ACCELERATION);
+        break;
+    }
+    stretch->set_joint(static_cast<std::uint32_t>(b.joint));
+    stretch->set_t_start(b.t_begin);
+    stretch->set_t_end(b.t_end);
+    stretch->set_s_start(b.s_begin);
+    stretch->set_s_end(b.s_end);
+    stretch->set_usage(b.usage);
+    stretch->set_value(b.value);
+    stretch->set_limit(b.limit);
+  }
+}
+
+void to_proto(const optim::BreakpointResult& result, v1::BreakpointReport& out) {
+  set_report(result.report, out);
+  for (const auto& b : result.breakpoints) {
+    auto* seg = out.add_breakpoints();
+    seg->set_segment(b.segment);
+    for (double x : b.all) seg->add_all(x);
+    for (double x : b.x) seg->add_x(x);
+    for (double x : b.y) seg->add_y(x);
+    for (double x : b.z) seg->add_z(x);
+  }
+}
+
+namespace {
+
+core::Violations joined(core::Violations a, const core::Violations& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+// The path of a request and its optimisers (optimize.*), every violation of both together.
+core::Expected<planner::Request> path_request(const v1::PlanRequest& request, double max_optimize_seconds,
+                                              planner::Request out) {
+  auto spec = path_from_request(request);
+  core::Violations violations = spec ? core::Violations{} : spec.error();
+  if (request.has_optimize()) {
+    planner::Optimize optimize;
+    const auto& o = request.optimize();
+    if (auto budget = optimize_budget(request, max_optimize_seconds)) {
+      optimize.budget_s = *budget;
+    } else {
+      violations = joined(std::move(violations), budget.error());
+    }
+    if (o.has_tangent_scales()) {
+      auto options = tangent_scale_options(request);
+      if (options) {
+        optimize.tangent_scales = std::move(*options);
+      } else {
+        violations = joined(std::move(violations), options.error());
+      }
+    }
+    if (o.has_breakpoints()) {
+      auto options = breakpoint_options(request);
+      if (options) {
+        optimize.breakpoints = std::move(*options);
+      } else {
+        violations = joined(std::move(violations), options.error());
+      }
+    }
+    optimize.time_optimal = o.timing().time_optimal();
+    optimize.jerk_limited = o.timing().jerk_limited();
+    out.optimize = std::move(optimize);
+  }
+  if (!violations.empty()) return tl::unexpected(std::move(violations));
+  out.geometry = std::move(*spec);
+  return out;
+}
+
+}  // namespace
+
+core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
+                                                     double max_optimize_seconds, bool with_motion) {
+  planner::Request out;
+  if (!with_motion) return path_request(request, max_optimize_seconds, std::move(out));
+  const int kinds = int(request.has_path()) + int(request.has_joint_move()) + int(request.has_linear_move());
+  if (kinds != 1) {
+    return tl::unexpected(core::Violations{
+        {"path", kinds == 0 ? "is required: give the key frames of a `path`, or a `jointMove` or a `linearMove`"
+                            : "give exactly one of `path`, `jointMove` and `linearMove`"}});
+  }
+  core::Violations violations;
+  if (request.has_optimize() && !request.has_path()) {
+    violations.push_back({"optimize", "applies to a `path`: a jointMove or linearMove has nothing to optimise"});
+  }
+  if (auto motion = motion_from_request(request)) {
+    out.motion = std::move(*motion);
+  } else {
+    violations = joined(std::move(violations), motion.error());
+  }
+  if (request.has_robot()) {
+    if (auto resolved = robot_from_request(request, catalog)) {
+      out.robot = std::make_shared<const planner::Robot>(std::move(*resolved));
+    } else {
+      violations = joined(std::move(violations), resolved.error());
+    }
+  }
+  if (request.has_joint_move()) {
+    if (!request.has_robot()) {
+      violations.push_back({"robot", "is required by a jointMove: the joints belong to a robot model"});
+    }
+    if (!violations.empty()) return tl::unexpected(std::move(violations));
+    auto move = joint_move_from_request(request, out.robot->model, out.robot->seed);
+    if (!move) return tl::unexpected(std::move(move.error()));
+    out.geometry = std::move(*move);
+    return out;
+  }
+  // Following a Cartesian pose (a path or a straight line) takes six joints at least.
+  if (out.robot && out.robot->model.dof() < 6) {
+    violations.push_back({out.robot->inline_model ? "robot.model.links" : "robot",
+                          "the robot has " + std::to_string(out.robot->model.dof()) +
+                              " joints; following a tool pose (position and orientation) needs at least 6"});
+  }
+  if (request.has_linear_move()) {
+    if (!violations.empty()) return tl::unexpected(std::move(violations));
+    auto move = linear_move_from_request(request, out.robot.get());
+    if (!move) return tl::unexpected(std::move(move.error()));
+    out.geometry = std::move(*move);
+    return out;
+  }
+  if (!violations.empty()) {  // with the path's own violations, so that one answer lists all
+    const auto spec = path_from_request(request);
+    return tl::unexpected(spec ? std::move(violations) : joined(spec.error(), violations));
+  }
+  return path_request(request, max_optimize_seconds, std::move(out));
+}
+
+void to_proto(const planner::OptimizerReports& reports, v1::OptimizationReport& out) {
+  if (reports.tangent_scales) to_proto(*reports.tangent_scales, *out.mutable_tangent_scales());
+  if (reports.breakpoints) to_proto(*reports.breakpoints, *out.mutable_breakpoints());
+  if (reports.timing) to_proto(reports.timing->report, reports.timing->binding, *out.mutable_timing());
+}
+
+}  // namespace geotraj::server

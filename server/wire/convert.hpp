@@ -1,0 +1,173 @@
+// The conversion file: proto (geotraj.v1) values <-> core values, and the validation of wire
+// input that core cannot see (presence of messages, enum ranges, request-level numbers).
+// With status.hpp, the only place where proto and core types meet.
+//
+// Field paths in violations are complete, in proto JSON names (`path.frames[0].tangent`).
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/geometry/analysis.hpp"
+#include "core/geometry/constraints.hpp"
+#include "core/geometry/geometry_report.hpp"
+#include "core/geometry/key_frame.hpp"
+#include "core/geometry/path.hpp"
+#include "core/motion/motion.hpp"
+#include "core/motion/orientation.hpp"
+#include "core/planning/joint_motion.hpp"
+#include "core/planning/time_optimal.hpp"
+#include "core/planning/trajectory.hpp"
+#include "core/robot/robot.hpp"
+#include "geotraj/v1/geotraj.pb.h"
+#include "optim/breakpoints/breakpoints.hpp"
+#include "optim/tangent_scales/tangent_scales.hpp"
+#include "planner/planner.hpp"
+
+namespace geotraj::server {
+
+/// AnalyzePath's point count when PlanRequest.analysis_points is absent, and its limits.
+inline constexpr std::size_t kDefaultAnalysisPoints = 101;
+inline constexpr std::size_t kMinAnalysisPoints = 2;
+inline constexpr std::size_t kMaxAnalysisPoints = 1'000'000;
+
+/// The path of a ConvertRequest as a core PathSpec, or every violation of the request:
+/// the wire checks here plus (when those fail) core's validate_path on what could be read,
+/// so that one answer lists everything. On success the spec still needs core validation
+/// (build_path and convert_path do it); core's field paths are then relative to `path`.
+core::Expected<core::PathSpec> path_from_request(const v1::ConvertRequest& request);
+
+/// The same for a PlanRequest; also checks analysis_points and samples_per_batch.
+core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request);
+
+/// PlanRequest.analysis_points or its default. Precondition: the request passed
+/// path_from_request.
+std::size_t analysis_points(const v1::PlanRequest& request);
+
+/// Samples per SampleBatch when PlanRequest.samples_per_batch is absent.
+inline constexpr std::size_t kDefaultSamplesPerBatch = 256;
+/// The most samples in one SampleBatch: about 0.5 MB on the wire with a 7-joint robot
+/// (within a gRPC client's default 4 MB receive limit), about 1.3 MB as the message the
+/// server fills, so that --max-streams streams at most stay within a few hundred MB.
+inline constexpr std::size_t kMaxSamplesPerBatch = 1024;
+
+/// PlanRequest.motion as a core MotionSpec, or every violation (`motion.rampFraction`, ...):
+/// absent optional fields take their documented defaults. Precondition: request.has_motion().
+core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& request);
+
+/// PlanRequest.samples_per_batch or its default.
+std::size_t samples_per_batch(const v1::PlanRequest& request);
+
+/// PlanTrajectory's motion summary.
+void to_proto(const core::MotionPlan& plan, v1::MotionSummary& summary);
+
+
+/// ConvertConstraints' answer: the parametric constraints of every frame, per side.
+void to_proto(const std::vector<core::FrameConstraints>& frames, v1::ConvertResponse& response);
+
+/// PlanTrajectory's answer (geometry part): segments, arc lengths, the achieved geometry
+/// with curvature and torsion derivatives in the path's convention, the closed-loop error.
+void to_proto(const core::Path& path, const std::vector<core::AchievedFrame>& achieved,
+              const core::ClosedLoopError& closed_loop, const core::GeometryReport& geometry,
+              v1::PlanResponse& response);
+
+/// AnalyzePath's answer; derivatives per arc length.
+void to_proto(const core::Path& path, const std::vector<core::ProfilePoint>& points,
+              v1::PathProfile& profile);
+
+// --- robots ---------------------------------------------------------------------------------
+
+/// The robot models a server knows by name: the built-in ones and those loaded from files.
+struct RobotCatalog {
+  std::vector<core::RobotModel> models;
+  const core::RobotModel* find(std::string_view name) const;
+};
+
+/// A RobotModel message as a core model, or every violation with field paths under
+/// `prefix` (`robot.model.limits[2].minPosition`): enum ranges, orientations that are not
+/// unit quaternions, then core's validate_robot.
+core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& model, const std::string& prefix);
+
+/// A robot model file: the proto3 JSON form of RobotModel (the form ListRobots returns, and
+/// `robot.model` of a request). Errors name the JSON problem or the field.
+core::Expected<core::RobotModel> robot_model_from_json(std::string_view json);
+
+/// The full model in its wire form (ListRobots, `geotraj robots`).
+void to_proto(const core::RobotModel& model, v1::RobotModel& out);
+
+
+/// Default RobotSpec.branchTolerance [m].
+inline constexpr double kDefaultBranchTolerance = 1e-3;
+
+/// PlanRequest.robot resolved against `catalog` (the model with the request's base and tool
+/// applied, the seed from initialJoints or the home), or every violation (`robot.name` unknown,
+/// `robot.model...`, `robot.base.orientation`, `robot.initialJoints` size or limits,
+/// `robot.branchTolerance`). Precondition: request.has_robot().
+core::Expected<planner::Robot> robot_from_request(const v1::PlanRequest& request, const RobotCatalog& catalog);
+
+/// PlanTrajectory's joint-space report.
+void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out);
+
+/// One limit event (also used in error messages).
+void to_proto(const core::LimitEvent& event, v1::LimitEvent& out);
+
+/// A sentence naming a limit event: kind, joint, sample, time, value and limit.
+std::string describe(const core::LimitEvent& event);
+
+/// One streamed sample of any trajectory, with the joints when it has them.
+void to_proto(const core::TrajectorySample& sample, v1::Sample& out);
+
+/// PlanRequest.jointMove as a core spec: an empty start takes `seed` (initialJoints or the
+/// home configuration); sizes and limits are checked (`jointMove.goal[3]`, ...).
+core::Expected<core::JointMoveSpec> joint_move_from_request(const v1::PlanRequest& request,
+                                                             const core::RobotModel& model,
+                                                             const core::JointVector& seed);
+
+/// PlanRequest.linearMove as a core spec: an absent start takes the pose of the robot's
+/// seed configuration (with a robot); poses are checked (`linearMove.goal.orientation`).
+core::Expected<core::LinearMoveSpec> linear_move_from_request(const v1::PlanRequest& request,
+                                                               const planner::Robot* robot);
+
+// --- optimisation --------------------------------------------------------------------------
+
+/// Wall-clock budget of all optimisers of one request when OptimizeSpec.timeBudgetS is
+/// absent [s] (the RPC's deadline applies as well).
+inline constexpr double kDefaultOptimizeBudgetS = 10.0;
+
+/// OptimizeSpec.timeBudgetS or its default (at most `max_seconds`, the server's limit), or
+/// the violation (`optimize.timeBudgetS`, also when it asks for more than the limit).
+core::Expected<double> optimize_budget(const v1::PlanRequest& request, double max_seconds);
+
+/// The tangent-scale optimiser's options (without deadline), or the violations of
+/// `optimize.tangentScales.*` (objective out of range, bounds). Precondition: the request
+/// has optimize.tangentScales.
+core::Expected<optim::TangentScaleOptions> tangent_scale_options(const v1::PlanRequest& request);
+
+/// The breakpoint optimiser's options (without deadline), or the violations of
+/// `optimize.breakpoints.*`. Precondition: the request has optimize.breakpoints.
+core::Expected<optim::BreakpointOptions> breakpoint_options(const v1::PlanRequest& request);
+
+// --- the planner's request -------------------------------------------------------------------
+
+/// A PlanRequest as the planner's request, converted once: the geometry (a path, or a move
+/// with its robot), the motion, the robot and the optimisers, or every violation of the
+/// request together (field paths absolute). `with_motion`: the request plans a motion
+/// (PlanTrajectory with `motion`, StreamSamples; the caller has checked that it has one);
+/// else only its path is read (the geometry of PlanTrajectory, AnalyzePath).
+/// `max_optimize_seconds`: the server's bound on optimize.timeBudgetS.
+core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
+                                                     double max_optimize_seconds, bool with_motion);
+
+/// The optimisers' reports.
+void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out);
+void to_proto(const optim::BreakpointResult& result, v1::BreakpointReport& out);
+/// The reports of the optimisers that ran (PlanResponse.optimization).
+void to_proto(const planner::OptimizerReports& reports, v1::OptimizationReport& out);
+/// The timing optimiser's report with which limit binds where.
+void to_proto(const optim::OptimizerReport& report, const std::vector<core::BindingStretch>& binding,
+              v1::TimingReport& out);
+
+}  // namespace geotraj::server

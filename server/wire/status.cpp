@@ -1,0 +1,132 @@
+// The status-mapping file (see status.hpp).
+#include "server/wire/status.hpp"
+
+#include <cstddef>
+
+#include "google/rpc/error_details.pb.h"
+#include "google/rpc/status.pb.h"
+#include "server/wire/text.hpp"
+
+namespace geotraj::server {
+namespace {
+
+// The message lists this many violations; the details list as many as fit in
+// kDetailBudget bytes, and say how many they left out.
+constexpr std::size_t kViolationsInMessage = 5;
+// Bytes of violations in the details (the rest of kMaxStatusDetailsBytes is the message).
+constexpr std::size_t kDetailBudget = kMaxStatusDetailsBytes - kMaxStatusMessageBytes - 256;
+// Longest field path and description in an answer [bytes]: a request's strings (names,
+// values) are quoted in descriptions, and a client's 1 MB name must not come back whole.
+constexpr std::size_t kMaxFieldBytes = 256;
+constexpr std::size_t kMaxDescriptionBytes = 512;
+
+std::string summary(const core::Violations& violations) {
+  std::string message = "invalid request: " + std::to_string(violations.size()) +
+                         (violations.size() == 1 ? " problem" : " problems");
+  for (std::size_t i = 0; i < violations.size() && i < kViolationsInMessage; ++i) {
+    // An empty field is the request as a whole (bytes that are no request).
+    const std::string field = truncated(violations[i].field, kMaxFieldBytes);
+    message += (i == 0 ? ": " : "; ") + (field.empty() ? "" : field + ": ") +
+               truncated(violations[i].description, kMaxDescriptionBytes / 4);
+  }
+  if (violations.size() > kViolationsInMessage) {
+    message += "; and " + std::to_string(violations.size() - kViolationsInMessage) +
+               " more in the BadRequest details";
+  }
+  return truncated(message, kMaxStatusMessageBytes);
+}
+
+// Adds one entry to `repeated` for each of `items`, filled by `fill`, while `details` stays
+// within kDetailBudget bytes; then, when some did not fit, one made by `left_out(count)`.
+template <class Details, class Repeated, class Items, typename Fill, typename LeftOut>
+void add_within_budget(const Details& details, Repeated& repeated, const Items& items, Fill&& fill,
+                       LeftOut&& left_out) {
+  std::size_t kept = 0;
+  for (const auto& item : items) {
+    fill(item, *repeated.Add());
+    if (details.ByteSizeLong() > kDetailBudget) {
+      repeated.RemoveLast();
+      break;
+    }
+    ++kept;
+  }
+  if (kept < items.size()) {
+    left_out(*repeated.Add(), std::to_string(items.size() - kept) + " more violations left out (of " +
+                                  std::to_string(items.size()) + ")");
+  }
+}
+
+// A google.rpc.Status of `code` and `message` with `detail` packed, as a grpc::Status.
+template <class Detail>
+grpc::Status with_details(grpc::StatusCode code, const std::string& message, const Detail& detail) {
+  google::rpc::Status status;
+  status.set_code(code);
+  status.set_message(message);
+  status.add_details()->PackFrom(detail);
+  return {code, message, status.SerializeAsString()};
+}
+
+}  // namespace
+
+grpc::Status invalid_argument(const core::Violations& violations) {
+  google::rpc::BadRequest bad_request;
+  add_within_budget(
+      bad_request, *bad_request.mutable_field_violations(), violations,
+      [](const core::FieldViolation& v, auto& out) {
+        out.set_field(truncated(v.field, kMaxFieldBytes));
+        out.set_description(truncated(v.description, kMaxDescriptionBytes));
+      },
+      [](auto& out, const std::string& text) { out.set_description(text + ": mend these first"); });
+  return with_details(grpc::StatusCode::INVALID_ARGUMENT, summary(violations), bad_request);
+}
+
+grpc::Status failed_precondition(const std::string& message, const std::vector<PreconditionViolation>& violations) {
+  google::rpc::PreconditionFailure failure;
+  add_within_budget(
+      failure, *failure.mutable_violations(), violations,
+      [](const PreconditionViolation& v, auto& out) {
+        out.set_type(truncated(v.type, kMaxFieldBytes));
+        out.set_subject(truncated(v.subject, kMaxFieldBytes));
+        out.set_description(truncated(v.description, kMaxDescriptionBytes));
+      },
+      [](auto& out, const std::string& text) {
+        out.set_type("LEFT_OUT");
+        out.set_description(text);
+      });
+  return with_details(grpc::StatusCode::FAILED_PRECONDITION, truncated(message, kMaxStatusMessageBytes), failure);
+}
+
+grpc::Status bounded(const grpc::Status& status) {
+  if (status.ok()) return status;
+  const bool long_message = status.error_message().size() > kMaxStatusMessageBytes;
+  const bool long_details = status.error_details().size() > kMaxStatusDetailsBytes;
+  if (!long_message && !long_details) return status;
+  return {status.error_code(), truncated(status.error_message(), kMaxStatusMessageBytes),
+          long_details ? std::string() : status.error_details()};
+}
+
+
+std::string_view status_code_name(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::OK: return "OK";
+    case grpc::StatusCode::CANCELLED: return "CANCELLED";
+    case grpc::StatusCode::UNKNOWN: return "UNKNOWN";
+    case grpc::StatusCode::INVALID_ARGUMENT: return "INVALID_ARGUMENT";
+    case grpc::StatusCode::DEADLINE_EXCEEDED: return "DEADLINE_EXCEEDED";
+    case grpc::StatusCode::NOT_FOUND: return "NOT_FOUND";
+    case grpc::StatusCode::ALREADY_EXISTS: return "ALREADY_EXISTS";
+    case grpc::StatusCode::PERMISSION_DENIED: return "PERMISSION_DENIED";
+    case grpc::StatusCode::RESOURCE_EXHAUSTED: return "RESOURCE_EXHAUSTED";
+    case grpc::StatusCode::FAILED_PRECONDITION: return "FAILED_PRECONDITION";
+    case grpc::StatusCode::ABORTED: return "ABORTED";
+    case grpc::StatusCode::OUT_OF_RANGE: return "OUT_OF_RANGE";
+    case grpc::StatusCode::UNIMPLEMENTED: return "UNIMPLEMENTED";
+    case grpc::StatusCode::INTERNAL: return "INTERNAL";
+    case grpc::StatusCode::UNAVAILABLE: return "UNAVAILABLE";
+    case grpc::StatusCode::DATA_LOSS: return "DATA_LOSS";
+    case grpc::StatusCode::UNAUTHENTICATED: return "UNAUTHENTICATED";
+    default: return "UNKNOWN";
+  }
+}
+
+}  // namespace geotraj::server

@@ -1,0 +1,82 @@
+// A RobotModel (core/robot/robot.hpp) as an Orocos KDL chain, the independent implementation the
+// kinematics tests compare with. Test code only: geotraj_core never links KDL.
+//
+// KDL puts a segment's joint at the segment's START: pose(q) = joint(q) * f_tip. The chain:
+//   standard DH:  [fixed: base] [joint 1: DH(link 1)] ... [joint n: DH(link n)] [fixed: tool]
+//     RotZ(q_i) (or TransZ(q_i)) then RotZ(theta_i) TransZ(d_i) TransX(a_i) RotX(alpha_i);
+//   modified DH:  [fixed: base] [fixed: DH_Craig1989(link 1)] [joint 1: DH_Craig1989(link 2)]
+//                 ... [joint n-1: DH_Craig1989(link n)] [joint n: identity] [fixed: tool]
+//     joint i turns about (or slides along) z of frame i, which ends RotX(alpha) TransX(a)
+//     RotZ(theta) TransZ(d): RotZ(q) and TransZ(q) commute with its last two factors, so the
+//     joint sits at the start of the NEXT segment.
+// Offsets go into the link frame (revolute: theta + offset; prismatic: d + offset), not
+// into KDL::Joint's offset: a KDL::Segment stores its tip as given AT q = 0 (its constructor
+// takes joint.pose(0)^-1 * f_tip), so a joint offset would cancel out.
+#pragma once
+
+#include <string>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <kdl/chain.hpp>
+#include <kdl/frames.hpp>
+#include <kdl/jacobian.hpp>
+#include <kdl/jntarray.hpp>
+#include <kdl/joint.hpp>
+#include <kdl/segment.hpp>
+
+#include "core/robot/robot.hpp"
+
+namespace geotraj::test {
+
+inline KDL::Frame to_kdl(const Eigen::Isometry3d& X) {
+  const Eigen::Matrix3d R = X.linear();
+  const Eigen::Vector3d p = X.translation();
+  return KDL::Frame(KDL::Rotation(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)),
+                    KDL::Vector(p.x(), p.y(), p.z()));
+}
+
+inline Eigen::Isometry3d from_kdl(const KDL::Frame& F) {
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) X.linear()(r, c) = F.M(r, c);
+    X.translation()(r) = F.p(r);
+  }
+  return X;
+}
+
+inline KDL::JntArray to_kdl(const core::JointVector& q) {
+  KDL::JntArray out(static_cast<unsigned int>(q.size()));
+  for (Eigen::Index i = 0; i < q.size(); ++i) out(static_cast<unsigned int>(i)) = q(i);
+  return out;
+}
+
+inline KDL::Chain to_kdl_chain(const core::RobotModel& m) {
+  const bool modified = m.convention == core::DhConvention::kModified;
+  // The link's transform at q = 0, offset included.
+  const auto link_frame = [&](const core::DhLink& l) {
+    const bool revolute = l.type == core::JointType::kRevolute;
+    const double theta = l.theta + (revolute ? l.offset : 0.0), d = l.d + (revolute ? 0.0 : l.offset);
+    return modified ? KDL::Frame::DH_Craig1989(l.a, l.alpha, d, theta) : KDL::Frame::DH(l.a, l.alpha, d, theta);
+  };
+  const auto joint = [](const core::DhLink& l) {
+    return KDL::Joint(l.type == core::JointType::kRevolute ? KDL::Joint::RotZ : KDL::Joint::TransZ);
+  };
+  KDL::Chain chain;
+  chain.addSegment(KDL::Segment("base", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.base)));
+  const std::size_t n = m.links.size();
+  if (modified) {
+    chain.addSegment(KDL::Segment("link1", KDL::Joint(KDL::Joint::Fixed), link_frame(m.links[0])));
+    for (std::size_t i = 0; i < n; ++i) {
+      const KDL::Frame next = i + 1 < n ? link_frame(m.links[i + 1]) : KDL::Frame::Identity();
+      chain.addSegment(KDL::Segment("joint" + std::to_string(i + 1), joint(m.links[i]), next));
+    }
+  } else {
+    for (std::size_t i = 0; i < n; ++i)
+      chain.addSegment(KDL::Segment("joint" + std::to_string(i + 1), joint(m.links[i]), link_frame(m.links[i])));
+  }
+  chain.addSegment(KDL::Segment("tool", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.tool)));
+  return chain;
+}
+
+}  // namespace geotraj::test

@@ -1,0 +1,131 @@
+// Robot models: the built-in arms are valid, and validate_robot names the field of every
+// problem (`limits[2].minPosition`, `links[1].alpha`, ...), all of them at once.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "core/robot/robot.hpp"
+
+namespace geotraj::test {
+namespace {
+
+using core::RobotModel;
+using core::Violations;
+
+RobotModel valid_model() { return *core::find_builtin_robot("ur5"); }
+
+bool names(const Violations& v, const std::string& field) {
+  return std::any_of(v.begin(), v.end(), [&](const auto& x) { return x.field == field; });
+}
+
+std::string listed(const Violations& v) {
+  std::string out;
+  for (const auto& x : v) out += "  " + x.field + ": " + x.description + "\n";
+  return out;
+}
+
+TEST(Robot, BuiltinsAreValid) {
+  ASSERT_EQ(core::builtin_robots().size(), 2u);
+  for (const auto& m : core::builtin_robots()) {
+    EXPECT_TRUE(core::validate_robot(m).empty()) << m.name << "\n" << listed(core::validate_robot(m));
+    EXPECT_FALSE(m.description.empty());
+  }
+  EXPECT_EQ(core::find_builtin_robot("pa10")->dof(), 7u);
+  EXPECT_EQ(core::find_builtin_robot("ur5")->dof(), 6u);
+  EXPECT_EQ(core::find_builtin_robot("nope"), nullptr);
+}
+
+TEST(Robot, HomeConfiguration) {
+  const auto& pa10 = *core::find_builtin_robot("pa10");
+  const core::JointVector q = core::home_configuration(pa10);
+  ASSERT_EQ(q.size(), 7);
+  for (std::size_t i = 0; i < 7; ++i) EXPECT_EQ(q(static_cast<Eigen::Index>(i)), pa10.home[i]);
+  RobotModel m = valid_model();
+  m.home.clear();
+  EXPECT_TRUE(core::home_configuration(m).isZero());
+}
+
+struct BadCase {
+  const char* name;
+  const char* field;
+  void (*spoil)(RobotModel&);
+};
+
+class RobotValidation : public ::testing::TestWithParam<BadCase> {};
+
+TEST_P(RobotValidation, NamesTheField) {
+  RobotModel m = valid_model();
+  GetParam().spoil(m);
+  const Violations v = core::validate_robot(m);
+  EXPECT_TRUE(names(v, GetParam().field)) << "expected " << GetParam().field << ", got\n" << listed(v);
+  for (const auto& x : v) EXPECT_FALSE(x.description.empty()) << x.field;
+}
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+INSTANTIATE_TEST_SUITE_P(
+    Robot, RobotValidation,
+    ::testing::Values(
+        BadCase{"NoLinks", "links", [](RobotModel& m) { m.links.clear(); m.limits.clear(); m.home.clear(); }},
+        BadCase{"TooManyJoints", "links",
+                [](RobotModel& m) {
+                  m.links.resize(core::kMaxJoints + 1);
+                  m.limits.resize(core::kMaxJoints + 1, m.limits.front());
+                  m.home.clear();
+                }},
+        BadCase{"FewerLimitsThanLinks", "limits", [](RobotModel& m) { m.limits.pop_back(); }},
+        BadCase{"MoreLimitsThanLinks", "limits", [](RobotModel& m) { m.limits.push_back(m.limits.front()); }},
+        BadCase{"NaNLinkLength", "links[1].a", [](RobotModel& m) { m.links[1].a = kNaN; }},
+        BadCase{"NaNTwist", "links[3].alpha", [](RobotModel& m) { m.links[3].alpha = kNaN; }},
+        BadCase{"InfiniteOffsetD", "links[0].d", [](RobotModel& m) { m.links[0].d = kInf; }},
+        BadCase{"NaNTheta", "links[5].theta", [](RobotModel& m) { m.links[5].theta = kNaN; }},
+        BadCase{"NaNOffset", "links[2].offset", [](RobotModel& m) { m.links[2].offset = kNaN; }},
+        BadCase{"MinAboveMax", "limits[2].minPosition",
+                [](RobotModel& m) {
+                  m.limits[2].min_position = 1.0;
+                  m.limits[2].max_position = -1.0;
+                  m.home.clear();
+                }},
+        BadCase{"NaNMinPosition", "limits[0].minPosition", [](RobotModel& m) { m.limits[0].min_position = kNaN; }},
+        BadCase{"InfiniteMaxPosition", "limits[4].maxPosition", [](RobotModel& m) { m.limits[4].max_position = kInf; }},
+        BadCase{"ZeroMaxVelocity", "limits[1].maxVelocity", [](RobotModel& m) { m.limits[1].max_velocity = 0.0; }},
+        BadCase{"NegativeMaxVelocity", "limits[3].maxVelocity", [](RobotModel& m) { m.limits[3].max_velocity = -2.0; }},
+        BadCase{"ZeroMaxAcceleration", "limits[0].maxAcceleration",
+                [](RobotModel& m) { m.limits[0].max_acceleration = 0.0; }},
+        BadCase{"NegativeMaxJerk", "limits[5].maxJerk", [](RobotModel& m) { m.limits[5].max_jerk = -1.0; }},
+        BadCase{"HomeOutsideLimits", "home[1]", [](RobotModel& m) { m.home[1] = m.limits[1].max_position + 0.1; }},
+        BadCase{"HomeNaN", "home[0]", [](RobotModel& m) { m.home[0] = kNaN; }},
+        BadCase{"HomeWrongSize", "home", [](RobotModel& m) { m.home.pop_back(); }},
+        BadCase{"BaseNotARotation", "base.orientation", [](RobotModel& m) { m.base.linear()(0, 0) = 2.0; }},
+        BadCase{"ToolMirrored", "tool.orientation", [](RobotModel& m) { m.tool.linear()(2, 2) = -1.0; }},
+        BadCase{"ToolNotFinite", "tool", [](RobotModel& m) { m.tool.translation().x() = kNaN; }}),
+    [](const ::testing::TestParamInfo<BadCase>& p) { return std::string(p.param.name); });
+
+TEST(Robot, EveryProblemIsReportedAtOnce) {
+  RobotModel m = valid_model();
+  m.links[1].alpha = kNaN;
+  m.limits[2].max_velocity = 0.0;
+  m.home[3] = 100.0;
+  const Violations v = core::validate_robot(m);
+  EXPECT_TRUE(names(v, "links[1].alpha")) << listed(v);
+  EXPECT_TRUE(names(v, "limits[2].maxVelocity")) << listed(v);
+  EXPECT_TRUE(names(v, "home[3]")) << listed(v);
+  EXPECT_EQ(v.size(), 3u) << listed(v);
+}
+
+TEST(Robot, DescriptionsNameTheValue) {
+  RobotModel m = valid_model();
+  m.limits[2].min_position = 1.5;
+  m.limits[2].max_position = -1.5;
+  m.home.clear();
+  const Violations v = core::validate_robot(m);
+  ASSERT_EQ(v.size(), 1u) << listed(v);
+  EXPECT_NE(v[0].description.find("1.5"), std::string::npos) << v[0].description;
+}
+
+}  // namespace
+}  // namespace geotraj::test

@@ -10,6 +10,7 @@ packages=(
   golang-github-gogo-googleapis-dev   # google/rpc/status.proto and error_details.proto
   golang-google-grpc-dev              # grpc/health/v1/health.proto
   libcli11-dev nlohmann-json3-dev
+  libcpp-httplib-dev                  # HTTP of the metrics and probe endpoint
   libgtest-dev libgmock-dev libbenchmark-dev
   liblapacke-dev                      # LAPACK's banded Cholesky, compared in bench_banded_cholesky
   liborocos-kdl-dev                   # Orocos KDL: the kinematics cross-check (tests only)

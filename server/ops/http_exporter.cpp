@@ -2,6 +2,8 @@
 
 #include "server/ops/socket.hpp"
 
+#include <httplib.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <string_view>
@@ -47,19 +49,8 @@ bool is_token(std::string_view s) {
   });
 }
 
-std::string response(std::string_view status, std::string_view content_type, std::string_view body,
-                     std::string_view extra_headers = {}) {
-  std::string out = "HTTP/1.1 ";
-  out.append(status).append("\r\nContent-Type: ").append(content_type);
-  out.append("\r\nContent-Length: ").append(std::to_string(body.size()));
-  out.append("\r\nConnection: close\r\n").append(extra_headers).append("\r\n").append(body);
-  return out;
-}
-
-std::string bad_request() { return response("400 Bad Request", "text/plain; charset=utf-8", "bad request\n"); }
-
 // Where the header block ends (just past its empty line), or npos if it has not yet arrived.
-// Bare LF line ends are tolerated, as RFC 9112 allows.
+// A bare LF block end is found too, so that it is answered (400, by cpp-httplib) at once.
 std::size_t head_end(std::string_view in) {
   const std::size_t crlf = in.find("\r\n\r\n");
   const std::size_t lf = in.find("\n\n");
@@ -69,48 +60,69 @@ std::size_t head_end(std::string_view in) {
   return end;
 }
 
-// The response to a complete header block.
-std::string answer(std::string_view head, const std::function<std::string()>& metrics_body) {
-  std::vector<std::string_view> lines;
-  while (!head.empty()) {
-    const std::size_t nl = head.find('\n');
-    std::string_view line = head.substr(0, nl);
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    lines.push_back(line);
-    head.remove_prefix(nl == std::string_view::npos ? head.size() : nl + 1);
-  }
-  // Request line: METHOD SP TARGET SP HTTP/1.x, then header lines, then the empty line.
-  if (lines.size() < 2 || !lines.back().empty()) return bad_request();
-  const std::string_view request_line = lines.front();
+// What RFC 9112 requires a server to refuse and cpp-httplib 0.11 accepts: more than one
+// space between the parts of the request line (3), a target that is not in origin form
+// (3.2.1), a header line without a colon or with whitespace before it (5.1). cpp-httplib
+// itself refuses an unknown method or version and bare LF line ends.
+bool breaks_rfc9112(std::string_view head) {
+  if (!head.ends_with("\r\n\r\n")) return true;  // incomplete, oversized, or bare LF line ends
+  const std::size_t line_end = head.find("\r\n");
+  if (line_end == std::string_view::npos) return true;
+  const std::string_view request_line = head.substr(0, line_end);
   const std::size_t sp1 = request_line.find(' ');
   const std::size_t sp2 = sp1 == std::string_view::npos ? sp1 : request_line.find(' ', sp1 + 1);
-  if (sp2 == std::string_view::npos || request_line.find(' ', sp2 + 1) != std::string_view::npos) {
-    return bad_request();
+  if (sp2 == std::string_view::npos || sp2 == sp1 + 1 || request_line.find(' ', sp2 + 1) != std::string_view::npos ||
+      request_line[sp1 + 1] != '/') {
+    return true;
   }
-  const std::string_view method = request_line.substr(0, sp1);
-  std::string_view target = request_line.substr(sp1 + 1, sp2 - sp1 - 1);
-  const std::string_view version = request_line.substr(sp2 + 1);
-  if (!is_token(method) || target.empty() || target.front() != '/' || (version != "HTTP/1.1" && version != "HTTP/1.0")) {
-    return bad_request();
+  for (std::string_view rest = head.substr(line_end + 2); !rest.empty() && !rest.starts_with("\r\n");) {
+    const std::size_t end = rest.find("\r\n");
+    const std::string_view line = rest.substr(0, end);
+    const std::size_t colon = line.find(':');
+    if (colon == std::string_view::npos || !is_token(line.substr(0, colon))) return true;
+    if (end == std::string_view::npos) break;
+    rest.remove_prefix(end + 2);
   }
-  for (std::size_t i = 1; i + 1 < lines.size(); ++i) {
-    const std::size_t colon = lines[i].find(':');
-    if (colon == std::string_view::npos || !is_token(lines[i].substr(0, colon))) return bad_request();
-  }
+  return false;
+}
 
-  if (method != "GET") {
-    return response("405 Method Not Allowed", "text/plain; charset=utf-8", "method not allowed\n", "Allow: GET\r\n");
+// cpp-httplib's parser and writer over bytes already read: the request head is read from
+// memory (then end of stream), the response is written to memory.
+class MemoryStream final : public httplib::Stream {
+ public:
+  explicit MemoryStream(std::string_view in) : in_(in) {}
+  bool is_readable() const override { return true; }
+  bool is_writable() const override { return true; }
+  ssize_t read(char* data, size_t size) override {
+    size = std::min(size, in_.size());
+    std::copy_n(in_.data(), size, data);
+    in_.remove_prefix(size);
+    return static_cast<ssize_t>(size);
   }
-  target = target.substr(0, target.find('?'));
-  if (target == "/metrics") {
-    try {
-      return response("200 OK", "text/plain; version=0.0.4; charset=utf-8", metrics_body());
-    } catch (...) {
-      return response("500 Internal Server Error", "text/plain; charset=utf-8", "metrics unavailable\n");
-    }
+  ssize_t write(const char* data, size_t size) override {
+    out_.append(data, size);
+    return static_cast<ssize_t>(size);
   }
-  if (target == "/healthz") return response("200 OK", "text/plain; charset=utf-8", "ok");
-  return response("404 Not Found", "text/plain; charset=utf-8", "not found\n");
+  void get_remote_ip_and_port(std::string&, int&) const override {}
+  void get_local_ip_and_port(std::string&, int&) const override {}
+  socket_t socket() const override { return INVALID_SOCKET; }
+  std::string take() { return std::move(out_); }
+
+ private:
+  std::string_view in_;
+  std::string out_;
+};
+
+constexpr const char* kText = "text/plain; charset=utf-8";
+
+std::string refusal_text(int status) {
+  switch (status) {
+    case 400: return "bad request\n";
+    case 404: return "not found\n";
+    case 405: return "method not allowed\n";
+    case 414: return "request target too long\n";
+    default: return "error " + std::to_string(status) + "\n";
+  }
 }
 
 void close_fd(int fd) {
@@ -118,6 +130,54 @@ void close_fd(int fd) {
 }
 
 }  // namespace
+
+struct HttpRoutes::Router final : httplib::Server {
+  explicit Router(std::function<std::string()> metrics_body) {
+    set_pre_routing_handler([this](const httplib::Request& request, httplib::Response& response) {
+      if (refuse) {
+        response.status = 400;
+        return HandlerResponse::Handled;
+      }
+      if (request.method != "GET" && request.method != "HEAD") {
+        response.status = 405;
+        response.set_header("Allow", "GET, HEAD");
+        return HandlerResponse::Handled;
+      }
+      return HandlerResponse::Unhandled;
+    });
+    Get("/metrics", [body = std::move(metrics_body)](const httplib::Request&, httplib::Response& response) {
+      try {
+        response.set_content(body(), "text/plain; version=0.0.4; charset=utf-8");
+      } catch (...) {
+        response.status = 500;
+        response.set_content("metrics unavailable\n", kText);
+      }
+    });
+    Get("/healthz", [](const httplib::Request&, httplib::Response& response) { response.set_content("ok", kText); });
+    // Every refusal says what it is in its body too.
+    set_error_handler([](const httplib::Request&, httplib::Response& response) {
+      if (response.body.empty()) {
+        response.set_content(refusal_text(response.status), kText);
+      }
+    });
+  }
+
+  std::string answer(std::string_view head) {
+    refuse = breaks_rfc9112(head);
+    // cpp-httplib answers nothing when there is no line at all: give it an empty one (400).
+    MemoryStream stream(head.empty() ? std::string_view("\r\n") : head);
+    bool closed = false;
+    process_request(stream, /*close_connection=*/true, closed, [](httplib::Request&) {});
+    return stream.take();
+  }
+
+  bool refuse = false;  // the head breaks RFC 9112 where cpp-httplib does not look
+};
+
+HttpRoutes::HttpRoutes(std::function<std::string()> metrics_body)
+    : router_(std::make_unique<Router>(std::move(metrics_body))) {}
+HttpRoutes::~HttpRoutes() = default;
+std::string HttpRoutes::answer(std::string_view head) { return router_->answer(head); }
 
 tl::expected<std::unique_ptr<HttpExporter>, std::string> HttpExporter::start(const std::string& address,
                                                                              std::function<std::string()> metrics_body,
@@ -153,7 +213,7 @@ HttpExporter::HttpExporter(int listen_fd, int wake_read_fd, int wake_write_fd, i
       wake_read_fd_(wake_read_fd),
       wake_write_fd_(wake_write_fd),
       port_(port),
-      metrics_body_(std::move(metrics_body)),
+      routes_(std::move(metrics_body)),
       options_(options) {}
 
 HttpExporter::~HttpExporter() {
@@ -249,11 +309,11 @@ void HttpExporter::run() {
         c.in.append(buffer, static_cast<std::size_t>(n));
         const std::size_t end = head_end(c.in);
         if (end != std::string::npos && end <= kMaxHead) {
-          respond(c, answer(std::string_view(c.in).substr(0, end), metrics_body_));
+          respond(c, routes_.answer(std::string_view(c.in).substr(0, end)));
           break;
         }
         if (c.in.size() > kMaxHead) {
-          respond(c, bad_request());
+          respond(c, routes_.answer(c.in));  // 400: no end within the limit
           break;
         }
       }

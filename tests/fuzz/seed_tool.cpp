@@ -6,6 +6,7 @@
 //   OUT_DIR/seeds/fuzz_convert/            every one that is a ConvertRequest, binary
 //   OUT_DIR/seeds/fuzz_robot_model_json/   the built-in robot models and every request's
 //                                          robot.model, as robot model files (proto3 JSON)
+//   OUT_DIR/seeds/fuzz_http_head/          the hand-written request heads
 //   OUT_DIR/<target>.dict                  for the JSON targets: every field name (JSON and
 //                                          proto spelling) and enum value of the messages,
 //                                          and the JSON tokens of proto3's special numbers
@@ -120,7 +121,7 @@ int main(int argc, char** argv) {
   const fs::path examples = argv[2];
   const fs::path extra = argv[3];
   const fs::path seeds = out / "seeds";
-  int counts[4] = {0, 0, 0, 0};
+  int counts[5] = {0, 0, 0, 0, 0};
 
   // The documented example requests.
   for (const auto& file : files_in(examples, true)) {
@@ -182,10 +183,23 @@ int main(int argc, char** argv) {
       counts[is_plan ? 0 : 2]++;
     }
   }
+  for (const auto& file : files_in(extra / "fuzz_http_head", false)) {
+    write(seeds / "fuzz_http_head" / file.filename(), read(file));
+    counts[4]++;
+  }
+  // The words of an HTTP/1.1 request head (RFC 9110, 9112) for fuzz_http_head.
+  std::string http_words;
+  for (const char* word : {"GET", "HEAD", "POST", "OPTIONS", " /metrics", " /healthz", "?", " HTTP/1.1", " HTTP/1.0",
+                           "\\x0D\\x0A", "\\x0D\\x0A\\x0D\\x0A", ": ", "Host", "Content-Length", "Transfer-Encoding",
+                           "chunked", "Range", "bytes=0-", "Connection", "keep-alive", "Expect", "100-continue",
+                           "Accept-Encoding", "gzip", "br"}) {
+    http_words += "\"" + std::string(word) + "\"\n";
+  }
+  write(out / "fuzz_http_head.dict", http_words);
   write_dictionary(out / "fuzz_plan_request_json.dict", geotraj::v1::PlanRequest::descriptor());
   write_dictionary(out / "fuzz_robot_model_json.dict", geotraj::v1::RobotModel::descriptor());
   std::printf("fuzz_seed_tool: seeds: %d fuzz_plan_request, %d fuzz_plan_request_json, %d fuzz_convert, "
-              "%d fuzz_robot_model_json\n",
-              counts[0], counts[1], counts[2], counts[3]);
+              "%d fuzz_robot_model_json, %d fuzz_http_head\n",
+              counts[0], counts[1], counts[2], counts[3], counts[4]);
   return 0;
 }

@@ -199,7 +199,7 @@ JointReportBuilder::JointReportBuilder(const RobotModel& model, double branch_to
   report_.joints.resize(n);
   report_.violations.reserve(n * kKinds);  // at most one per (joint, kind): add() never allocates
   reported_.assign(n * kKinds, false);
-  report_.binding.reserve(kMaxUsageStretches);  // add() never allocates
+  report_.binding.reserve(kMaxBindingStretches);  // add() never allocates
   constexpr double inf = std::numeric_limits<double>::infinity();
   report_.tightest_position.kind = LimitKind::kPosition;
   report_.tightest_position.margin = inf;
@@ -288,35 +288,35 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
 
 void JointReportBuilder::update_binding(std::size_t sample, double t, double s_path, const JointSample& s) {
   // The most used joint limit at this sample.
-  UsageStretch top;
+  BindingStretch top;
+  const auto take = [&top](BindingKind kind, std::size_t joint, double value, double limit) {
+    if (value / limit > top.usage) {
+      top.kind = kind, top.joint = joint, top.usage = value / limit, top.value = value, top.limit = limit;
+    }
+  };
   for (std::size_t j = 0; j < model_->dof(); ++j) {
     const auto i = static_cast<Eigen::Index>(j);
     const JointLimits& lim = model_->limits[j];
-    const double v = std::abs(s.q_dot(i)), a = std::abs(s.q_ddot(i));
-    if (v / lim.max_velocity > top.peak_usage) {
-      top = {LimitKind::kVelocity, j, 0, 0, 0, 0, 0, 0, v / lim.max_velocity, v, lim.max_velocity};
-    }
-    if (a / lim.max_acceleration > top.peak_usage) {
-      top = {LimitKind::kAcceleration, j, 0, 0, 0, 0, 0, 0, a / lim.max_acceleration, a, lim.max_acceleration};
-    }
+    take(BindingKind::kJointVelocity, j, std::abs(s.q_dot(i)), lim.max_velocity);
+    take(BindingKind::kJointAcceleration, j, std::abs(s.q_ddot(i)), lim.max_acceleration);
   }
   auto& stretches = report_.binding;
   if (!stretches.empty()) {
-    UsageStretch& last = stretches.back();
+    BindingStretch& last = stretches.back();
     last.sample_end = sample;
     last.t_end = t;
     last.s_end = s_path;
     // The current stretch's own limit at this sample.
     const auto i = static_cast<Eigen::Index>(last.joint);
-    const double own_value = last.kind == LimitKind::kVelocity ? std::abs(s.q_dot(i)) : std::abs(s.q_ddot(i));
+    const double own_value = last.kind == BindingKind::kJointVelocity ? std::abs(s.q_dot(i)) : std::abs(s.q_ddot(i));
     const double own = own_value / last.limit;
-    if (own > last.peak_usage) {
-      last.peak_usage = own;
+    if (own > last.usage) {
+      last.usage = own;
       last.value = own_value;
     }
     const bool same = top.kind == last.kind && top.joint == last.joint;
-    if (same || top.peak_usage <= kUsageHysteresis * own || stretches.size() == kMaxUsageStretches) return;
-  } else if (top.peak_usage == 0.0) {
+    if (same || top.usage <= kUsageHysteresis * own || stretches.size() == kMaxBindingStretches) return;
+  } else if (top.usage == 0.0) {
     return;  // at rest before anything moves
   }
   top.sample_start = top.sample_end = sample;

@@ -44,6 +44,7 @@
 #include "core/geometry/path.hpp"
 #include "core/motion/motion.hpp"
 #include "core/motion/orientation.hpp"
+#include "core/planning/binding.hpp"
 #include "core/robot/ik.hpp"
 #include "core/robot/robot.hpp"
 
@@ -156,21 +157,8 @@ struct JointUsage {
   double position_margin = std::numeric_limits<double>::infinity();  ///< smallest distance to a position limit
 };
 
-/// A stretch of the motion over which one joint limit is the most used: which limit sets
-/// the pace there. Usage = |q_dot| / maxVelocity or |q_ddot| / maxAcceleration.
-struct UsageStretch {
-  LimitKind kind = LimitKind::kVelocity;  ///< kVelocity or kAcceleration
-  std::size_t joint = 0;
-  std::size_t sample_start = 0, sample_end = 0;  ///< first and last sample of the stretch
-  double t_start = 0.0, t_end = 0.0;             ///< [s]
-  double s_start = 0.0, s_end = 0.0;             ///< arc length along the path [m] (0 without one)
-  double peak_usage = 0.0;  ///< largest usage of that limit on the stretch (1: at the limit)
-  double value = 0.0;       ///< |q_dot| or |q_ddot| at the peak
-  double limit = 0.0;       ///< maxVelocity or maxAcceleration
-};
-
 /// At most this many binding stretches are kept (the last one absorbs the rest).
-inline constexpr std::size_t kMaxUsageStretches = 64;
+inline constexpr std::size_t kMaxBindingStretches = 64;
 /// A new limit takes over the stretch only when its usage exceeds the current one's by this
 /// factor (hysteresis: near-equal usages do not split the motion into slivers).
 inline constexpr double kUsageHysteresis = 1.05;
@@ -202,7 +190,7 @@ struct JointMotionReport {
   /// Which joint limit is the most used, stretch by stretch, in time order (samples at rest,
   /// where every usage is 0, join the stretch around them; consecutive stretches share their
   /// boundary sample).
-  std::vector<UsageStretch> binding;
+  std::vector<BindingStretch> binding;  ///< joint kinds only; usage the largest on the stretch
   bool feasible() const { return violations.empty(); }
 };
 

@@ -229,9 +229,9 @@ Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& grid, const Ti
     BindingStretch st;
     st.kind = us.src.kind;
     st.joint = us.src.joint;
-    st.s_begin = grid[k].s;
+    st.s_start = grid[k].s;
     st.s_end = grid[k + 1].s;
-    st.t_begin = t;
+    st.t_start = t;
     st.t_end = t + dt;
     st.value = us.value;
     st.limit = us.limit;
@@ -254,23 +254,12 @@ Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& grid, const Ti
 
 }  // namespace
 
-const char* name(BindingKind kind) {
-  switch (kind) {
-    case BindingKind::kJointVelocity: return "joint velocity";
-    case BindingKind::kJointAcceleration: return "joint acceleration";
-    case BindingKind::kCartesianSpeed: return "Cartesian speed";
-    case BindingKind::kTangentialAcceleration: return "tangential acceleration";
-    case BindingKind::kCentripetalAcceleration: return "centripetal acceleration";
-  }
-  return "?";
-}
-
 std::string describe(const BindingStretch& st) {
   std::string who = name(st.kind);
-  if (st.kind == BindingKind::kJointVelocity || st.kind == BindingKind::kJointAcceleration)
+  if (is_joint_kind(st.kind))
     who = "joint " + std::to_string(st.joint) + (st.kind == BindingKind::kJointVelocity ? " velocity" : " acceleration");
-  return who + " " + number(st.value, 6) + " of " + number(st.limit, 6) + " on s " + number(st.s_begin, 6) + "-" + number(st.s_end, 6) +
-         " m, t " + number(st.t_begin, 6) + "-" + number(st.t_end, 6) + " s";
+  return who + " " + number(st.value, 6) + " of " + number(st.limit, 6) + " on s " + number(st.s_start, 6) + "-" + number(st.s_end, 6) +
+         " m, t " + number(st.t_start, 6) + "-" + number(st.t_end, 6) + " s";
 }
 
 Expected<TimeOptimalSolution> solve_time_optimal(const std::vector<GridPoint>& grid, const TimeOptimalLimits& limits) {
@@ -491,9 +480,9 @@ Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationP
     const MotionPortion& por = out.motion.portions[p];
     for (BindingStretch st : out.solutions[p].binding) {
       st.portion = p;
-      st.s_begin += por.s_start;
+      st.s_start += por.s_start;
       st.s_end += por.s_start;
-      st.t_begin += por.t_start;
+      st.t_start += por.t_start;
       st.t_end += por.t_start;
       out.binding.push_back(st);
     }

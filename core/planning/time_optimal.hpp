@@ -38,6 +38,7 @@
 #include "core/geometry/path.hpp"
 #include "core/motion/motion.hpp"
 #include "core/motion/orientation.hpp"
+#include "core/planning/binding.hpp"
 #include "core/robot/ik.hpp"
 #include "core/robot/robot.hpp"
 
@@ -58,33 +59,6 @@ struct TimeOptimalLimits {
   double speed = std::numeric_limits<double>::infinity();         ///< Cartesian maxSpeed [m/s]
   double tangential = std::numeric_limits<double>::infinity();    ///< |s_ddot| <= [m/s^2]
   double centripetal = std::numeric_limits<double>::infinity();   ///< kappa s_dot^2 <= [m/s^2]
-};
-
-/// Which limit a constraint is.
-enum class BindingKind {
-  kJointVelocity,
-  kJointAcceleration,
-  kCartesianSpeed,
-  kTangentialAcceleration,
-  kCentripetalAcceleration,
-};
-
-/// The name of a kind ("joint velocity", ...).
-const char* name(BindingKind kind);
-
-/// A stretch of the motion where one limit binds (the largest usage value / limit of every
-/// constraint on each grid interval; consecutive intervals with the same constraint merged).
-struct BindingStretch {
-  BindingKind kind = BindingKind::kCartesianSpeed;
-  std::size_t joint = 0;    ///< zero-based joint (joint kinds only)
-  std::size_t portion = 0;  ///< index in MotionPlan::portions
-  double s_begin = 0.0;     ///< arc length from the PATH's start [m]
-  double s_end = 0.0;
-  double t_begin = 0.0;     ///< [s]
-  double t_end = 0.0;
-  double value = 0.0;       ///< the largest value of the constraint over the stretch (|q_dot|, ...)
-  double limit = 0.0;       ///< the limit it is compared with
-  double usage = 0.0;       ///< smallest value / limit over the stretch's intervals (1: binding)
 };
 
 /// The exact solution of one portion's grid.

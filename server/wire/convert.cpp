@@ -601,6 +601,28 @@ core::Expected<planner::Robot> robot_from_request(const v1::PlanRequest& request
   return resolved;
 }
 
+void to_proto(const core::BindingStretch& stretch, v1::BindingStretch& out) {
+  switch (stretch.kind) {
+    case core::BindingKind::kJointVelocity: out.set_kind(v1::BINDING_KIND_JOINT_VELOCITY); break;
+    case core::BindingKind::kJointAcceleration: out.set_kind(v1::BINDING_KIND_JOINT_ACCELERATION); break;
+    case core::BindingKind::kCartesianSpeed: out.set_kind(v1::BINDING_KIND_CARTESIAN_SPEED); break;
+    case core::BindingKind::kTangentialAcceleration:
+      out.set_kind(v1::BINDING_KIND_CARTESIAN_TANGENTIAL_ACCELERATION);
+      break;
+    case core::BindingKind::kCentripetalAcceleration:
+      out.set_kind(v1::BINDING_KIND_CARTESIAN_CENTRIPETAL_ACCELERATION);
+      break;
+  }
+  out.set_joint(static_cast<std::uint32_t>(stretch.joint));
+  out.set_t_start(stretch.t_start);
+  out.set_t_end(stretch.t_end);
+  out.set_s_start(stretch.s_start);
+  out.set_s_end(stretch.s_end);
+  out.set_usage(stretch.usage);
+  out.set_value(stretch.value);
+  out.set_limit(stretch.limit);
+}
+
 void to_proto(const core::LimitEvent& event, v1::LimitEvent& out) {
   out.set_kind(to_proto(event.kind));
   out.set_joint(static_cast<std::uint32_t>(event.joint));
@@ -663,19 +685,7 @@ void to_proto(const std::string& robot_name, const core::JointMotionReport& repo
   out.set_max_midpoint_deviation_t(report.max_midpoint_deviation_t);
   out.set_min_manipulability(report.min_manipulability);
   out.set_min_manipulability_t(report.min_manipulability_t);
-  for (const auto& b : report.binding) {
-    auto* stretch = out.add_binding();
-    stretch->set_kind(b.kind == core::LimitKind::kAcceleration ? v1::BINDING_KIND_JOINT_ACCELERATION
-                                                               : v1::BINDING_KIND_JOINT_VELOCITY);
-    stretch->set_joint(static_cast<std::uint32_t>(b.joint));
-    stretch->set_t_start(b.t_start);
-    stretch->set_t_end(b.t_end);
-    stretch->set_s_start(b.s_start);
-    stretch->set_s_end(b.s_end);
-    stretch->set_usage(b.peak_usage);
-    stretch->set_value(b.value);
-    stretch->set_limit(b.limit);
-  }
+  for (const auto& b : report.binding) to_proto(b, *out.add_binding());
 }
 
 core::Expected<core::JointMoveSpec> joint_move_from_request(const v1::PlanRequest& request,
@@ -843,28 +853,7 @@ void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& o
 void to_proto(const optim::OptimizerReport& report, const std::vector<core::BindingStretch>& binding,
               v1::TimingReport& out) {
   set_report(report, out);
-  for (const auto& b : binding) {
-    auto* stretch = out.add_binding();
-    switch (b.kind) {
-      case core::BindingKind::kJointVelocity: stretch->set_kind(v1::BINDING_KIND_JOINT_VELOCITY); break;
-      case core::BindingKind::kJointAcceleration: stretch->set_kind(v1::BINDING_KIND_JOINT_ACCELERATION); break;
-      case core::BindingKind::kCartesianSpeed: stretch->set_kind(v1::BINDING_KIND_CARTESIAN_SPEED); break;
-      case core::BindingKind::kTangentialAcceleration:
-        stretch->set_kind(v1::BINDING_KIND_CARTESIAN_TANGENTIAL_ACCELERATION);
-        break;
-      case core::BindingKind::kCentripetalAcceleration:
-        stretch->set_kind(v1::BINDING_KIND_CARTESIAN_CENTRIPETAL_ACCELERATION);
-        break;
-    }
-    stretch->set_joint(static_cast<std::uint32_t>(b.joint));
-    stretch->set_t_start(b.t_begin);
-    stretch->set_t_end(b.t_end);
-    stretch->set_s_start(b.s_begin);
-    stretch->set_s_end(b.s_end);
-    stretch->set_usage(b.usage);
-    stretch->set_value(b.value);
-    stretch->set_limit(b.limit);
-  }
+  for (const auto& b : binding) to_proto(b, *out.add_binding());
 }
 
 void to_proto(const optim::BreakpointResult& result, v1::BreakpointReport& out) {

@@ -113,6 +113,8 @@ void to_proto(const std::string& robot_name, const core::JointMotionReport& repo
 
 /// One limit event (also used in error messages).
 void to_proto(const core::LimitEvent& event, v1::LimitEvent& out);
+/// One stretch of RobotReport.binding or TimingReport.binding.
+void to_proto(const core::BindingStretch& stretch, v1::BindingStretch& out);
 
 /// A sentence naming a limit event: kind, joint, sample, time, value and limit.
 std::string describe(const core::LimitEvent& event);

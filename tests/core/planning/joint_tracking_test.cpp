@@ -500,14 +500,15 @@ namespace {
 using core::JointMotionReport;
 using core::JointReportBuilder;
 using core::JointUsage;
-using core::UsageStretch;
+using core::BindingKind;
+using core::BindingStretch;
 using core::home_configuration;
-using core::kMaxUsageStretches;
+using core::kMaxBindingStretches;
 
 // Which limit sets the pace: the stretches follow each other in time, cover the motion from
 // the first moving sample to the end, and their peaks are the joint report's peaks for the
 // limit they name; the overall most used limit is the peak of one stretch.
-TEST(JointReport, UsageStretchesCoverTheMotion) {
+TEST(JointReport, BindingStretchesCoverTheMotion) {
   const RobotModel& m = pa10();
   const auto motion = demo_motion('C');
   const auto js = track_all(m, motion.xs, home_configuration(m));
@@ -515,23 +516,23 @@ TEST(JointReport, UsageStretchesCoverTheMotion) {
   for (std::size_t k = 0; k < js.size(); ++k) builder.add(k, motion.xs[k].t, js[k]);
   const JointMotionReport& r = builder.report();
   ASSERT_FALSE(r.binding.empty());
-  ASSERT_LE(r.binding.size(), kMaxUsageStretches);
+  ASSERT_LE(r.binding.size(), kMaxBindingStretches);
   EXPECT_EQ(r.binding.back().sample_end, js.size() - 1);
   EXPECT_DOUBLE_EQ(r.binding.back().t_end, motion.xs.back().t);
   double top_usage = 0.0;
   for (const auto& u : r.joints) top_usage = std::max({top_usage, u.velocity_usage, u.acceleration_usage});
   double top_stretch = 0.0;
   for (std::size_t i = 0; i < r.binding.size(); ++i) {
-    const UsageStretch& b = r.binding[i];
+    const BindingStretch& b = r.binding[i];
     if (i > 0) {
       EXPECT_EQ(b.sample_start, r.binding[i - 1].sample_end) << "stretch " << i;
     }
     EXPECT_LE(b.t_start, b.t_end);
     const JointUsage& u = r.joints[b.joint];
-    const double peak = b.kind == LimitKind::kVelocity ? u.velocity_usage : u.acceleration_usage;
-    EXPECT_LE(b.peak_usage, peak * (1 + 1e-12)) << "stretch " << i;
-    EXPECT_NEAR(b.value / b.limit, b.peak_usage, 1e-12);
-    top_stretch = std::max(top_stretch, b.peak_usage);
+    const double peak = b.kind == BindingKind::kJointVelocity ? u.velocity_usage : u.acceleration_usage;
+    EXPECT_LE(b.usage, peak * (1 + 1e-12)) << "stretch " << i;
+    EXPECT_NEAR(b.value / b.limit, b.usage, 1e-12);
+    top_stretch = std::max(top_stretch, b.usage);
   }
   EXPECT_NEAR(top_stretch, top_usage, 1e-12 * top_usage);
 }

@@ -168,10 +168,10 @@ TEST(TimeOptimalSweep, LimitsHoldAtEveryGridPoint) {
   EXPECT_NEAR(core::evaluate(sol->profile, sol->duration).s, g.back().s, 1e-12);
   // The binding report covers [0, L] back to back, each stretch at its limit somewhere.
   ASSERT_FALSE(sol->binding.empty());
-  EXPECT_EQ(sol->binding.front().s_begin, 0.0);
+  EXPECT_EQ(sol->binding.front().s_start, 0.0);
   EXPECT_EQ(sol->binding.back().s_end, g.back().s);
   for (std::size_t k = 0; k + 1 < sol->binding.size(); ++k)
-    EXPECT_EQ(sol->binding[k].s_end, sol->binding[k + 1].s_begin);
+    EXPECT_EQ(sol->binding[k].s_end, sol->binding[k + 1].s_start);
   for (const auto& st : sol->binding) {
     std::printf("  %s\n", core::describe(st).c_str());
     EXPECT_GT(st.usage, 0.999) << core::describe(st);
@@ -218,7 +218,7 @@ TEST(TimeOptimalSweep, StraightLineIsTheMinimumTimeTrapezoid) {
   EXPECT_EQ(sol->binding[1].kind, core::BindingKind::kCartesianSpeed);
   EXPECT_EQ(sol->binding[2].kind, core::BindingKind::kTangentialAcceleration);
   // The intervals next to the ramp ends bind both limits (a tie): one interval either way.
-  EXPECT_NEAR(sol->binding[1].s_begin, 0.2, 0.02 + 1e-12);
+  EXPECT_NEAR(sol->binding[1].s_start, 0.2, 0.02 + 1e-12);
   EXPECT_NEAR(sol->binding[1].s_end, 0.8, 0.02 + 1e-12);
 }
 
@@ -318,7 +318,7 @@ TEST(TimeOptimalPlan, Pa10DemoPathC) {
   ASSERT_FALSE(plan->binding.empty());
   EXPECT_NEAR(plan->binding.back().t_end, plan->motion.duration_s, 1e-9);
   for (std::size_t k = 0; k + 1 < plan->binding.size(); ++k)
-    EXPECT_NEAR(plan->binding[k].t_end, plan->binding[k + 1].t_begin, 1e-12);
+    EXPECT_NEAR(plan->binding[k].t_end, plan->binding[k + 1].t_start, 1e-12);
 
   // Larger joint limits: faster.
   core::RobotModel fast = *c.robot;

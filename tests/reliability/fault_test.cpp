@@ -83,7 +83,8 @@ TEST_F(FaultTest, ClientCancelsARealTimeStreamWhileItWaits) {
   reader.start([&latch] { latch.count_down(); });
   ASSERT_TRUE(latch.wait(seconds(30)));
   EXPECT_EQ(reader.status().error_code(), grpc::StatusCode::CANCELLED) << reader.status().error_message();
-  EXPECT_LT(seconds_since(started), 5.0);
+  EXPECT_LT(reader.received(), 1001u) << "the whole 10 s motion came";
+  std::printf("[ figure   ] cancelled after %zu samples, %.3f s\n", reader.received(), seconds_since(started));
   EXPECT_TRUE(back_to_idle("geotraj_active_streams")) << server::metrics_exposition(running_);
   expect_serves();
 }
@@ -159,10 +160,10 @@ TEST_F(FaultTest, StreamDeadlinePasses) {
   ASSERT_TRUE(latch.wait(seconds(30)));
   const double elapsed = seconds_since(started);
   EXPECT_EQ(reader.status().error_code(), grpc::StatusCode::DEADLINE_EXCEEDED) << reader.status().error_message();
-  EXPECT_LT(elapsed, 1.0);
   EXPECT_GT(reader.received(), 0u);
   EXPECT_LT(reader.received(), 100u);  // ~0.2 s of a 100 Hz stream
-  EXPECT_TRUE(back_to_idle("geotraj_active_streams", seconds(1))) << server::metrics_exposition(running_);
+  // The motion lasts 10 s: idle within 5 s of the deadline means the server let go of it.
+  EXPECT_TRUE(back_to_idle("geotraj_active_streams", seconds(5))) << server::metrics_exposition(running_);
   const auto text = server::metrics_exposition(running_);
   // The server counts it as the client sees it (gRPC also cancels the call at the deadline).
   EXPECT_EQ(calls_total(text, "StreamSamples", "DEADLINE_EXCEEDED"), 1.0) << text;
@@ -178,7 +179,10 @@ TEST_F(FaultTest, StreamDeadlinePasses) {
 // has DEADLINE_EXCEEDED, and the server stops optimising promptly (its unary gauge is 0
 // within 1 s of the deadline) instead of finishing work no one waits for.
 TEST_F(FaultTest, OptimisationDeadlinePasses) {
-  const auto request = example<v1::PlanRequest>("appendix_b_optimized.json");
+  // Left alone, this optimisation runs 10 s (its budget here: measured in optimize_test);
+  // the server must let go of it within 5 s of the 100 ms deadline, not at the end.
+  auto request = example<v1::PlanRequest>("appendix_b_optimized.json");
+  request.mutable_optimize()->set_time_budget_s(10.0);
   grpc::ClientContext context;
   context.set_deadline(in(milliseconds(100)));
   v1::PlanResponse response;
@@ -186,8 +190,7 @@ TEST_F(FaultTest, OptimisationDeadlinePasses) {
   const auto status = stub_->PlanTrajectory(&context, request, &response);
   const double client_s = seconds_since(started);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED) << status.error_message();
-  EXPECT_LT(client_s, 1.0);
-  EXPECT_TRUE(back_to_idle("geotraj_active_unary_calls", seconds(1))) << server::metrics_exposition(running_);
+  EXPECT_TRUE(back_to_idle("geotraj_active_unary_calls", seconds(5))) << server::metrics_exposition(running_);
   const double server_s = seconds_since(started);
   const auto text = server::metrics_exposition(running_);
   EXPECT_EQ(calls_total(text, "PlanTrajectory", "DEADLINE_EXCEEDED"), 1.0) << text;
@@ -401,11 +404,11 @@ class SigtermTest : public ::testing::Test {
   std::unique_ptr<v1::TrajectoryService::Stub> stub_;
 };
 
-// --drain-seconds 10: five real-time streams of 3 s, SIGTERM after 0.5 s. The streams
+// --drain-seconds 600: five real-time streams of 3 s, SIGTERM after 0.5 s. The streams
 // finish with every sample, a new call meanwhile is refused with UNAVAILABLE, and the
-// process exits 0 as soon as they are done (not after the whole drain time).
+// process exits 0 as soon as they are done (within 5 s of them, not after ten minutes).
 TEST_F(SigtermTest, StreamsInFlightFinishDuringTheDrain) {
-  ASSERT_NO_FATAL_FAILURE(start("10"));
+  ASSERT_NO_FATAL_FAILURE(start("600"));
   auto request = demo_request('a');
   request.mutable_motion()->set_duration_s(3.0);  // 301 samples at 100 Hz
   request.set_pacing(v1::STREAM_PACING_REAL_TIME);
@@ -423,7 +426,7 @@ TEST_F(SigtermTest, StreamsInFlightFinishDuringTheDrain) {
   std::this_thread::sleep_for(milliseconds(500));
   daemon_->signal(SIGTERM);
   const auto signalled = std::chrono::steady_clock::now();
-  EXPECT_THAT(daemon_->line(seconds(10)), HasSubstr("geotrajd: SIGTERM received, draining (up to 10 s)"));
+  EXPECT_THAT(daemon_->line(seconds(10)), HasSubstr("geotrajd: SIGTERM received, draining (up to 600 s)"));
 
   {  // a new call while draining (the listener is still open during the drain)
     grpc::ClientContext context;
@@ -447,16 +450,16 @@ TEST_F(SigtermTest, StreamsInFlightFinishDuringTheDrain) {
   EXPECT_EQ(*code, 0);
   const double exit_after_streams = seconds_since(last_done);
   const double exit_after_signal = seconds_since(signalled);
-  std::printf("[ figure   ] drain 10 s: exit %.3f s after SIGTERM, %.3f s after the last stream\n", exit_after_signal,
+  std::printf("[ figure   ] drain 600 s: exit %.3f s after SIGTERM, %.3f s after the last stream\n", exit_after_signal,
               exit_after_streams);
-  EXPECT_LT(exit_after_signal, 8.0) << "geotrajd waited for the whole drain time";
 }
 
-// --drain-seconds 0.3: a real-time stream of 10 s is cut when the drain time is over (non-OK
-// status), and the process exits 0 within ~2 s of SIGTERM.
+// --drain-seconds 0.3: a real-time stream of 60 s is cut when the drain time is over (non-OK
+// status), and the process exits 0 (within 5 s of SIGTERM, not after the stream's minute).
 TEST_F(SigtermTest, ShortDrainCancelsTheRest) {
   ASSERT_NO_FATAL_FAILURE(start("0.3"));
   auto request = demo_request('a');
+  request.mutable_motion()->set_duration_s(60.0);  // 6001 samples at 100 Hz
   request.set_pacing(v1::STREAM_PACING_REAL_TIME);
   Latch latch(1);
   StreamReader reader(*stub_, request, in(seconds(60)));
@@ -469,14 +472,13 @@ TEST_F(SigtermTest, ShortDrainCancelsTheRest) {
   ASSERT_TRUE(latch.wait(seconds(30)));
   EXPECT_THAT(reader.status().error_code(), AnyOf(grpc::StatusCode::CANCELLED, grpc::StatusCode::UNAVAILABLE))
       << reader.status().error_message();
-  EXPECT_LT(reader.received(), 1001u);
+  EXPECT_LT(reader.received(), 6001u);
   const auto code = daemon_->wait(seconds(5));
   ASSERT_TRUE(code.has_value()) << "geotrajd still runs 5 s after SIGTERM";
   EXPECT_EQ(*code, 0);
   const double exit_after_signal = seconds_since(signalled);
   std::printf("[ figure   ] drain 0.3 s: stream ended %d after %zu samples; exit %.3f s after SIGTERM\n",
               reader.status().error_code(), reader.received(), exit_after_signal);
-  EXPECT_LT(exit_after_signal, 2.0);
 }
 
 }  // namespace

@@ -233,16 +233,20 @@ void send_all(int fd, const std::string& data) {
   }
 }
 
-// Everything the server sends until it closes (or 5 s pass).
-std::string read_all(int fd) {
+// Everything the server sends until it closes (or 5 s pass; `closed` says which).
+std::string read_all(int fd, bool* closed = nullptr) {
   std::string out;
   char buffer[4096];
   const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  if (closed != nullptr) *closed = false;
   while (std::chrono::steady_clock::now() < until) {
     pollfd p{fd, POLLIN, 0};
     if (::poll(&p, 1, 100) <= 0) continue;
     const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
-    if (n <= 0) break;
+    if (n <= 0) {
+      if (closed != nullptr) *closed = true;
+      break;
+    }
     out.append(buffer, static_cast<std::size_t>(n));
   }
   return out;
@@ -306,15 +310,23 @@ TEST_F(Exporter, AnswersOtherPathsWith404) {
 TEST_F(Exporter, AnswersOtherMethodsWith405) {
   const std::string response = exchange(exporter_->port(), "POST /metrics HTTP/1.1\r\nContent-Length: 0\r\n\r\n");
   EXPECT_THAT(response, StartsWith("HTTP/1.1 405 Method Not Allowed\r\n"));
-  EXPECT_THAT(response, HasSubstr("\r\nAllow: GET\r\n"));
-  EXPECT_THAT(exchange(exporter_->port(), "HEAD /healthz HTTP/1.1\r\n\r\n"), StartsWith("HTTP/1.1 405 "));
+  EXPECT_THAT(response, HasSubstr("\r\nAllow: GET, HEAD\r\n"));
+  EXPECT_THAT(exchange(exporter_->port(), "DELETE /healthz HTTP/1.1\r\n\r\n"), StartsWith("HTTP/1.1 405 "));
+}
+
+TEST_F(Exporter, AnswersHeadWithTheHeadersOnly) {
+  const std::string response = exchange(exporter_->port(), "HEAD /metrics HTTP/1.1\r\n\r\n");
+  EXPECT_THAT(response, StartsWith("HTTP/1.1 200 OK\r\n"));
+  EXPECT_THAT(response, HasSubstr("\r\nContent-Length: 13\r\n"));
+  EXPECT_EQ(body_of(response), "");
 }
 
 TEST_F(Exporter, AnswersMalformedRequestsWith400) {
   for (const char* request : {"GARBAGE\r\n\r\n", "GET /metrics\r\n\r\n", "GET /metrics HTTP/2.0\r\n\r\n",
                               "GET metrics HTTP/1.1\r\n\r\n", "GET  /metrics HTTP/1.1\r\n\r\n",
                               "GET /metrics HTTP/1.1\r\nno colon here\r\n\r\n",
-                              "GET /metrics HTTP/1.1\r\nBad Name: x\r\n\r\n", "G(T /metrics HTTP/1.1\r\n\r\n"}) {
+                              "GET /metrics HTTP/1.1\r\nBad Name: x\r\n\r\n", "G(T /metrics HTTP/1.1\r\n\r\n",
+                              "GET /metrics HTTP/1.1\r\nName : x\r\n\r\n", "GET /healthz HTTP/1.1\n\n"}) {
     EXPECT_THAT(exchange(exporter_->port(), request), StartsWith("HTTP/1.1 400 Bad Request\r\n")) << request;
   }
 }
@@ -333,13 +345,23 @@ TEST_F(Exporter, AnswersOversizedHeadersWith400AndCloses) {
   EXPECT_THAT(exchange(exporter_->port(), fits), StartsWith("HTTP/1.1 200 OK\r\n"));
 }
 
-TEST_F(Exporter, ASilentClientDoesNotBlockOthers) {
-  const int silent = connect_to(exporter_->port());
+// The limits below are chosen so that the behaviour under test is the only way to pass:
+// with a 60 s timeout, an answer within exchange()'s 5 s can only come from multiplexing
+// or eviction, never from the silent client's timeout.
+server::HttpExporterOptions patient(std::size_t max_connections = 512) {
+  server::HttpExporterOptions options;
+  options.timeout = std::chrono::seconds(60);
+  options.max_connections = max_connections;
+  return options;
+}
+
+TEST(ExporterLimits, ASilentClientDoesNotBlockOthers) {
+  auto started = HttpExporter::start("127.0.0.1:0", [] { return std::string("m\n"); }, patient());
+  ASSERT_TRUE(started) << started.error();
+  const int silent = connect_to((*started)->port());
   ASSERT_GE(silent, 0);
   send_all(silent, "GET /met");  // half a request line, then nothing
-  const auto started = std::chrono::steady_clock::now();
-  EXPECT_THAT(exchange(exporter_->port(), "GET /healthz HTTP/1.1\r\n\r\n"), StartsWith("HTTP/1.1 200 OK\r\n"));
-  EXPECT_LT(std::chrono::steady_clock::now() - started, std::chrono::seconds(1));
+  EXPECT_THAT(exchange((*started)->port(), "GET /healthz HTTP/1.1\r\n\r\n"), StartsWith("HTTP/1.1 200 OK\r\n"));
   ::close(silent);
 }
 
@@ -351,28 +373,26 @@ TEST(ExporterLimits, ClosesAStalledConnectionAfterTheTimeout) {
   const int fd = connect_to((*started)->port());
   ASSERT_GE(fd, 0);
   const auto begin = std::chrono::steady_clock::now();
-  const std::string response = read_all(fd);  // EOF when the server gives up
+  bool closed = false;
+  const std::string response = read_all(fd, &closed);  // EOF when the server gives up
   const auto waited = std::chrono::steady_clock::now() - begin;
   ::close(fd);
   EXPECT_EQ(response, "");
-  EXPECT_GE(waited, std::chrono::milliseconds(150));
-  EXPECT_LT(waited, std::chrono::seconds(2));
+  EXPECT_TRUE(closed) << "still open 5 s after a 200 ms timeout";
+  EXPECT_GE(waited, std::chrono::milliseconds(150)) << "closed before the timeout";  // deadlines never fire early
 }
 
 TEST(ExporterLimits, ServesOneConnectionAtATimeWhenCappedAtOne) {
-  server::HttpExporterOptions options;
-  options.timeout = std::chrono::milliseconds(300);
-  options.max_connections = 1;
-  auto started = HttpExporter::start("127.0.0.1:0", [] { return std::string("m\n"); }, options);
+  auto started = HttpExporter::start("127.0.0.1:0", [] { return std::string("m\n"); }, patient(1));
   ASSERT_TRUE(started) << started.error();
   const int silent = connect_to((*started)->port());
   ASSERT_GE(silent, 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  // The new connection closes the silent one (the oldest) and is served at once.
-  const auto begin = std::chrono::steady_clock::now();
+  // The new connection closes the silent one (the oldest) and is served (not after the 60 s).
   EXPECT_THAT(exchange((*started)->port(), "GET /metrics HTTP/1.1\r\n\r\n"), StartsWith("HTTP/1.1 200 OK\r\n"));
-  EXPECT_LT(std::chrono::steady_clock::now() - begin, std::chrono::milliseconds(250)) << "waited for the timeout";
-  EXPECT_EQ(read_all(silent), "");  // closed
+  bool closed = false;
+  EXPECT_EQ(read_all(silent, &closed), "");
+  EXPECT_TRUE(closed);
   ::close(silent);
 }
 
@@ -380,9 +400,8 @@ TEST(ExporterLimits, ServesOneConnectionAtATimeWhenCappedAtOne) {
 // answered meanwhile (before, they waited in the backlog behind the trickling clients, up to
 // 6-9 s with 200 clients, past Prometheus's 10 s scrape timeout for some).
 TEST(ExporterLimits, TricklingClientsDoNotHoldOffScrapes) {
-  server::HttpExporterOptions options;
-  options.max_connections = 16;
-  auto started = HttpExporter::start("127.0.0.1:0", [] { return std::string("m\n"); }, options);
+  // Trickling clients are never timed out here (60 s): only the cap makes room for scrapes.
+  auto started = HttpExporter::start("127.0.0.1:0", [] { return std::string("m\n"); }, patient(16));
   ASSERT_TRUE(started) << started.error();
   const int port = (*started)->port();
   std::atomic<bool> done{false};
@@ -414,20 +433,25 @@ TEST(ExporterLimits, TricklingClientsDoNotHoldOffScrapes) {
   done = true;
   trickle.join();
   std::printf("[ measured ] slowest of 10 scrapes among 64 trickling clients: %.1f ms\n", slowest * 1e3);
-  EXPECT_LT(slowest, 5.0);  // half Prometheus's default scrape timeout
 }
 
-TEST_F(Exporter, StopIsQuickWithOpenConnections) {
-  const int idle = connect_to(exporter_->port());
+TEST(ExporterLimits, StopDoesNotWaitForOpenConnections) {
+  auto started = HttpExporter::start("127.0.0.1:0", [] { return std::string("m\n"); }, patient());
+  ASSERT_TRUE(started) << started.error();
+  HttpExporter& exporter = **started;
+  const int idle = connect_to(exporter.port());
   ASSERT_GE(idle, 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  const auto begin = std::chrono::steady_clock::now();
-  exporter_->stop();
-  EXPECT_LT(std::chrono::steady_clock::now() - begin, std::chrono::milliseconds(500));
-  EXPECT_EQ(read_all(idle), "");  // the server closed it
+  // A stop that waited for the idle connection's 60 s timeout would not close it within the
+  // 5 s that read_all waits.
+  std::thread stopping([&exporter] { exporter.stop(); });
+  bool closed = false;
+  EXPECT_EQ(read_all(idle, &closed), "");
+  EXPECT_TRUE(closed) << "stop() did not close the open connection";
+  stopping.join();
   ::close(idle);
-  exporter_->stop();  // idempotent
-  EXPECT_EQ(connect_to(exporter_->port()), -1);  // the port is free again
+  exporter.stop();  // idempotent
+  EXPECT_EQ(connect_to(exporter.port()), -1);  // the port is free again
 }
 
 TEST(ExporterStart, NamesTheAddressWhenThePortIsTaken) {

@@ -22,8 +22,9 @@
 #include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/support/byte_buffer.h>
 
-#include "daemon.hpp"
-#include "reliability.hpp"
+#include "tests/server/support/daemon.hpp"
+#include "tests/reliability/reliability.hpp"
+#include "tests/server/support/raw_sockets.hpp"
 
 namespace geotraj::testing {
 namespace {
@@ -308,16 +309,8 @@ struct RawOutcome {
 
 RawOutcome raw_exchange(int port, const std::string& bytes, bool half_close, std::chrono::milliseconds timeout) {
   RawOutcome out;
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  const int fd = connect_loopback(port);
   if (fd < 0) return out;
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<std::uint16_t>(port));
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    ::close(fd);
-    return out;
-  }
   out.connected = true;
   const auto started = std::chrono::steady_clock::now();
   // MSG_NOSIGNAL: the server may close before everything is written (EPIPE, not SIGPIPE).

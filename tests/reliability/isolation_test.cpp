@@ -13,7 +13,7 @@
 #include <gmock/gmock.h>
 
 #include "grpc/health/v1/health.grpc.pb.h"
-#include "reliability.hpp"
+#include "tests/reliability/reliability.hpp"
 
 namespace geotraj::testing {
 namespace {

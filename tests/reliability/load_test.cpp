@@ -11,7 +11,7 @@
 
 #include <gmock/gmock.h>
 
-#include "reliability.hpp"
+#include "tests/reliability/reliability.hpp"
 
 namespace geotraj::testing {
 namespace {

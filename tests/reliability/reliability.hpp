@@ -1,5 +1,5 @@
 // Helpers of the reliability tests: a server started with chosen options (on the fixture of
-// tests/server/test_server.hpp), a callback-API stream reader that checks order and counts
+// tests/server/support/test_server.hpp), a callback-API stream reader that checks order and counts
 // without a thread per stream, the process's resident memory, and metric values.
 #pragma once
 
@@ -20,7 +20,7 @@
 
 #include <grpcpp/support/client_callback.h>
 
-#include "test_server.hpp"
+#include "tests/server/support/test_server.hpp"
 
 namespace geotraj::testing {
 

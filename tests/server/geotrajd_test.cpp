@@ -12,9 +12,9 @@
 
 #include <gmock/gmock.h>
 
-#include "daemon.hpp"
+#include "tests/server/support/daemon.hpp"
 #include "grpc/health/v1/health.grpc.pb.h"
-#include "test_server.hpp"
+#include "tests/server/support/test_server.hpp"
 
 namespace geotraj::testing {
 namespace {

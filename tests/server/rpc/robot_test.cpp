@@ -23,8 +23,8 @@
 #include <Eigen/Geometry>
 #include <gmock/gmock.h>
 
-#include "daemon.hpp"
-#include "test_server.hpp"
+#include "tests/server/support/daemon.hpp"
+#include "tests/server/support/test_server.hpp"
 
 namespace geotraj::testing {
 namespace {

@@ -1,4 +1,4 @@
-// The acceptor of the gRPC ports (server/src/acceptor.hpp) on its own, with a sink that
+// The acceptor of the gRPC ports (server/ops/acceptor.hpp) on its own, with a sink that
 // holds each connection as gRPC would: the connection cap, silent connections making room
 // at the cap, and acceptance that stops when descriptors run out and resumes when they are
 // free again, with readiness told both times. Also the readiness rule of the health state.
@@ -16,7 +16,7 @@
 
 #include <gmock/gmock.h>
 
-#include "raw_sockets.hpp"
+#include "tests/server/support/raw_sockets.hpp"
 #include "server/ops/acceptor.hpp"
 #include "server/rpc/health.hpp"
 

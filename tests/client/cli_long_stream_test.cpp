@@ -7,7 +7,7 @@
 
 #include <gmock/gmock.h>
 
-#include "test_server.hpp"
+#include "tests/server/support/test_server.hpp"
 
 namespace geotraj::testing {
 namespace {

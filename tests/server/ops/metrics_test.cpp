@@ -21,6 +21,7 @@
 
 #include "server/ops/http_exporter.hpp"
 #include "server/ops/metrics.hpp"
+#include "tests/server/support/raw_sockets.hpp"
 
 namespace geotraj::testing {
 namespace {
@@ -211,19 +212,6 @@ TEST(Metrics, PromtoolAcceptsTheExpositionWithoutWarnings) {
 // ---------------------------------------------------------------------------------------
 // HttpExporter
 
-int connect_to(int port) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_port = htons(static_cast<std::uint16_t>(port));
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<const sockaddr*>(&address), sizeof address) != 0) {
-    ::close(fd);
-    return -1;
-  }
-  return fd;
-}
-
 void send_all(int fd, const std::string& data) {
   std::size_t sent = 0;
   while (sent < data.size()) {
@@ -253,7 +241,7 @@ std::string read_all(int fd, bool* closed = nullptr) {
 }
 
 std::string exchange(int port, const std::string& request) {
-  const int fd = connect_to(port);
+  const int fd = connect_loopback(port);
   if (fd < 0) return "connect failed";
   send_all(fd, request);
   std::string response = read_all(fd);
@@ -334,7 +322,7 @@ TEST_F(Exporter, AnswersMalformedRequestsWith400) {
 TEST_F(Exporter, AnswersOversizedHeadersWith400AndCloses) {
   // More than 8 KiB without the end of the headers: refused without waiting for the rest.
   const std::string request = "GET /metrics HTTP/1.1\r\nX-Long: " + std::string(9000, 'a');
-  const int fd = connect_to(exporter_->port());
+  const int fd = connect_loopback(exporter_->port());
   ASSERT_GE(fd, 0);
   send_all(fd, request);
   const std::string response = read_all(fd);  // returns when the server closes
@@ -362,7 +350,7 @@ TEST(ExporterLimits, SilentClientsDoNotBlockOthers) {
   ASSERT_TRUE(started) << started.error();
   std::vector<int> silent;
   for (int i = 0; i < 32; ++i) {
-    silent.push_back(connect_to((*started)->port()));
+    silent.push_back(connect_loopback((*started)->port()));
     ASSERT_GE(silent.back(), 0);
     send_all(silent.back(), "GET /met");
   }
@@ -375,7 +363,7 @@ TEST(ExporterLimits, ClosesAStalledConnectionAfterTheTimeout) {
   options.timeout = std::chrono::milliseconds(200);
   auto started = HttpExporter::start("127.0.0.1:0", [] { return std::string(); }, options);
   ASSERT_TRUE(started) << started.error();
-  const int fd = connect_to((*started)->port());
+  const int fd = connect_loopback((*started)->port());
   ASSERT_GE(fd, 0);
   const auto begin = std::chrono::steady_clock::now();
   bool closed = false;
@@ -390,7 +378,7 @@ TEST(ExporterLimits, ClosesAStalledConnectionAfterTheTimeout) {
 TEST(ExporterLimits, ServesOneConnectionAtATimeWhenCappedAtOne) {
   auto started = HttpExporter::start("127.0.0.1:0", [] { return std::string("m\n"); }, patient(1));
   ASSERT_TRUE(started) << started.error();
-  const int silent = connect_to((*started)->port());
+  const int silent = connect_loopback((*started)->port());
   ASSERT_GE(silent, 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
   // The new connection closes the silent one (the oldest) and is served (not after the 60 s).
@@ -412,13 +400,13 @@ TEST(ExporterLimits, TricklingClientsDoNotHoldOffScrapes) {
   std::atomic<bool> done{false};
   std::thread trickle([&] {
     std::vector<int> fds;
-    for (int i = 0; i < 64; ++i) fds.push_back(connect_to(port));
+    for (int i = 0; i < 64; ++i) fds.push_back(connect_loopback(port));
     const std::string request = "GET /metrics HTTP/1.1\r\nX-Slow: aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa\r\n\r\n";
     for (std::size_t k = 0; !done.load() && k < request.size(); ++k) {
       for (int& fd : fds) {
         if (fd >= 0 && ::send(fd, &request[k], 1, MSG_NOSIGNAL) != 1) {  // closed by the server: reconnect
           ::close(fd);
-          fd = connect_to(port);
+          fd = connect_loopback(port);
         }
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
@@ -444,7 +432,7 @@ TEST(ExporterLimits, StopDoesNotWaitForOpenConnections) {
   auto started = HttpExporter::start("127.0.0.1:0", [] { return std::string("m\n"); }, patient());
   ASSERT_TRUE(started) << started.error();
   HttpExporter& exporter = **started;
-  const int idle = connect_to(exporter.port());
+  const int idle = connect_loopback(exporter.port());
   ASSERT_GE(idle, 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
   // A stop that waited for the idle connection's 60 s timeout would not close it within the
@@ -456,7 +444,7 @@ TEST(ExporterLimits, StopDoesNotWaitForOpenConnections) {
   stopping.join();
   ::close(idle);
   exporter.stop();  // idempotent
-  EXPECT_EQ(connect_to(exporter.port()), -1);  // the port is free again
+  EXPECT_EQ(connect_loopback(exporter.port()), -1);  // the port is free again
 }
 
 TEST(ExporterStart, NamesTheAddressWhenThePortIsTaken) {

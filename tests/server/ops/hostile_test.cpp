@@ -22,9 +22,9 @@
 #include <grpcpp/generic/generic_stub.h>
 #include <nlohmann/json.hpp>
 
-#include "daemon.hpp"
-#include "production_support.hpp"
-#include "raw_sockets.hpp"
+#include "tests/server/support/daemon.hpp"
+#include "tests/server/support/production_support.hpp"
+#include "tests/server/support/raw_sockets.hpp"
 
 namespace geotraj::testing {
 namespace {

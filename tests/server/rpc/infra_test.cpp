@@ -13,7 +13,7 @@
 
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "server/rpc/health.hpp"
-#include "test_server.hpp"
+#include "tests/server/support/test_server.hpp"
 
 namespace geotraj::testing {
 namespace {

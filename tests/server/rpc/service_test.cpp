@@ -5,7 +5,7 @@
 #include <ostream>
 #include <string>
 
-#include "test_server.hpp"
+#include "tests/server/support/test_server.hpp"
 
 namespace geotraj::testing {
 namespace {

@@ -22,7 +22,7 @@
 #include <openssl/x509.h>
 
 #include "grpc/health/v1/health.grpc.pb.h"
-#include "production_support.hpp"
+#include "tests/server/support/production_support.hpp"
 
 namespace geotraj::testing {
 namespace {

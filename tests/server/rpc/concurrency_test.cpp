@@ -11,7 +11,7 @@
 
 #include <gmock/gmock.h>
 
-#include "production_support.hpp"
+#include "tests/server/support/production_support.hpp"
 
 namespace geotraj::testing {
 namespace {

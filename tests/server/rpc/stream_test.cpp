@@ -9,7 +9,7 @@
 #include <Eigen/Geometry>
 #include <gmock/gmock.h>
 
-#include "test_server.hpp"
+#include "tests/server/support/test_server.hpp"
 
 namespace geotraj::testing {
 namespace {

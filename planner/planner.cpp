@@ -39,31 +39,37 @@ Clock::time_point optimizer_deadline(const Request& request, const Budget& budge
   return std::min(budget.deadline, Clock::now() + std::chrono::duration_cast<Clock::duration>(budget_s));
 }
 
+// One path optimiser under the plan's budget and deadline: `path` becomes its result's path
+// and `report` its result. Its errors name absolute field paths already.
+template <class Options, class Optimize, class Result>
+std::optional<Error> run_path_optimizer(std::optional<Options> options, Optimize optimize, std::string_view name,
+                                        const Budget& budget, Clock::time_point deadline, core::PathSpec& path,
+                                        std::optional<Result>& report) {
+  if (!options) return std::nullopt;
+  options->deadline = deadline;
+  options->stop = budget.stop;
+  const auto started = Clock::now();
+  auto result = optimize(path, *options);
+  observe(budget, name, started);
+  if (!result) return invalid(std::move(result.error()));
+  path = result->spec;
+  report = std::move(*result);
+  return std::nullopt;
+}
+
 // The request's path after the optimisers it asks for (tangent scales, then breakpoints),
 // their reports in `reports`.
 Expected<core::PathSpec> optimized_path(const Request& request, const Budget& budget, Clock::time_point deadline,
                                         OptimizerReports& reports) {
   core::PathSpec path = std::get<core::PathSpec>(request.geometry);
   if (!request.optimize) return path;
-  if (auto options = request.optimize->tangent_scales) {
-    options->deadline = deadline;
-    options->stop = budget.stop;
-    const auto started = Clock::now();
-    auto result = optim::optimize_tangent_scales(path, *options);
-    observe(budget, "tangent_scales", started);
-    if (!result) return tl::unexpected(invalid(std::move(result.error())));
-    path = result->spec;
-    reports.tangent_scales = std::move(*result);
+  if (auto error = run_path_optimizer(request.optimize->tangent_scales, optim::optimize_tangent_scales,
+                                      "tangent_scales", budget, deadline, path, reports.tangent_scales)) {
+    return tl::unexpected(std::move(*error));
   }
-  if (auto options = request.optimize->breakpoints) {
-    options->deadline = deadline;
-    options->stop = budget.stop;
-    const auto started = Clock::now();
-    auto result = optim::optimize_breakpoints(path, *options);
-    observe(budget, "breakpoints", started);
-    if (!result) return tl::unexpected(invalid(std::move(result.error())));  // absolute paths already
-    path = result->spec;
-    reports.breakpoints = std::move(*result);
+  if (auto error = run_path_optimizer(request.optimize->breakpoints, optim::optimize_breakpoints, "breakpoints",
+                                      budget, deadline, path, reports.breakpoints)) {
+    return tl::unexpected(std::move(*error));
   }
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   return path;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <initializer_list>
 #include <limits>
 #include <string>
 
@@ -23,19 +24,6 @@ std::string indexed(const std::string& field, std::size_t i) { return field + "[
 constexpr double kMaxMoveCoordinate = 1e6;
 /// A quaternion within this of unit length is normalised; others are rejected.
 constexpr double kUnitQuaternionTolerance = 1e-3;
-
-// The move's samples on the one grid (core/motion/motion.hpp); a violation naming
-// `motion.durationS` when there would be too many.
-std::size_t move_sample_count(double duration, double rate, Violations& v) {
-  const double grid = duration * rate;
-  if (!(grid < kMaxMotionSamples)) {
-    v.push_back({"motion.durationS", "the move lasts " + number(duration) + " s, " + number(grid) + " samples, more than " +
-                                         number(kMaxMotionSamples) +
-                                         " per stream: shorten the move, lower cycleRateHz or raise the limits"});
-    return 0;
-  }
-  return grid_sample_count(duration, rate);
-}
 
 // The profile state at t: at rest before the start (s = 0) and exactly at the end (s =
 // length, v = a = 0) from the duration on; at t = 0 the one-sided acceleration of the
@@ -60,12 +48,30 @@ void check_pose(const ToolPose& pose, const std::string& field, Violations& v) {
   }
 }
 
-Violations overflow(const MotionSpec& motion, double duration) {
-  if (motion.duration_s > 0.0)
-    return {{"motion.durationS", "is too short for this move (" + number(duration) +
-                                     " s): the speeds overflow double precision"}};
-  return {{"motion.durationS", "is 0, and the minimum-time move (" + number(duration) +
-                                   " s) is too short to time: its rates overflow double precision"}};
+// The move's samples on the one grid (core/motion/motion.hpp), once its profile is timed:
+// refused, naming motion.durationS, when a peak rate (`peaks`, or the profile's jerk)
+// overflows double precision or when there would be more samples than a stream may hold.
+Expected<std::size_t> move_samples(const MotionSpec& motion, double duration, const SpeedProfile& profile,
+                                   std::initializer_list<double> peaks) {
+  const bool finite = std::isfinite(peak_jerk(profile)) &&
+                      std::all_of(peaks.begin(), peaks.end(), [](double x) { return std::isfinite(x); });
+  if (!finite && motion.duration_s > 0.0) {
+    return tl::make_unexpected(Violations{{"motion.durationS", "is too short for this move (" + number(duration) +
+                                                                   " s): the speeds overflow double precision"}});
+  }
+  if (!finite) {
+    return tl::make_unexpected(Violations{{"motion.durationS", "is 0, and the minimum-time move (" + number(duration) +
+                                                                   " s) is too short to time: its rates overflow double "
+                                                                   "precision"}});
+  }
+  const double grid = duration * motion.cycle_rate_hz;
+  if (!(grid < kMaxMotionSamples)) {
+    return tl::make_unexpected(Violations{
+        {"motion.durationS", "the move lasts " + number(duration) + " s, " + number(grid) + " samples, more than " +
+                                 number(kMaxMotionSamples) +
+                                 " per stream: shorten the move, lower cycleRateHz or raise the limits"}});
+  }
+  return grid_sample_count(duration, motion.cycle_rate_hz);
 }
 
 }  // namespace
@@ -167,12 +173,9 @@ Expected<JointMovePlan> plan_joint_move(const RobotModel& model, const JointMove
     plan.velocity_usage = std::max(plan.velocity_usage, x_dot * d / model.limits[i].max_velocity);
     plan.acceleration_usage = std::max(plan.acceleration_usage, x_ddot * d / model.limits[i].max_acceleration);
   }
-  if (!std::isfinite(plan.velocity_usage) || !std::isfinite(plan.acceleration_usage) ||
-      !std::isfinite(peak_jerk(plan.profile)))
-    return tl::make_unexpected(overflow(motion, plan.duration_s));
-  Violations grid;
-  plan.sample_count = move_sample_count(plan.duration_s, motion.cycle_rate_hz, grid);
-  if (!grid.empty()) return tl::make_unexpected(grid);
+  auto samples = move_samples(motion, plan.duration_s, plan.profile, {plan.velocity_usage, plan.acceleration_usage});
+  if (!samples) return tl::make_unexpected(std::move(samples.error()));
+  plan.sample_count = *samples;
   return plan;
 }
 
@@ -282,13 +285,11 @@ Expected<LinearMovePlan> plan_linear_move(const LinearMoveSpec& spec, const Moti
     plan.peak_angular_speed = v_peak;
     plan.peak_angular_acceleration = a_peak;
   }
-  if (!std::isfinite(plan.peak_speed) || !std::isfinite(plan.peak_acceleration) ||
-      !std::isfinite(plan.peak_angular_speed) || !std::isfinite(plan.peak_angular_acceleration) ||
-      !std::isfinite(peak_jerk(plan.profile)))
-    return tl::make_unexpected(overflow(motion, plan.duration_s));
-  Violations grid;
-  plan.sample_count = move_sample_count(plan.duration_s, motion.cycle_rate_hz, grid);
-  if (!grid.empty()) return tl::make_unexpected(grid);
+  auto samples = move_samples(motion, plan.duration_s, plan.profile,
+                              {plan.peak_speed, plan.peak_acceleration, plan.peak_angular_speed,
+                               plan.peak_angular_acceleration});
+  if (!samples) return tl::make_unexpected(std::move(samples.error()));
+  plan.sample_count = *samples;
   return plan;
 }
 

@@ -24,7 +24,8 @@ test: build
 demo: build
 	bash scripts/demo.sh $(BUILD_DIR)
 
-# Every test again under AddressSanitizer and UndefinedBehaviorSanitizer (benchmarks off).
+# Every test again under AddressSanitizer and UndefinedBehaviorSanitizer (benchmarks off),
+# but those labelled slow (cmake/slow_tests.cmake: a minute or more even in Release).
 # -g1: line tables for the sanitizers' stack traces, without the full debug information
 # whose generation and linking are a large part of this build's time.
 sanitize: deps

@@ -13,7 +13,14 @@
 #include <iostream>
 #include <vector>
 
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include "geotraj/v1/geotraj.grpc.pb.h"
+#include "server/ops/http_exporter.hpp"
+#include "server/ops/metrics.hpp"
 #include "server/server.hpp"
 
 namespace {
@@ -239,6 +246,78 @@ void BM_StreamSamplesJointMove(benchmark::State& state) {
   state.SetItemsProcessed(samples);
 }
 BENCHMARK(BM_StreamSamplesJointMove)->Arg(1024)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// ---------------------------------------------------------------------------------------
+// The metrics endpoint: a scrape of a busy server's exposition (every RPC finished with
+// several codes, optimisations, connections), answered in memory (HttpRoutes: the RFC 9112
+// checks, cpp-httplib's parser, router and writer) and over loopback TCP (HttpExporter:
+// connect, request, answer, close).
+
+server::Metrics& busy_metrics() {
+  static server::Metrics metrics;
+  static const bool filled = [] {
+    server::Metrics& m = metrics;
+    for (const char* method : {"PlanTrajectory", "AnalyzePath", "ConvertConstraints", "StreamSamples", "ListRobots"}) {
+      for (int code : {0, 1, 3, 4, 8, 9}) {
+        m.call_started(method, false);
+        m.call_finished(method, false, code, 0.01 * (code + 1));
+      }
+    }
+    m.optimization("tangent_scales", 0.003);
+    m.optimization("breakpoints", 2.0);
+    m.samples_streamed(123456);
+    return true;
+  }();
+  (void)filled;
+  return metrics;
+}
+
+void BM_MetricsAnswer(benchmark::State& state) {
+  server::HttpRoutes routes([] { return busy_metrics().exposition(); });
+  const std::string head = "GET /metrics HTTP/1.1\r\nHost: geotraj:9090\r\nUser-Agent: Prometheus/2.45.0\r\n"
+                           "Accept: text/plain;version=0.0.4;q=1,*/*;q=0.1\r\n\r\n";
+  std::size_t bytes = 0;
+  for (auto _ : state) {
+    const std::string response = routes.answer(head);
+    bytes = response.size();
+    benchmark::DoNotOptimize(response.data());
+  }
+  state.counters["bytes"] = static_cast<double>(bytes);
+}
+BENCHMARK(BM_MetricsAnswer)->Unit(benchmark::kMicrosecond);
+
+// The exposition alone, to tell the endpoint's share from the metrics' own.
+void BM_MetricsExposition(benchmark::State& state) {
+  for (auto _ : state) benchmark::DoNotOptimize(busy_metrics().exposition());
+}
+BENCHMARK(BM_MetricsExposition)->Unit(benchmark::kMicrosecond);
+
+void BM_MetricsScrape(benchmark::State& state) {
+  auto started = server::HttpExporter::start("127.0.0.1:0", [] { return busy_metrics().exposition(); });
+  if (!started) {
+    state.SkipWithError(started.error().c_str());
+    return;
+  }
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<std::uint16_t>((*started)->port()));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  const std::string request = "GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n";
+  char buffer[65536];
+  for (auto _ : state) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (::connect(fd, reinterpret_cast<const sockaddr*>(&address), sizeof address) != 0 ||
+        ::send(fd, request.data(), request.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(request.size())) {
+      ::close(fd);
+      state.SkipWithError("cannot send the scrape");
+      return;
+    }
+    while (::recv(fd, buffer, sizeof buffer, 0) > 0) {  // until the exporter closes
+    }
+    ::close(fd);
+  }
+}
+BENCHMARK(BM_MetricsScrape)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
 }  // namespace
 

@@ -1,4 +1,4 @@
-// The banded Cholesky of the jerk-limited timing's Newton systems (optim/src/banded_cholesky),
+// The banded Cholesky of the jerk-limited timing's Newton systems (optim/timing/banded_cholesky.hpp),
 // against LAPACK's dpbtrf + dpbtrs (Debian's reference LAPACK through LAPACKE) on the same
 // matrices: factor and solve of an SPD band matrix of size n and half-bandwidth w. The
 // interior point method factors one such matrix per iteration, w = 2 at 3 unknowns per grid

@@ -17,16 +17,24 @@
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <tl/expected.hpp>
 
 namespace geotraj::core {
 
+/// Which kind of wrong a violation is, carried with it so that no caller tells them apart by
+/// field names: a field the user must change (kInvalid), or a well-formed request that the
+/// limits or the geometry cannot carry out (kUnattainable: no positive speed follows the path
+/// somewhere, the IK fails along it, the minimum-time motion is too long to sample).
+enum class ViolationKind { kInvalid, kUnattainable };
+
 /// One thing wrong with a request: where (`field`, a path in proto JSON names) and what.
 struct FieldViolation {
   std::string field;
   std::string description;
+  ViolationKind kind = ViolationKind::kInvalid;
 };
 
 using Violations = std::vector<FieldViolation>;
@@ -34,6 +42,21 @@ using Violations = std::vector<FieldViolation>;
 /// A value or the complete list of what is wrong with the input that should have made it.
 template <class T>
 using Expected = tl::expected<T, Violations>;
+
+/// A violation of the kUnattainable kind.
+inline FieldViolation unattainable(std::string field, std::string description) {
+  return {std::move(field), std::move(description), ViolationKind::kUnattainable};
+}
+
+/// Whether every violation is kUnattainable (and there is one): the request is well-formed,
+/// what it asks cannot be done.
+inline bool all_unattainable(const Violations& v) {
+  if (v.empty()) return false;
+  for (const auto& fv : v) {
+    if (fv.kind != ViolationKind::kUnattainable) return false;
+  }
+  return true;
+}
 
 /// Prefixes every violation's field path with `prefix` (e.g. "path.").
 inline Violations prefixed(Violations v, const std::string& prefix) {

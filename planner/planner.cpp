@@ -5,6 +5,7 @@
 #include <string>
 #include <utility>
 
+#include "core/format.hpp"
 #include "core/geometry/analysis.hpp"
 #include "core/motion/orientation.hpp"
 #include "core/robot/kinematics.hpp"
@@ -17,7 +18,12 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
-Error invalid(core::Violations violations) { return Error{ErrorKind::kInvalidArgument, std::move(violations), {}, {}}; }
+// Violations as an error: kUnattainable when every one is (core::ViolationKind: the request
+// is well-formed and cannot be carried out), kInvalidArgument otherwise (fields to change).
+Error invalid(core::Violations violations) {
+  const ErrorKind kind = core::all_unattainable(violations) ? ErrorKind::kUnattainable : ErrorKind::kInvalidArgument;
+  return Error{kind, std::move(violations), {}, {}};
+}
 
 void observe(const Budget& budget, std::string_view optimizer, Clock::time_point started) {
   if (budget.on_optimizer) budget.on_optimizer(optimizer, seconds_since(started));
@@ -81,16 +87,6 @@ Expected<core::Path> build(const core::PathSpec& spec) {
   return std::move(*path);
 }
 
-// A time-optimal planner's error: the path cannot be followed at any speed (`motion`: where,
-// and which limit; `motion.durationS`: the motion the limits allow is too long to sample),
-// or bad fields.
-Error timing_error(core::Violations violations) {
-  const bool impossible = std::all_of(violations.begin(), violations.end(), [](const core::FieldViolation& v) {
-    return v.field == "motion" || v.field == "motion.durationS";
-  });
-  return Error{impossible ? ErrorKind::kTimingImpossible : ErrorKind::kInvalidArgument, std::move(violations), {}, {}};
-}
-
 // The fastest timing along the path within the joint limits (with a robot) and the
 // Cartesian ones given (thesis 6.4, TOPP in b = s_dot^2: core/planning/time_optimal.hpp), with jerk
 // limits by the NLP warm-started from it (optim/timing/time_optimal_jerk.hpp), within the
@@ -113,13 +109,13 @@ Expected<core::MotionPlan> time_optimal_timing(const core::Path& path, const cor
     options.time_budget_s = std::max(0.0, std::chrono::duration<double>(deadline - started).count());
     options.stop = budget.stop;
     auto result = optim::plan_time_optimal_jerk(path, orientation, motion, model, seed, {}, options);
-    if (!result) return tl::unexpected(timing_error(std::move(result.error())));
+    if (!result) return tl::unexpected(invalid(std::move(result.error())));
     plan = std::move(result->motion);
     timing.binding = result->exact.binding;
     timing.report = result->report;
   } else {
     auto result = core::plan_time_optimal(path, orientation, motion, model, seed);
-    if (!result) return tl::unexpected(timing_error(std::move(result.error())));
+    if (!result) return tl::unexpected(invalid(std::move(result.error())));
     plan = std::move(result->motion);
     timing.binding = std::move(result->binding);
     timing.report.status = optim::OptimizerStatus::kConverged;
@@ -168,9 +164,7 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
   // without (Cartesian limits; the S-curve keeps its minimum-time double S, whose jerk bound
   // the sweep does not model, unless jerkLimited asks for the NLP).
   const bool jerk_limited = request.optimize && request.optimize->jerk_limited;
-  const bool minimum_time = motion.duration_s == 0.0 && (robot || motion.profile == core::ProfileShape::kTrapezoidal);
-  const bool time_optimal = (request.optimize && request.optimize->time_optimal) || jerk_limited || minimum_time;
-  if (time_optimal) {
+  if (time_optimally_timed(motion, robot != nullptr, request.optimize && request.optimize->time_optimal, jerk_limited)) {
     auto timing = time_optimal_timing(*path, *orientation, motion, robot, jerk_limited, budget, deadline, reports);
     if (!timing) return tl::unexpected(std::move(timing.error()));
     return core::Trajectory(std::in_place_type<core::PathMotion>,
@@ -227,7 +221,7 @@ std::optional<Error> sample_limit(const core::Trajectory& trajectory, const Limi
   if (count <= limits.max_samples) return std::nullopt;
   return invalid(core::Violations{
       {"motion.durationS", "the motion has " + std::to_string(count) + " samples (" +
-                               std::to_string(core::duration(trajectory)) +
+                               core::number(core::duration(trajectory), 6) +
                                " s at the cycle rate); this server streams and checks at most " +
                                std::to_string(limits.max_samples) + " per call" +
                                (limits.max_samples_name.empty() ? "" : " (" + limits.max_samples_name + ")") +
@@ -243,6 +237,11 @@ PathReport report_of(const core::Path& path) {
 }
 
 }  // namespace
+
+bool time_optimally_timed(const core::MotionSpec& motion, bool robot, bool time_optimal, bool jerk_limited) {
+  const bool minimum_time = motion.duration_s == 0.0 && (robot || motion.profile == core::ProfileShape::kTrapezoidal);
+  return time_optimal || jerk_limited || minimum_time;
+}
 
 std::optional<Error> check(const Budget& budget) {
   // A passed deadline first: an RPC is also cancelled then, and the kind should say why.

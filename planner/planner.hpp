@@ -4,7 +4,7 @@
 // joint-space pass) under one budget (a deadline and a stop token), and returns the plan
 // with its reports or an error that carries its kind as a value. No gRPC, no protobuf: the
 // server converts the request once, plans, converts the result once and maps the error kind
-// to a status once (server/rpc/service.cpp).
+// to a status once (server/wire/status.cpp).
 //
 // Field paths in every violation are absolute from the request's root, in proto JSON names
 // (`path.frames[1].curvature`, `motion.maxAcceleration`, `optimize.tangentScales.minScale`).
@@ -85,10 +85,18 @@ struct Budget {
   bool expired() const { return std::chrono::steady_clock::now() >= deadline; }
 };
 
+/// Whether a path's motion is timed by the time-optimal planner (thesis 6.4): when the request
+/// asks (optimize.timing.timeOptimal or jerkLimited), or when it gives no duration
+/// (durationS 0) with a robot or a TRAPEZOIDAL profile, whose minimum time the limits set.
+/// The wire's checks and the planner both follow this one rule.
+bool time_optimally_timed(const core::MotionSpec& motion, bool robot, bool time_optimal, bool jerk_limited);
+
 /// What kind of failure an Error is: the server maps each to one status code.
 enum class ErrorKind {
   kInvalidArgument,     ///< `violations`: fields of the request and what is wrong with them
-  kTimingImpossible,    ///< `violations` on `motion`: no positive speed follows the path there
+  kUnattainable,        ///< `violations`, every one core::ViolationKind::kUnattainable: the request is
+                        ///< well-formed, and the path cannot be followed at any speed there, or the
+                        ///< minimum-time motion is too long to sample
   kRobotCannotFollow,   ///< `limits`: the robot's broken limits (not reportOnly)
   kStopped,             ///< the budget's stop token was requested (the call was cancelled)
   kDeadlineExceeded,    ///< the budget's deadline passed before the work was done

@@ -11,6 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "core/format.hpp"
 #include "server/server.hpp"
 
 namespace {
@@ -262,9 +263,10 @@ int main(int argc, char** argv) {
   int signal = 0;
   sigwait(&stop_signals, &signal);
   const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
-  std::printf("geotrajd: %s received, draining (up to %.3g s); a second signal stops at once\n", name, drain_s);
+  std::printf("geotrajd: %s received, draining (up to %s s); a second signal stops at once\n", name,
+              geotraj::core::number(drain_s, 6).c_str());
   std::fflush(stdout);
-  geotraj::server::log_info(*running, "draining", {{"signal", name}, {"drain_seconds", std::to_string(drain_s)}});
+  geotraj::server::log_info(*running, "draining", {{"signal", name}, {"drain_seconds", geotraj::core::number(drain_s)}});
   // A second SIGTERM or SIGINT during the drain ends it: the calls left are cancelled.
   std::stop_source now;
   std::jthread second([&stop_signals, &now, &running](std::stop_token done) {

@@ -245,9 +245,12 @@ Expected<MotionPlan> plan_motion(const Path& path, const MotionSpec& spec) {
     const std::string what = duration > 0.0 ? "durationS x cycleRateHz = " + number(grid) + " samples"
                                             : "the minimum-time motion lasts " + number(plan.duration_s) +
                                                   " s under these limits, " + number(grid) + " samples,";
-    return tl::make_unexpected(Violations{{"motion.durationS", what + " more than " + number(kMaxMotionSamples) +
-                                                                   " per stream: shorten the motion, lower "
-                                                                   "cycleRateHz or raise the limits"}});
+    // The request's own durationS is a field to change; a minimum-time motion's length is what
+    // the limits make of the path.
+    return tl::make_unexpected(Violations{{"motion.durationS",
+                                           what + " more than " + number(kMaxMotionSamples) +
+                                               " per stream: shorten the motion, lower cycleRateHz or raise the limits",
+                                           duration > 0.0 ? ViolationKind::kInvalid : ViolationKind::kUnattainable}});
   }
   // A move time too short for the path makes speeds overflow: refuse it, never stream inf.
   if (!std::isfinite(plan.peak_speed) || !std::isfinite(plan.peak_acceleration)) {

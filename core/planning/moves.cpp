@@ -66,10 +66,13 @@ Expected<std::size_t> move_samples(const MotionSpec& motion, double duration, co
   }
   const double grid = duration * motion.cycle_rate_hz;
   if (!(grid < kMaxMotionSamples)) {
+    // The request's own durationS is a field to change; a minimum-time move's length is what
+    // the limits make of it.
     return tl::make_unexpected(Violations{
-        {"motion.durationS", "the move lasts " + number(duration) + " s, " + number(grid) + " samples, more than " +
-                                 number(kMaxMotionSamples) +
-                                 " per stream: shorten the move, lower cycleRateHz or raise the limits"}});
+        {"motion.durationS",
+         "the move lasts " + number(duration) + " s, " + number(grid) + " samples, more than " +
+             number(kMaxMotionSamples) + " per stream: shorten the move, lower cycleRateHz or raise the limits",
+         motion.duration_s > 0.0 ? ViolationKind::kInvalid : ViolationKind::kUnattainable}});
   }
   return grid_sample_count(duration, motion.cycle_rate_hz);
 }

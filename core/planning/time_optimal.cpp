@@ -155,8 +155,8 @@ Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& grid, const Ti
   const std::size_t N = n_pts - 1;
   auto sig = [&](std::size_t i) { return sigma ? (*sigma)[i] : 1.0; };
   auto fail = [&](std::size_t i, const std::string& why) {
-    return tl::make_unexpected(Violations{{"motion", "no positive speed is admissible at s = " + number(grid[i].s, 6) +
-                                                         " m from the portion's start: " + why}});
+    return tl::make_unexpected(Violations{unattainable(
+        "motion", "no positive speed is admissible at s = " + number(grid[i].s, 6) + " m from the portion's start: " + why)});
   };
 
   std::vector<double> lo(n_pts, 0.0), hi(n_pts, 0.0);
@@ -308,7 +308,7 @@ Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& pat
       const double sp = jet[1].norm();
       GridPoint& g = grid[k];
       g.s = s_loc;
-      if (!(sp > 0.0)) return tl::make_unexpected(Violations{{"motion", "the path has no tangent at u = " + number(u, 6)}});
+      if (!(sp > 0.0)) return tl::make_unexpected(Violations{unattainable("motion", "the path has no tangent at u = " + number(u, 6))});
       const Eigen::Vector3d T = jet[1] / sp;
       const Eigen::Vector3d p_ss = (jet[2] - jet[2].dot(T) * T) / (sp * sp);  // d2p/ds2 = kappa N
       g.kappa = p_ss.norm();
@@ -327,8 +327,8 @@ Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& pat
         const CartesianState x = cartesian_state(path, orientation, ms);
         if (!tracker->track(x, js))
           return tl::make_unexpected(Violations{
-              {"motion", "the IK fails at s = " + number(por.s_start + s_loc, 6) + " m (u = " + number(u, 6) +
-                             ") of the path: position error " + number(js.position_error, 6) + " m"}});
+              unattainable("motion", "the IK fails at s = " + number(por.s_start + s_loc, 6) + " m (u = " + number(u, 6) +
+                                         ") of the path: position error " + number(js.position_error, 6) + " m")});
         g.q_s = js.q_dot;    // dq/ds at s_dot = 1
         g.q_ss = js.q_ddot;  // d2q/ds2 at s_ddot = 0
       }
@@ -357,8 +357,8 @@ Expected<MotionPlan> assemble_motion(const MotionSpec& spec, std::vector<MotionP
   plan.portions = std::move(portions);
   plan.duration_s = t;
   if (!(t * spec.cycle_rate_hz < kMaxMotionSamples))
-    return tl::make_unexpected(Violations{{"motion.durationS", "the time-optimal motion lasts " + number(t, 6) +
-                                                                   " s, more samples than a stream may hold"}});
+    return tl::make_unexpected(Violations{unattainable(
+        "motion.durationS", "the time-optimal motion lasts " + number(t, 6) + " s, more samples than a stream may hold")});
   plan.sample_count = grid_sample_count(t, spec.cycle_rate_hz);
   return plan;
 }
@@ -402,8 +402,9 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
     if (tracker) {
       const CartesianState x = cartesian_state(path, orientation, ms);
       if (!tracker->track(x, js))
-        return tl::make_unexpected(Violations{{"motion", "the IK fails at t = " + number(ms.t, 6) + " s (s = " +
-                                                             number(ms.s, 6) + " m, u = " + number(ms.u, 6) + ")"}});
+        return tl::make_unexpected(Violations{unattainable("motion", "the IK fails at t = " + number(ms.t, 6) + " s (s = " +
+                                                                         number(ms.s, 6) + " m, u = " + number(ms.u, 6) +
+                                                                         ")")});
       for (Eigen::Index j = 0; j < js.q_dot.size(); ++j) {
         note(std::abs(js.q_dot(j)), limits.joint_velocity(j), false);
         note(std::abs(js.q_ddot(j)), limits.joint_acceleration(j), true);
@@ -470,8 +471,9 @@ Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationP
     if (!check->broken) break;
     if (round >= options.max_refinements)
       return tl::make_unexpected(Violations{
-          {"motion", "the sampled motion still exceeds a limit by " + number(100.0 * (out.worst_sample_usage - 1.0), 6) +
-                         " % after " + std::to_string(round) + " refinements: use a finer grid"}});
+          unattainable("motion", "the sampled motion still exceeds a limit by " +
+                                     number(100.0 * (out.worst_sample_usage - 1.0), 6) + " % after " +
+                                     std::to_string(round) + " refinements: use a finer grid")});
     for (std::size_t p = 0; p < P; ++p)
       for (std::size_t i = 0; i < sigma[p].size(); ++i) sigma[p][i] *= check->shrink[p][i];
   }

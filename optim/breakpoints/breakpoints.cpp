@@ -10,6 +10,7 @@
 
 #include <nlopt.h>
 
+#include "core/format.hpp"
 #include "core/geometry/differential_geometry.hpp"
 #include "core/geometry/trapezoid.hpp"
 
@@ -267,10 +268,10 @@ core::Violations check_options(const BreakpointOptions& o) {
   }
   // Ramps of the highest order (n = 5) must fit: 6 min_ramp < 1.
   if (!(o.min_ramp > 0.0 && o.min_ramp < 1.0 / (kMaxTrapezoidOrder + 1))) {
-    v.push_back({at + "minRamp", "must lie in (0, 1/6), got " + std::to_string(o.min_ramp)});
+    v.push_back({at + "minRamp", "must lie in (0, 1/6), got " + core::number(o.min_ramp)});
   }
   if (o.time_budget_s && !(*o.time_budget_s >= 0.0)) {
-    v.push_back({"optimize.timeBudgetS", "must be >= 0 s, got " + std::to_string(*o.time_budget_s)});
+    v.push_back({"optimize.timeBudgetS", "must be >= 0 s, got " + core::number(*o.time_budget_s)});
   }
   return v;
 }

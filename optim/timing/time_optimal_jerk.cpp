@@ -1,5 +1,7 @@
 #include "optim/timing/time_optimal_jerk.hpp"
 
+#include "core/format.hpp"
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -634,7 +636,7 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
   out.max_constraint_violation = have_point ? nlp->full_violation(xs.data()) : 0.0;
   out.report.objective_after = have_point ? nlp->objective(xs.data()) : out.report.objective_before;
   if (have_point && out.report.status != OptimizerStatus::kConverged)
-    out.report.message += ", largest constraint violation " + std::to_string(out.max_constraint_violation);
+    out.report.message += ", largest constraint violation " + core::number(out.max_constraint_violation, 6);
   return out;
 }
 
@@ -711,10 +713,10 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
     out.worst_sample_usage = check->worst_usage;
     if (!check->broken) break;
     if (round >= exact_options.max_refinements)
-      return tl::make_unexpected(core::Violations{
-          {"motion", "the sampled jerk-limited motion still exceeds a limit by " +
-                         std::to_string(100.0 * (check->worst_usage - 1.0)) + " % after " + std::to_string(round) +
-                         " refinements: use a finer grid"}});
+      return tl::make_unexpected(core::Violations{core::unattainable(
+          "motion", "the sampled jerk-limited motion still exceeds a limit by " +
+                        core::number(100.0 * (check->worst_usage - 1.0), 6) + " % after " + std::to_string(round) +
+                        " refinements: use a finer grid")});
     for (std::size_t p = 0; p < P; ++p)
       for (std::size_t i = 0; i < sigma[p].size(); ++i) sigma[p][i] *= check->shrink[p][i];
   }

@@ -3,7 +3,7 @@
 #include <span>
 
 #include "server/ops/log.hpp"
-#include "server/wire/status.hpp"
+#include "server/status_codes.hpp"
 
 #include <algorithm>
 #include <charconv>

@@ -1,6 +1,6 @@
 #include "server/ops/runtime.hpp"
 
-#include "server/wire/status.hpp"
+#include "server/status_codes.hpp"
 
 #include <algorithm>
 #include <cctype>

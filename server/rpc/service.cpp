@@ -27,18 +27,13 @@
 #include "core/robot/kinematics.hpp"
 #include "planner/planner.hpp"
 #include "server/ops/runtime.hpp"
+#include "core/format.hpp"
 #include "server/rpc/tsan.hpp"
 #include "server/wire/convert.hpp"
 #include "server/wire/status.hpp"
 
 namespace geotraj::server {
 namespace {
-
-std::string format_seconds(double s) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%.6g", s);
-  return buffer;
-}
 
 // Whether the caller still wants the answer: checked before each stage of work, so that a
 // cancelled call or a passed deadline stops it at the next stage.
@@ -74,7 +69,7 @@ class Abandon {
     if (deadline_ <= now || (cancelled && deadline_ - now <= kDeadlineSlack)) {
       if (default_s_ > 0.0) {
         return grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED,
-                            "the call gave no deadline, and the server's default of " + format_seconds(default_s_) +
+                            "the call gave no deadline, and the server's default of " + core::number(default_s_, 6) +
                                 " s (geotrajd --default-deadline-seconds) passed before the work was done");
       }
       return grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, "the deadline passed before the work was done");
@@ -107,28 +102,10 @@ struct Services {
   Metrics& metrics;
 };
 
-// INVALID_ARGUMENT when an analysis asks for more points than the server answers.
-std::optional<grpc::Status> analysis_limit(const v1::PlanRequest& request, const ServiceLimits& limits) {
-  if (!request.has_analysis_points() || request.analysis_points() <= limits.max_analysis_points) return std::nullopt;
-  return invalid_argument(core::Violations{
-      {"analysisPoints", "asks for " + std::to_string(request.analysis_points()) +
-                             " points; this server answers at most " + std::to_string(limits.max_analysis_points) +
-                             " (geotrajd --max-analysis-points)"}});
-}
-
-// INVALID_ARGUMENT when a path has more key frames than the server accepts.
-std::optional<grpc::Status> frame_limit(const v1::PathSpec& path, const ServiceLimits& limits) {
-  if (path.frames_size() <= limits.max_frames) return std::nullopt;
-  return invalid_argument(core::Violations{
-      {"path.frames", "has " + std::to_string(path.frames_size()) + " key frames; this server accepts at most " +
-                          std::to_string(limits.max_frames) + " (geotrajd --max-frames)"}});
-}
-
 grpc::Status convert_constraints(const Abandon& abandon, const Services& services, const v1::ConvertRequest& request,
                                  v1::ConvertResponse& response) {
   if (auto stop = abandon.check()) return *stop;
-  if (auto refused = frame_limit(request.path(), services.limits)) return *refused;
-  const auto spec = path_from_request(request);
+  const auto spec = path_from_request(request, services.limits);
   if (!spec) return invalid_argument(spec.error());
   const auto frames = planner::convert(*spec);
   if (!frames) return invalid_argument(frames.error().violations);
@@ -203,47 +180,13 @@ class UnaryReactor final : public grpc::ServerUnaryReactor {
   std::stop_source stop_;
 };
 
-// The planner's error as the status to finish with: its kind mapped once. A stopped or
-// expired budget is the call's own cancellation or deadline (Abandon says which, and why).
+// The planner's error as the status to finish with (wire/status.hpp maps the kinds): a
+// stopped or expired budget is the call's own cancellation or deadline, as Abandon words it.
 grpc::Status to_status(const planner::Error& error, const Abandon& abandon) {
-  switch (error.kind) {
-    case planner::ErrorKind::kInvalidArgument: return invalid_argument(error.violations);
-    case planner::ErrorKind::kTimingImpossible: {
-      // `motion` names where the path cannot be followed; `motion.durationS` that the motion
-      // the limits allow is too long to sample (the request's own durationS is 0 here).
-      std::vector<PreconditionViolation> details;
-      std::string message = "the path cannot be followed: ";
-      for (std::size_t i = 0; i < error.violations.size(); ++i) {
-        details.push_back({"TIME_OPTIMAL", "motion", error.violations[i].description});
-        message += (i ? "; " : "") + error.violations[i].description;
-      }
-      return failed_precondition(message, details);
-    }
-    case planner::ErrorKind::kRobotCannotFollow: {
-      // The first broken limit (time, sample, joint) in the message and every one in the details.
-      std::vector<PreconditionViolation> details;
-      for (const auto& v : error.limits) {
-        v1::LimitEvent event;
-        to_proto(v, event);
-        const bool per_joint = v.kind != core::LimitKind::kIk && v.kind != core::LimitKind::kBranch;
-        details.push_back({v1::LimitKind_Name(event.kind()),
-                           per_joint ? "joint " + std::to_string(v.joint) : "sample " + std::to_string(v.sample),
-                           describe(v)});
-      }
-      std::string message = "robot '" + error.robot + "' cannot follow the plan: " + describe(error.limits.front());
-      if (error.limits.size() > 1) {
-        message += "; and " + std::to_string(error.limits.size() - 1) +
-                   " more in the PreconditionFailure details (set robot.reportOnly for the full report)";
-      }
-      return failed_precondition(message, details);
-    }
-    case planner::ErrorKind::kStopped:
-      return abandon.check().value_or(grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled"));
-    case planner::ErrorKind::kDeadlineExceeded:
-      return abandon.check().value_or(
-          grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, "the deadline passed before the work was done"));
+  if (error.kind == planner::ErrorKind::kStopped || error.kind == planner::ErrorKind::kDeadlineExceeded) {
+    if (auto status = abandon.check()) return *status;
   }
-  return grpc::Status(grpc::StatusCode::INTERNAL, "unknown planner error");
+  return status_of(error);
 }
 
 // The planner's budget of a call: its deadline and cancellation, and the optimisers' metrics.
@@ -262,51 +205,25 @@ planner::Limits limits_of(const Services& services) {
   return planner::Limits{services.limits.max_stream_samples, "geotrajd --max-stream-samples"};
 }
 
-// Converts the request (once) and plans it; the status to finish with on any error.
+// Converts the request (once) for `use` and plans it; the status to finish with on any error.
 tl::expected<planner::Plan, grpc::Status> plan_call(const Abandon& abandon, const Services& services,
-                                                    const v1::PlanRequest& request, bool with_motion,
+                                                    const v1::PlanRequest& request, RequestUse use,
                                                     planner::Purpose purpose) {
-  auto input = request_from_proto(request, services.robots, services.limits.max_optimize_seconds, with_motion);
+  if (auto stop = abandon.check()) return tl::unexpected(*stop);
+  auto input = request_from_proto(request, services.robots, services.limits, use);
   if (!input) return tl::unexpected(invalid_argument(input.error()));
   auto plan = planner::plan(*input, budget_of(abandon, services), limits_of(services), purpose);
   if (!plan) return tl::unexpected(to_status(plan.error(), abandon));
   return std::move(*plan);
 }
 
-void summarize(const core::Trajectory& trajectory, const planner::ToolPeaks& tool, v1::MotionSummary& summary) {
-  summary.set_duration_s(core::duration(trajectory));
-  summary.set_sample_count(core::sample_count(trajectory));
-  summary.set_peak_speed(tool.speed);
-  summary.set_peak_acceleration(tool.acceleration);
-  summary.set_peak_angular_speed(tool.angular_speed);
-  if (const auto* path = std::get_if<core::PathMotion>(&trajectory)) {
-    summary.set_peak_tangential_acceleration(path->timing.peak_acceleration);
-  } else if (const auto* linear = std::get_if<core::LinearMovePlan>(&trajectory)) {
-    summary.set_peak_tangential_acceleration(linear->peak_acceleration);
-  }
-}
-
-
 // PlanTrajectory: the geometry; with `motion`, the motion summary; with a robot, the joint
 // report (or FAILED_PRECONDITION when the robot cannot follow, unless reportOnly).
 grpc::Status plan_trajectory(const Abandon& abandon, const Services& services, const v1::PlanRequest& request,
                              v1::PlanResponse& response) {
-  if (auto stop = abandon.check()) return *stop;
-  if (auto refused = frame_limit(request.path(), services.limits)) return *refused;
-  const bool motion_needed = request.has_robot() || request.has_joint_move() || request.has_linear_move();
-  if (motion_needed && !request.has_motion()) {
-    return invalid_argument(core::Violations{
-        {"motion", "is required with a robot or a move: give durationS (s), or the limits for a minimum-time move"}});
-  }
-  auto plan = plan_call(abandon, services, request, request.has_motion(), planner::Purpose::kPlan);
+  auto plan = plan_call(abandon, services, request, RequestUse::kPlan, planner::Purpose::kPlan);
   if (!plan) return plan.error();
-  if (plan->path_report) {
-    const auto& r = *plan->path_report;
-    to_proto(*plan->followed_path(), r.achieved, r.closed_loop, r.geometry, response);
-  }
-  if (request.has_optimize()) to_proto(plan->optimizers, *response.mutable_optimization());
-  if (plan->joints) to_proto(plan->robot->model.name, *plan->joints, *response.mutable_robot());
-  if (plan->trajectory) summarize(*plan->trajectory, plan->tool.value_or(planner::ToolPeaks{}), *response.mutable_motion());
+  to_proto(*plan, request.has_optimize(), response);
   return grpc::Status::OK;
 }
 
@@ -456,27 +373,14 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
 // With a robot the whole motion is checked before the first sample is sent.
 tl::expected<planner::Plan, grpc::Status> plan_stream(const Abandon& abandon, const Services& services,
                                                       const v1::PlanRequest& request) {
-  if (auto stop = abandon.check()) return tl::unexpected(*stop);
-  if (auto refused = frame_limit(request.path(), services.limits)) return tl::unexpected(*refused);
-  if (!request.has_motion()) {
-    return tl::unexpected(invalid_argument(core::Violations{
-        {"motion", "is required to stream samples: give durationS (s), or maxSpeed and maxAcceleration"}}));
-  }
-  if (!v1::StreamPacing_IsValid(request.pacing())) {
-    return tl::unexpected(invalid_argument(
-        core::Violations{{"pacing", "unknown value " + std::to_string(request.pacing()) +
-                                        "; use STREAM_PACING_AS_FAST_AS_POSSIBLE or STREAM_PACING_REAL_TIME"}}));
-  }
-  return plan_call(abandon, services, request, /*with_motion=*/true, planner::Purpose::kStream);
+  return plan_call(abandon, services, request, RequestUse::kStream, planner::Purpose::kStream);
 }
 
 // The analysis is the path's geometry: a robot, when given, does not change it.
 grpc::Status analyze_path(const Abandon& abandon, const Services& services, const v1::PlanRequest& request,
                           v1::PathProfile& profile) {
   if (auto stop = abandon.check()) return *stop;
-  if (auto refused = frame_limit(request.path(), services.limits)) return *refused;
-  if (auto refused = analysis_limit(request, services.limits)) return *refused;
-  auto input = request_from_proto(request, services.robots, services.limits.max_optimize_seconds, false);
+  auto input = request_from_proto(request, services.robots, services.limits, RequestUse::kAnalyze);
   if (!input) return invalid_argument(input.error());
   auto analysis = planner::analyze(*input, analysis_points(request), budget_of(abandon, services));
   if (!analysis) return to_status(analysis.error(), abandon);

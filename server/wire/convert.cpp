@@ -175,7 +175,14 @@ long frame_index(const std::string& field) {
 // joins them (after the path's wire checks, before the request's), so that one answer
 // lists everything.
 template <class RequestChecks>
-core::Expected<core::PathSpec> read_path(bool has_path, const v1::PathSpec& path, RequestChecks request_checks) {
+core::Expected<core::PathSpec> read_path(bool has_path, const v1::PathSpec& path, int max_frames,
+                                         RequestChecks request_checks) {
+  // A path longer than the server accepts is refused before any of it is read.
+  if (has_path && path.frames_size() > max_frames) {
+    return tl::unexpected(core::Violations{
+        {"path.frames", "has " + std::to_string(path.frames_size()) + " key frames; this server accepts at most " +
+                            std::to_string(max_frames) + " (geotrajd --max-frames)"}});
+  }
   WireCheck check;
   if (has_path) {
     check_path(check, path);
@@ -237,17 +244,17 @@ v1::BlendMethod to_proto(core::BlendMethod b) {
 
 }  // namespace
 
-core::Expected<core::PathSpec> path_from_request(const v1::ConvertRequest& request) {
-  return read_path(request.has_path(), request.path(), [](WireCheck&) {});
+core::Expected<core::PathSpec> path_from_request(const v1::ConvertRequest& request, const ServiceLimits& limits) {
+  return read_path(request.has_path(), request.path(), limits.max_frames, [](WireCheck&) {});
 }
 
-core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request) {
-  return read_path(request.has_path(), request.path(), [&request](WireCheck& check) {
+core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request, const ServiceLimits& limits) {
+  return read_path(request.has_path(), request.path(), limits.max_frames, [&request, &limits](WireCheck& check) {
     if (request.has_analysis_points() &&
-        (request.analysis_points() < kMinAnalysisPoints || request.analysis_points() > kMaxAnalysisPoints)) {
-      check.add("analysisPoints", "must be between " + std::to_string(kMinAnalysisPoints) + " and " +
-                                      std::to_string(kMaxAnalysisPoints) +
-                                      " (both ends of the path are points), got " +
+        (request.analysis_points() < 2 || request.analysis_points() > limits.max_analysis_points)) {
+      check.add("analysisPoints", "must be between 2 (both ends of the path) and " +
+                                      std::to_string(limits.max_analysis_points) +
+                                      " (geotrajd --max-analysis-points), got " +
                                       std::to_string(request.analysis_points()));
     }
     if (request.has_samples_per_batch() &&
@@ -290,10 +297,13 @@ core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& requ
   // A joint move's minimum time comes from the joint limits: core::plan_joint_move checks
   // the spec without asking for the Cartesian ones.
   if (request.has_joint_move()) return spec;
-  // With a robot, or when asked, a minimum time is the time-optimal timing: the joint limits
-  // (and whichever Cartesian limits are given) set it, so the Cartesian ones are optional.
+  // A minimum time that the time-optimal timing sets (planner::time_optimally_timed): the
+  // limits given, and the joint ones with a robot, make it, so the Cartesian ones that the
+  // other profiles need are optional here (the planner asks for maxAcceleration without a robot).
   core::MotionSpec checked = spec;
-  if (spec.duration_s == 0.0 && (request.has_robot() || request.optimize().timing().time_optimal())) {
+  const auto& timing = request.optimize().timing();
+  if (spec.duration_s == 0.0 &&
+      planner::time_optimally_timed(spec, request.has_robot(), timing.time_optimal(), timing.jerk_limited())) {
     checked.duration_s = 1.0;
     checked.profile = core::ProfileShape::kTrapezoidal;
   }
@@ -304,13 +314,6 @@ core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& requ
 
 std::size_t samples_per_batch(const v1::PlanRequest& request) {
   return request.has_samples_per_batch() ? request.samples_per_batch() : kDefaultSamplesPerBatch;
-}
-
-void to_proto(const core::MotionPlan& plan, v1::MotionSummary& summary) {
-  summary.set_duration_s(plan.duration_s);
-  summary.set_peak_speed(plan.peak_speed);
-  summary.set_peak_acceleration(plan.peak_acceleration);
-  summary.set_sample_count(plan.sample_count);
 }
 
 std::size_t analysis_points(const v1::PlanRequest& request) {
@@ -876,14 +879,14 @@ core::Violations joined(core::Violations a, const core::Violations& b) {
 }
 
 // The path of a request and its optimisers (optimize.*), every violation of both together.
-core::Expected<planner::Request> path_request(const v1::PlanRequest& request, double max_optimize_seconds,
+core::Expected<planner::Request> path_request(const v1::PlanRequest& request, const ServiceLimits& limits,
                                               planner::Request out) {
-  auto spec = path_from_request(request);
+  auto spec = path_from_request(request, limits);
   core::Violations violations = spec ? core::Violations{} : spec.error();
   if (request.has_optimize()) {
     planner::Optimize optimize;
     const auto& o = request.optimize();
-    if (auto budget = optimize_budget(request, max_optimize_seconds)) {
+    if (auto budget = optimize_budget(request, limits.max_optimize_seconds)) {
       optimize.budget_s = *budget;
     } else {
       violations = joined(std::move(violations), budget.error());
@@ -916,16 +919,33 @@ core::Expected<planner::Request> path_request(const v1::PlanRequest& request, do
 }  // namespace
 
 core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
-                                                     double max_optimize_seconds, bool with_motion) {
+                                                     const ServiceLimits& limits, RequestUse use) {
   planner::Request out;
-  if (!with_motion) return path_request(request, max_optimize_seconds, std::move(out));
+  const bool moves = request.has_joint_move() || request.has_linear_move();
+  if (!request.has_motion()) {
+    if (use == RequestUse::kStream) {
+      return tl::unexpected(core::Violations{
+          {"motion", "is required to stream samples: give durationS (s), or the limits for a minimum-time motion"}});
+    }
+    if (use == RequestUse::kPlan && (request.has_robot() || moves)) {
+      return tl::unexpected(core::Violations{
+          {"motion", "is required with a robot or a move: give durationS (s), or the limits for a minimum-time move"}});
+    }
+  }
+  // Without a motion (PlanTrajectory) or for an analysis, only the path and its optimisers.
+  if (use == RequestUse::kAnalyze || !request.has_motion()) return path_request(request, limits, std::move(out));
+  core::Violations violations;
+  if (use == RequestUse::kStream && !v1::StreamPacing_IsValid(request.pacing())) {
+    violations.push_back({"pacing", "unknown value " + std::to_string(request.pacing()) +
+                                        "; use STREAM_PACING_AS_FAST_AS_POSSIBLE or STREAM_PACING_REAL_TIME"});
+  }
   const int kinds = int(request.has_path()) + int(request.has_joint_move()) + int(request.has_linear_move());
   if (kinds != 1) {
-    return tl::unexpected(core::Violations{
-        {"path", kinds == 0 ? "is required: give the key frames of a `path`, or a `jointMove` or a `linearMove`"
-                            : "give exactly one of `path`, `jointMove` and `linearMove`"}});
+    violations.push_back({"path", kinds == 0
+                                      ? "is required: give the key frames of a `path`, or a `jointMove` or a `linearMove`"
+                                      : "give exactly one of `path`, `jointMove` and `linearMove`"});
+    return tl::unexpected(std::move(violations));
   }
-  core::Violations violations;
   if (request.has_optimize() && !request.has_path()) {
     violations.push_back({"optimize", "applies to a `path`: a jointMove or linearMove has nothing to optimise"});
   }
@@ -964,17 +984,39 @@ core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& reque
     out.geometry = std::move(*move);
     return out;
   }
-  if (!violations.empty()) {  // with the path's own violations, so that one answer lists all
-    const auto spec = path_from_request(request);
-    return tl::unexpected(spec ? std::move(violations) : joined(spec.error(), violations));
-  }
-  return path_request(request, max_optimize_seconds, std::move(out));
+  // The path's and the optimisers' own violations with these, so that one answer lists all.
+  auto converted = path_request(request, limits, std::move(out));
+  if (violations.empty()) return converted;
+  return tl::unexpected(converted ? std::move(violations) : joined(std::move(converted.error()), violations));
 }
 
 void to_proto(const planner::OptimizerReports& reports, v1::OptimizationReport& out) {
   if (reports.tangent_scales) to_proto(*reports.tangent_scales, *out.mutable_tangent_scales());
   if (reports.breakpoints) to_proto(*reports.breakpoints, *out.mutable_breakpoints());
   if (reports.timing) to_proto(reports.timing->report, reports.timing->binding, *out.mutable_timing());
+}
+
+void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanResponse& response) {
+  if (plan.path_report) {
+    const auto& r = *plan.path_report;
+    to_proto(*plan.followed_path(), r.achieved, r.closed_loop, r.geometry, response);
+  }
+  if (with_optimization) to_proto(plan.optimizers, *response.mutable_optimization());
+  if (plan.joints) to_proto(plan.robot->model.name, *plan.joints, *response.mutable_robot());
+  if (!plan.trajectory) return;
+  const auto& trajectory = *plan.trajectory;
+  const auto tool = plan.tool.value_or(planner::ToolPeaks{});
+  auto& summary = *response.mutable_motion();
+  summary.set_duration_s(core::duration(trajectory));
+  summary.set_sample_count(core::sample_count(trajectory));
+  summary.set_peak_speed(tool.speed);
+  summary.set_peak_acceleration(tool.acceleration);
+  summary.set_peak_angular_speed(tool.angular_speed);
+  if (const auto* path = std::get_if<core::PathMotion>(&trajectory)) {
+    summary.set_peak_tangential_acceleration(path->timing.peak_acceleration);
+  } else if (const auto* linear = std::get_if<core::LinearMovePlan>(&trajectory)) {
+    summary.set_peak_tangential_acceleration(linear->peak_acceleration);
+  }
 }
 
 }  // namespace geotraj::server

@@ -26,22 +26,23 @@
 #include "optim/breakpoints/breakpoints.hpp"
 #include "optim/tangent_scales/tangent_scales.hpp"
 #include "planner/planner.hpp"
+#include "server/server.hpp"
 
 namespace geotraj::server {
 
-/// AnalyzePath's point count when PlanRequest.analysis_points is absent, and its limits.
+/// AnalyzePath's point count when PlanRequest.analysis_points is absent.
 inline constexpr std::size_t kDefaultAnalysisPoints = 101;
-inline constexpr std::size_t kMinAnalysisPoints = 2;
-inline constexpr std::size_t kMaxAnalysisPoints = 1'000'000;
 
 /// The path of a ConvertRequest as a core PathSpec, or every violation of the request:
 /// the wire checks here plus (when those fail) core's validate_path on what could be read,
-/// so that one answer lists everything. On success the spec still needs core validation
+/// so that one answer lists everything. A path of more than `limits.max_frames` key frames is
+/// refused before anything else is read. On success the spec still needs core validation
 /// (build_path and convert_path do it); core's field paths are then relative to `path`.
-core::Expected<core::PathSpec> path_from_request(const v1::ConvertRequest& request);
+core::Expected<core::PathSpec> path_from_request(const v1::ConvertRequest& request, const ServiceLimits& limits);
 
-/// The same for a PlanRequest; also checks analysis_points and samples_per_batch.
-core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request);
+/// The same for a PlanRequest; also checks analysisPoints (2 to limits.max_analysis_points)
+/// and samplesPerBatch.
+core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request, const ServiceLimits& limits);
 
 /// PlanRequest.analysis_points or its default. Precondition: the request passed
 /// path_from_request.
@@ -61,8 +62,10 @@ core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& requ
 /// PlanRequest.samples_per_batch or its default.
 std::size_t samples_per_batch(const v1::PlanRequest& request);
 
-/// PlanTrajectory's motion summary.
-void to_proto(const core::MotionPlan& plan, v1::MotionSummary& summary);
+/// PlanTrajectory's answer: the path's geometry and closed loop (when the plan follows a path),
+/// the optimisers' reports (`with_optimization`: the request had `optimize`), the robot's joint
+/// report and the motion's summary (duration, samples, the tool's peaks).
+void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanResponse& response);
 
 
 /// ConvertConstraints' answer: the parametric constraints of every frame, per side.
@@ -154,14 +157,20 @@ core::Expected<optim::BreakpointOptions> breakpoint_options(const v1::PlanReques
 
 // --- the planner's request -------------------------------------------------------------------
 
-/// A PlanRequest as the planner's request, converted once: the geometry (a path, or a move
-/// with its robot), the motion, the robot and the optimisers, or every violation of the
-/// request together (field paths absolute). `with_motion`: the request plans a motion
-/// (PlanTrajectory with `motion`, StreamSamples; the caller has checked that it has one);
-/// else only its path is read (the geometry of PlanTrajectory, AnalyzePath).
-/// `max_optimize_seconds`: the server's bound on optimize.timeBudgetS.
+/// Which call reads a PlanRequest: what it needs of it and what it requires.
+enum class RequestUse {
+  kPlan,     ///< PlanTrajectory: the geometry and, with `motion`, its timing; `motion` is
+             ///< required with a robot or a move
+  kStream,   ///< StreamSamples: as kPlan with `motion` required, and `pacing` checked
+  kAnalyze,  ///< AnalyzePath: the path and its optimisers only (a robot or motion is not read)
+};
+
+/// A PlanRequest as the planner's request, converted once for `use`: the geometry (a path, or
+/// a move with its robot), the motion, the robot and the optimisers, or every violation of the
+/// request together (field paths absolute), within the server's `limits` (key frames,
+/// analysis points, optimize.timeBudgetS).
 core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
-                                                     double max_optimize_seconds, bool with_motion);
+                                                     const ServiceLimits& limits, RequestUse use);
 
 /// The optimisers' reports.
 void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out);

@@ -5,6 +5,7 @@
 
 #include "google/rpc/error_details.pb.h"
 #include "google/rpc/status.pb.h"
+#include "server/wire/convert.hpp"
 #include "server/wire/text.hpp"
 
 namespace geotraj::server {
@@ -127,6 +128,44 @@ std::string_view status_code_name(grpc::StatusCode code) {
     case grpc::StatusCode::UNAUTHENTICATED: return "UNAUTHENTICATED";
     default: return "UNKNOWN";
   }
+}
+
+grpc::Status status_of(const planner::Error& error) {
+  switch (error.kind) {
+    case planner::ErrorKind::kInvalidArgument: return invalid_argument(error.violations);
+    case planner::ErrorKind::kUnattainable: {
+      std::vector<PreconditionViolation> details;
+      std::string message = "the path cannot be followed: ";
+      for (std::size_t i = 0; i < error.violations.size(); ++i) {
+        details.push_back({"TIME_OPTIMAL", error.violations[i].field, error.violations[i].description});
+        message += (i ? "; " : "") + error.violations[i].description;
+      }
+      return failed_precondition(message, details);
+    }
+    case planner::ErrorKind::kRobotCannotFollow: {
+      // The first broken limit (time, sample, joint) in the message and every one in the details.
+      std::vector<PreconditionViolation> details;
+      for (const auto& v : error.limits) {
+        const bool per_joint = v.kind != core::LimitKind::kIk && v.kind != core::LimitKind::kBranch;
+        v1::LimitEvent event;
+        to_proto(v, event);
+        details.push_back({v1::LimitKind_Name(event.kind()),
+                           per_joint ? "joint " + std::to_string(v.joint) : "sample " + std::to_string(v.sample),
+                           describe(v)});
+      }
+      std::string message = "robot '" + error.robot + "' cannot follow the plan: " +
+                            (error.limits.empty() ? std::string("a limit is broken") : describe(error.limits.front()));
+      if (error.limits.size() > 1) {
+        message += "; and " + std::to_string(error.limits.size() - 1) +
+                   " more in the PreconditionFailure details (set robot.reportOnly for the full report)";
+      }
+      return failed_precondition(message, details);
+    }
+    case planner::ErrorKind::kStopped: return grpc::Status(grpc::StatusCode::CANCELLED, "the call was cancelled");
+    case planner::ErrorKind::kDeadlineExceeded:
+      return grpc::Status(grpc::StatusCode::DEADLINE_EXCEEDED, "the deadline passed before the work was done");
+  }
+  return grpc::Status(grpc::StatusCode::INTERNAL, "unknown planner error");
 }
 
 }  // namespace geotraj::server

@@ -1,5 +1,6 @@
-// The status-mapping file: core violations -> gRPC status with rich error details.
-// With convert.hpp, the only place where proto and core types meet.
+// The status-mapping file: core violations and planner errors -> gRPC status with rich error
+// details, each kind mapped here and nowhere else. With convert.hpp, the only place where
+// proto and core types meet.
 #pragma once
 
 #include <cstddef>
@@ -10,6 +11,7 @@
 #include <grpcpp/support/status.h>
 
 #include "core/error.hpp"
+#include "planner/planner.hpp"
 #include "server/status_codes.hpp"
 
 namespace geotraj::server {
@@ -31,6 +33,17 @@ struct PreconditionViolation {
 /// cannot follow the plan). The message is `message`; the details hold a
 /// google.rpc.PreconditionFailure with `violations`.
 grpc::Status failed_precondition(const std::string& message, const std::vector<PreconditionViolation>& violations);
+
+/// The status of a planner error, its kind mapped once:
+///   kInvalidArgument   -> INVALID_ARGUMENT with a BadRequest (invalid_argument)
+///   kUnattainable      -> FAILED_PRECONDITION "the path cannot be followed: ...", a
+///                         PreconditionFailure of type TIME_OPTIMAL per violation, its subject
+///                         the violation's field (`motion`, `motion.durationS`)
+///   kRobotCannotFollow -> FAILED_PRECONDITION naming the robot and its first broken limit,
+///                         every one in the PreconditionFailure (type LIMIT_KIND_*)
+///   kStopped           -> CANCELLED; kDeadlineExceeded -> DEADLINE_EXCEEDED (the reactor
+///                         words these after the call's own cancellation or deadline when it can)
+grpc::Status status_of(const planner::Error& error);
 
 /// `status` within what every client takes: its message cut to kMaxStatusMessageBytes and
 /// its details dropped beyond kMaxStatusDetailsBytes (invalid_argument and

@@ -264,7 +264,7 @@ void check_plan_request(const v1::PlanRequest& request) {
     v1::PathProfile response;
     grpc::Status status;
     if (request.has_analysis_points() && request.analysis_points() > kFuzzAnalysisPoints &&
-        request.analysis_points() <= server::kMaxAnalysisPoints) {
+        request.analysis_points() <= server::ServiceLimits{}.max_analysis_points) {
       v1::PlanRequest fewer = request;
       fewer.set_analysis_points(kFuzzAnalysisPoints);
       status = service.AnalyzePath(&context, fewer, &response);

@@ -1,5 +1,5 @@
-// The banded interior point method of the jerk-limited timing (optim/src/banded_ipm.hpp)
-// and its banded Cholesky (optim/src/banded_cholesky.hpp):
+// The banded interior point method of the jerk-limited timing (optim/timing/banded_ipm.hpp)
+// and its banded Cholesky (optim/timing/banded_cholesky.hpp):
 //  - the banded Cholesky solves random banded SPD systems as Eigen's dense LDLT does (same
 //    solution, same log-determinant) and refuses indefinite matrices;
 //  - the banded method (JerkSolver::kBanded, no fallback) reaches Ipopt's optimum

@@ -83,7 +83,7 @@ Expected<std::size_t> move_samples(const MotionSpec& motion, double duration, co
 // Joint-interpolated move (6.2.2.1)
 
 Expected<JointMovePlan> plan_joint_move(const RobotModel& model, const JointMoveSpec& spec, const MotionSpec& motion) {
-  Violations v = prefixed(validate_robot(model), "robot.");
+  Violations v = prefixed(validate_robot(model), "robot.model.");
   const std::size_t n = model.dof();
   const auto check_joints = [&](const std::vector<double>& q, const std::string& field) {
     if (q.size() != n) {

@@ -111,10 +111,11 @@ struct JointMovePlan {
 ///    fastest rampFraction S-curve within the speed and acceleration bounds.
 ///    The MotionSpec's Cartesian limits (maxSpeed, ...) are not used by a joint move.
 ///  - Nothing moves (q0 == q1) in minimum time: one sample at rest, duration 0.
-/// Errors (all collected): `robot.<field>` (validate_robot of `model`), `jointMove.start` /
-/// `jointMove.goal` with the wrong number of values, `jointMove.start[i]` /
-/// `jointMove.goal[i]` not finite or outside joint i's position limits, the MotionSpec's
-/// own fields (validate_motion; the Cartesian maxSpeed and maxAcceleration are not needed),
+/// Errors (all collected): `robot.model.<field>` (validate_robot of `model`, named as the
+/// request's inline model), `jointMove.start` / `jointMove.goal` with the wrong number of
+/// values, `jointMove.start[i]` / `jointMove.goal[i]` not finite or outside joint i's
+/// position limits, the MotionSpec's own fields (validate_motion; the Cartesian maxSpeed and
+/// maxAcceleration are not needed),
 /// and `motion.durationS` when the move would have more than kMaxMotionSamples samples or
 /// its speeds overflow.
 Expected<JointMovePlan> plan_joint_move(const RobotModel& model, const JointMoveSpec& spec,

@@ -6,6 +6,8 @@
 #include <limits>
 #include <string>
 
+#include <IpTNLP.hpp>
+
 #include "optim/timing/banded_cholesky.hpp"
 
 namespace geotraj::optim::detail {

@@ -42,7 +42,9 @@
 #include <string>
 #include <vector>
 
-#include <IpTNLP.hpp>
+namespace Ipopt {
+class TNLP;  // <IpTNLP.hpp>: the problem's interface, included by the solver's source only
+}  // namespace Ipopt
 
 namespace geotraj::optim::detail {
 

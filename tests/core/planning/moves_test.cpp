@@ -425,7 +425,7 @@ TEST(JointMove, WrongSizesAndABadModel) {
   broken.limits[0].max_velocity = 0.0;
   plan = core::plan_joint_move(broken, pa10_move(), fastest());
   ASSERT_FALSE(plan.has_value());
-  EXPECT_TRUE(names(plan.error(), "robot.limits[0].maxVelocity")) << listed(plan.error());
+  EXPECT_TRUE(names(plan.error(), "robot.model.limits[0].maxVelocity")) << listed(plan.error());
 }
 
 TEST(JointMove, MinimumTimeNeedsNoCartesianLimits) {

@@ -9,6 +9,10 @@
 //    ChainFkSolverPos_recursive, the same chain built from the DH table, seeded with the
 //    previous solution) on the same poses. KDL's eps = 1e-9 applies to each twist component
 //    (a norm up to sqrt(3) e-9, slightly looser than our 1e-9 m and 1e-9 rad norms).
+//  - cold IK (search_ik from the home configuration, restarts uniform within the limits) of
+//    2,000 random reachable poses per arm (the FK of configurations uniform within the
+//    limits), each solve timed alone: counters `solved` (fraction), `median_us`, `p99_us`,
+//    `worst_us`, `mean_attempts`; the argument is the Newton iterations per attempt.
 // The counter `per_sample` is the time per sample [s] (CPU time over the samples of an
 // iteration); `not_converged` counts failed samples. BM_TrackPathCWorstSample times every
 // sample alone and reports the median, 99th percentile and worst.
@@ -251,6 +255,48 @@ void BM_KdlNrJlPathC(benchmark::State& state) {
 }
 BENCHMARK(BM_KdlNrJlPathC)->Unit(benchmark::kMicrosecond);
 #endif
+
+// Cold IK of random reachable poses. Arguments: arm (0 = PA-10, 1 = UR5), Newton
+// iterations per attempt.
+void BM_ColdIk(benchmark::State& state) {
+  const auto& m = robot(static_cast<int>(state.range(0)));
+  constexpr int kPoses = 2000;
+  std::mt19937_64 rng(20261203);
+  std::vector<Eigen::Isometry3d> targets;
+  for (int k = 0; k < kPoses; ++k) {
+    core::JointVector q(static_cast<Eigen::Index>(m.dof()));
+    for (std::size_t i = 0; i < m.dof(); ++i) {
+      q(static_cast<Eigen::Index>(i)) =
+          std::uniform_real_distribution<double>(m.limits[i].min_position, m.limits[i].max_position)(rng);
+    }
+    targets.push_back(core::forward_kinematics(m, q));
+  }
+  const core::JointVector home = core::home_configuration(m);
+  core::IkSearchOptions options;
+  options.newton.max_iterations = static_cast<int>(state.range(1));
+  std::vector<double> us;
+  double solved = 0.0, attempts = 0.0;
+  for (auto _ : state) {
+    us.clear();
+    solved = attempts = 0.0;
+    for (const auto& target : targets) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const core::IkSearchResult r = core::search_ik(m, target, home, options);
+      us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+      benchmark::DoNotOptimize(r.closest.q.data());
+      solved += r.solutions.empty() ? 0.0 : 1.0;
+      attempts += r.attempts;
+    }
+  }
+  std::sort(us.begin(), us.end());
+  state.counters["solved"] = solved / kPoses;
+  state.counters["median_us"] = us[us.size() / 2];
+  state.counters["p99_us"] = us[us.size() * 99 / 100];
+  state.counters["worst_us"] = us.back();
+  state.counters["mean_attempts"] = attempts / kPoses;
+  state.SetLabel(std::string(m.name) + ", search_ik from home, " + std::to_string(state.range(1)) + " iterations an attempt");
+}
+BENCHMARK(BM_ColdIk)->ArgsProduct({{0, 1}, {10, 20, 30, 50}})->Iterations(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -82,6 +82,8 @@ echo "== ListRobots"
 for request in plan_pa10_path_c joint_move_pa10 linear_move_ur5; do
   call PlanTrajectory "$here/$request.json"
 done
+call ComputeForwardKinematics "$here/fk_pa10.json"
+call ComputeInverseKinematics "$here/ik_ur5_all.json"
 
 # StreamSamples of path A: 10 s at 100 Hz, so 1001 samples (with --emit-defaults every
 # sample prints its "t", even t = 0). Only the count is shown.

@@ -24,6 +24,8 @@
 #   linear_move_ur5.json      PlanRequest with a linearMove (thesis 6.2.2.2): the UR5's tool on a
 #                             straight line from its home pose (start absent), turning 90 degrees
 #                             about z, in 2 s
+#   fk_pa10.json              ForwardKinematicsRequest: the PA-10's tool pose, Jacobian and axes
+#   ik_ur5_all.json           InverseKinematicsRequest: every branch of a UR5 tool pose (eight)
 # Each works with StreamSamples too (the joints in every sample): StreamSamples refuses a
 # motion the robot cannot follow unless robot.reportOnly is set.
 set -euo pipefail
@@ -57,6 +59,8 @@ grpcurl -plaintext -d '{}' "$address" geotraj.v1.TrajectoryService/ListRobots
 for request in plan_pa10_path_c joint_move_pa10 linear_move_ur5; do
   call PlanTrajectory "$here/$request.json"
 done
+call ComputeForwardKinematics "$here/fk_pa10.json"
+call ComputeInverseKinematics "$here/ik_ur5_all.json"
 
 # The bad request fails on purpose: grpcurl prints the code, the message and the
 # google.rpc.BadRequest field violations.

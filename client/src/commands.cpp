@@ -254,6 +254,63 @@ int run_stream(const Connection& connection, const CallOptions& options) {
   return 0;
 }
 
+int run_fk(const Connection& connection, const CallOptions& options) {
+  v1::ForwardKinematicsRequest request;
+  if (!options.input.empty() && !read_request(options.input, request)) return 2;
+  const auto& k = options.kinematics;
+  if (!k.robot.empty()) request.mutable_robot()->set_name(k.robot);
+  if (!k.joints.empty()) {
+    request.clear_joints();
+    for (double q : k.joints) request.add_joints(q);
+  }
+  auto stub = v1::TrajectoryService::NewStub(connection.channel);
+  grpc::ClientContext context;
+  set_deadline(context, options.unary_timeout_s());
+  v1::ForwardKinematicsResponse response;
+  return answer(options, stub->ComputeForwardKinematics(&context, request, &response), response);
+}
+
+int run_ik(const Connection& connection, const CallOptions& options) {
+  v1::InverseKinematicsRequest request;
+  if (!options.input.empty() && !read_request(options.input, request)) return 2;
+  const auto& k = options.kinematics;
+  if (!k.robot.empty()) request.mutable_robot()->set_name(k.robot);
+  if (!k.seed.empty()) {
+    request.mutable_robot()->clear_initial_joints();
+    for (double q : k.seed) request.mutable_robot()->add_initial_joints(q);
+  }
+  if (!k.position.empty()) {
+    if (k.position.size() != 3) {
+      std::cerr << "geotraj: --position takes x,y,z [m]\n";
+      return 2;
+    }
+    auto* p = request.mutable_target()->mutable_position();
+    p->set_x(k.position[0]);
+    p->set_y(k.position[1]);
+    p->set_z(k.position[2]);
+  }
+  if (!k.orientation.empty()) {
+    if (k.orientation.size() != 4) {
+      std::cerr << "geotraj: --orientation takes a quaternion w,x,y,z\n";
+      return 2;
+    }
+    auto* q = request.mutable_target()->mutable_orientation();
+    q->set_w(k.orientation[0]);
+    q->set_x(k.orientation[1]);
+    q->set_y(k.orientation[2]);
+    q->set_z(k.orientation[3]);
+  }
+  if (k.restarts) request.set_restarts(*k.restarts);
+  if (k.all_solutions) request.set_all_solutions(true);
+  if (k.max_solutions) request.set_max_solutions(*k.max_solutions);
+  auto stub = v1::TrajectoryService::NewStub(connection.channel);
+  grpc::ClientContext context;
+  set_deadline(context, options.unary_timeout_s());
+  v1::InverseKinematicsResponse response;
+  const int code = answer(options, stub->ComputeInverseKinematics(&context, request, &response), response);
+  return code == 0 && !response.reachable() ? 3 : code;
+}
+
 int run_robots(const Connection& connection, const CallOptions& options) {
   auto stub = v1::TrajectoryService::NewStub(connection.channel);
   grpc::ClientContext context;

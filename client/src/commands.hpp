@@ -1,8 +1,10 @@
 // The CLI's subcommands: read a request, call the service, print the answer.
 #pragma once
 
+#include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "connection.hpp"
 
@@ -20,6 +22,18 @@ struct OptimizeFlags {
   double budget_s = 0.0;       ///< optimize.timeBudgetS when > 0
 };
 
+/// What `fk` and `ik` flags write into their requests (over a request file's own).
+struct KinematicsFlags {
+  std::string robot;                 ///< robot.name; empty: the request's
+  std::vector<double> joints;        ///< fk: the joint values [rad or m], joint 0 first
+  std::vector<double> seed;          ///< ik: robot.initialJoints
+  std::vector<double> position;      ///< ik: target.position (x, y, z) [m]
+  std::vector<double> orientation;   ///< ik: target.orientation (w, x, y, z)
+  std::optional<std::uint32_t> restarts;
+  bool all_solutions = false;
+  std::optional<std::uint32_t> max_solutions;
+};
+
 struct CallOptions {
   std::string input = "-";  ///< request file in the proto JSON mapping; "-" reads stdin
   bool json = false;        ///< print the response as proto JSON instead of a table
@@ -28,6 +42,7 @@ struct CallOptions {
   /// only (else none: a real-time stream lasts as long as its motion).
   double unary_timeout_s() const { return timeout_s > 0.0 ? timeout_s : 60.0; }
   OptimizeFlags optimize;   ///< applied to PlanRequests
+  KinematicsFlags kinematics;  ///< applied to the kinematics requests
 };
 
 // Each returns the process exit code: 0 on success, 1 when the call failed, 2 when the
@@ -38,6 +53,12 @@ int run_analyze(const Connection& connection, const CallOptions& options);
 /// StreamSamples: one line per sample on stdout, CSV with a header (default) or proto JSON
 /// lines (`json`); a progress bar on stderr when stderr is a terminal.
 int run_stream(const Connection& connection, const CallOptions& options);
+/// ComputeForwardKinematics: the tool pose, manipulability, axes and Jacobian of the joints
+/// given (flags, or a ForwardKinematicsRequest file when options.input is not empty).
+int run_fk(const Connection& connection, const CallOptions& options);
+/// ComputeInverseKinematics: the joints of a tool pose (every branch with --all), or the
+/// closest pose and its distance when out of reach (exit 3 then).
+int run_ik(const Connection& connection, const CallOptions& options);
 /// ListRobots: the models' DH tables and limits (or the response as proto JSON).
 int run_robots(const Connection& connection, const CallOptions& options);
 /// Checks grpc.health.v1.Health for `service` ("" is the whole server); 0 when SERVING.

@@ -71,12 +71,35 @@ int main(int argc, char** argv) {
   auto* stream = app.add_subcommand("stream", "StreamSamples: the motion sampled at the cycle rate, as CSV (or JSON lines with --json)");
   request_arg(stream, "a PlanRequest with `motion`");
   optimize_flags(stream);
+  auto& kin = options.kinematics;
+  auto* fk = app.add_subcommand("fk", "ComputeForwardKinematics: the tool pose, manipulability, axes and Jacobian of "
+                                      "joint values");
+  fk->add_option("--robot", kin.robot, "a built-in robot's name (see `geotraj robots`)");
+  fk->add_option("--joints", kin.joints, "joint values [rad or m], joint 0 first, comma-separated")->delimiter(',');
+  fk->add_option("--request", options.input, "or a ForwardKinematicsRequest in the proto JSON mapping (- for stdin)");
+  auto* ik = app.add_subcommand("ik", "ComputeInverseKinematics: the joints of a tool pose (exit 3 when it is out of "
+                                      "reach: the closest pose is printed)");
+  ik->add_option("--robot", kin.robot, "a built-in robot's name (see `geotraj robots`)");
+  ik->add_option("--position", kin.position, "the tool's position x,y,z in W [m]")->delimiter(',');
+  ik->add_option("--orientation", kin.orientation, "the tool's orientation as a unit quaternion w,x,y,z (default: "
+                                                   "the identity)")
+      ->delimiter(',');
+  ik->add_option("--seed", kin.seed, "the seed's joint values (default: the robot's home), joint 0 first")
+      ->delimiter(',');
+  ik->add_option("--restarts", kin.restarts, "attempts after the seed's (default 255; 0: from the seed alone)");
+  ik->add_flag("--all", kin.all_solutions, "every distinct solution the attempts find, nearest the seed first");
+  ik->add_option("--max-solutions", kin.max_solutions, "the most solutions --all returns (default 16)");
+  ik->add_option("--request", options.input, "or an InverseKinematicsRequest in the proto JSON mapping (- for stdin)");
   auto* robots = app.add_subcommand("robots", "ListRobots: the robot models the server knows, with DH tables and limits");
   auto* health = app.add_subcommand("health", "grpc.health.v1 Check: prints the serving status, exit 0 if SERVING");
   health->add_option("--service", health_service, "service name; empty: the whole server");
   app.footer("Environment only: GEOTRAJ_TOKEN, a bearer token sent on every call (secrets do not belong on a "
              "command line).");
   CLI11_PARSE(app, argc, argv);
+  // fk and ik read a request file only when --request names one (their flags suffice).
+  for (auto* sub : {fk, ik}) {
+    if (sub->parsed() && sub->count("--request") == 0) options.input.clear();
+  }
   if (!token_file.empty()) {
     std::ifstream in(token_file);
     if (!in) {
@@ -104,5 +127,7 @@ int main(int argc, char** argv) {
   if (analyze->parsed()) return geotraj::cli::run_analyze(*connection, options);
   if (stream->parsed()) return geotraj::cli::run_stream(*connection, options);
   if (robots->parsed()) return geotraj::cli::run_robots(*connection, options);
+  if (fk->parsed()) return geotraj::cli::run_fk(*connection, options);
+  if (ik->parsed()) return geotraj::cli::run_ik(*connection, options);
   return geotraj::cli::run_health(*connection, health_service, options.unary_timeout_s());
 }

@@ -246,6 +246,78 @@ void print_table(const v1::PathProfile& profile, std::ostream& out) {
   }
 }
 
+namespace {
+
+void print_pose(const char* label, const v1::Pose& pose, std::ostream& out) {
+  const auto& p = pose.position();
+  const auto& q = pose.orientation();
+  char buf[240];
+  std::snprintf(buf, sizeof buf, "%s position (%.6f, %.6f, %.6f) m, orientation (w, x, y, z) (%.6f, %.6f, %.6f, %.6f)\n",
+                label, p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z());
+  out << buf;
+}
+
+void print_joints(const google::protobuf::RepeatedField<double>& joints, std::ostream& out) {
+  char buf[32];
+  for (double q : joints) {
+    std::snprintf(buf, sizeof buf, " %10.6f", q);
+    out << buf;
+  }
+}
+
+}  // namespace
+
+void print_table(const v1::ForwardKinematicsResponse& fk, std::ostream& out) {
+  print_pose("tool:", fk.pose(), out);
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "manipulability %.6g, singular values %.6g to %.6g; joints %s their limits\n",
+                fk.manipulability(), fk.min_singular_value(), fk.max_singular_value(),
+                fk.within_limits() ? "within" : "NOT within");
+  out << buf << "joint   axis origin [m]                          axis direction\n";
+  for (int i = 0; i < fk.axes_size(); ++i) {
+    const auto& o = fk.axes(i).origin();
+    const auto& d = fk.axes(i).direction();
+    std::snprintf(buf, sizeof buf, "%5d   (%9.6f, %9.6f, %9.6f)   (%9.6f, %9.6f, %9.6f)\n", i, o.x(), o.y(), o.z(),
+                  d.x(), d.y(), d.z());
+    out << buf;
+  }
+  const int n = fk.axes_size();
+  out << "Jacobian (rows vx vy vz [m/s] wx wy wz [rad/s] per unit joint speed, columns joint 0 to " << n - 1 << "):\n";
+  for (int r = 0; r < 6 && n > 0; ++r) {
+    for (int c = 0; c < n; ++c) {
+      std::snprintf(buf, sizeof buf, " %10.6f", fk.jacobian(r * n + c));
+      out << buf;
+    }
+    out << '\n';
+  }
+}
+
+void print_table(const v1::InverseKinematicsResponse& ik, std::ostream& out) {
+  char buf[200];
+  if (!ik.reachable()) {
+    const auto& c = ik.closest();
+    std::snprintf(buf, sizeof buf,
+                  "out of reach (%u attempts, %u iterations): the closest pose is %.6g m and %.6g rad from the target\n",
+                  ik.attempts(), ik.iterations(), c.position_error(), c.orientation_error());
+    out << buf;
+    print_pose("closest:", c.pose(), out);
+    out << "joints [rad or m]:";
+    print_joints(c.joints(), out);
+    out << '\n';
+    return;
+  }
+  std::snprintf(buf, sizeof buf, "%d solution%s (%u attempts, %u iterations), nearest the seed first\n",
+                ik.solutions_size(), ik.solutions_size() == 1 ? "" : "s", ik.attempts(), ik.iterations());
+  out << buf << "   #  from seed  manipul.   joints 0.. [rad or m]\n";
+  for (int k = 0; k < ik.solutions_size(); ++k) {
+    const auto& s = ik.solutions(k);
+    std::snprintf(buf, sizeof buf, "%4d %10.4f %9.5f  ", k, s.distance_from_seed(), s.manipulability());
+    out << buf;
+    print_joints(s.joints(), out);
+    out << '\n';
+  }
+}
+
 void print_error(const grpc::Status& status, std::ostream& err) {
   err << "geotraj: " << server::status_code_name(status.error_code()) << ": " << status.error_message() << '\n';
   google::rpc::Status details;

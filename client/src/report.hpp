@@ -19,6 +19,11 @@ void print_table(const v1::RobotReport& robot, std::ostream& out);
 /// The robot models: DH table and limits of each.
 void print_table(const v1::ListRobotsResponse& robots, std::ostream& out);
 
+/// Forward kinematics: the tool pose, manipulability, axes and Jacobian.
+void print_table(const v1::ForwardKinematicsResponse& fk, std::ostream& out);
+/// Inverse kinematics: the solutions nearest the seed first, or the closest pose.
+void print_table(const v1::InverseKinematicsResponse& ik, std::ostream& out);
+
 /// The status code and message, then each google.rpc.BadRequest field violation of the
 /// status details, one per line.
 void print_error(const grpc::Status& status, std::ostream& err);

@@ -135,6 +135,13 @@ class SplitMix64 {
   std::uint64_t state_;
 };
 
+/// q (its size set) uniform within the bounds.
+void random_configuration(const JointBounds& bounds, SplitMix64& random, JointVector& q);
+
+/// search_ik on a prepared chain (ik.hpp).
+IkSearchResult search(const DhChain& chain, const JointBounds& bounds, const Eigen::Matrix3d& R_target,
+                      const Eigen::Vector3d& p_target, const JointVector& seed, const IkSearchOptions& options);
+
 /// A cold solve: newton() from the seed (clamped into the bounds, wrap on), then, while it
 /// fails, from up to options.restarts configurations uniform within the bounds (fixed
 /// seed). The best attempt (smallest position + orientation error) is returned in q.

@@ -25,6 +25,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -75,5 +77,55 @@ struct IkResult {
 /// Precondition (checked): seed.size() == model.dof(), the model is valid (validate_robot).
 IkResult solve_ik(const RobotModel& model, const Eigen::Isometry3d& X_WT_target, const JointVector& seed,
                   const IkOptions& options = {});
+
+/// A search of the whole joint range for the joints of a tool pose (the kinematics call,
+/// the goal of a move): Newton attempts from the seed, then from configurations uniform
+/// within the position limits (SplitMix64 from newton.restart_seed: the same on every
+/// platform and call). docs/kinematics.md has the measured success rates and times.
+struct IkSearchOptions {
+  /// Tolerances and trust region of every attempt; newton.max_iterations bounds one attempt
+  /// (newton.restarts is not read: max_attempts counts them).
+  IkOptions newton = [] {
+    IkOptions o;
+    o.max_iterations = 20;
+    return o;
+  }();
+  /// Attempts in all, the seed's included (>= 1): 1 is a seeded solve.
+  int max_attempts = 256;
+  /// Go on after the first solution, through every attempt, and collect the distinct ones
+  /// (the branches: the UR5's eight, the PA-10's elbow and wrist flips and its self-motion).
+  bool all_solutions = false;
+  /// The most solutions kept (all_solutions), the nearest the seed.
+  std::size_t max_solutions = 16;
+  /// Two solutions are one when every joint differs by less than this [rad or m], modulo
+  /// 2 pi on a revolute joint whose range spans 2 pi (both are the same arm pose then).
+  double distinct_tolerance = 1e-3;
+  /// Asked every 64 attempts: true ends the search there (a caller's deadline or
+  /// cancellation; IkSearchResult::stopped says so).
+  std::function<bool()> stopped;
+};
+
+/// What an IK search found.
+struct IkSearchResult {
+  /// Converged within the limits, distinct, nearest the seed first (the distance is the
+  /// Euclidean norm of q - seed, each joint whose range spans 2 pi at its representative
+  /// nearest the seed). Empty when the pose is out of reach.
+  std::vector<IkResult> solutions;
+  /// With no solution: the joints whose pose comes closest to the target, a local minimum
+  /// of |e|^2 = |p error|^2 + |orientation error|^2 (m^2 + rad^2: 1 rad of the tool's turn
+  /// weighs as 1 m) within the limits, refined from the best attempts by Levenberg-Marquardt.
+  /// With a solution: the first one.
+  IkResult closest;
+  int attempts = 0;    ///< attempts made
+  int iterations = 0;  ///< Newton (and refinement) iterations in all
+  bool stopped = false;  ///< options.stopped ended the search
+};
+
+/// Searches for X_WT(q) = X_WT_target (see IkSearchOptions). Stops at the first solution
+/// unless options.all_solutions. Needs n >= 6 joints (with fewer the search reports the
+/// closest pose only). Preconditions (checked): seed.size() == model.dof(), a valid model,
+/// max_attempts >= 1, max_solutions >= 1.
+IkSearchResult search_ik(const RobotModel& model, const Eigen::Isometry3d& X_WT_target, const JointVector& seed,
+                         const IkSearchOptions& options = {});
 
 }  // namespace geotraj::core

@@ -3,6 +3,8 @@
 
 #include <cmath>
 
+#include <Eigen/SVD>
+
 #include "core/robot/dh_chain.hpp"
 
 namespace geotraj::core {
@@ -48,6 +50,19 @@ void forward_kinematics(const RobotModel& model, const JointVector& q, Eigen::Is
   Axes a = axes_at(model, q);  // (1.9): revolute [z_i x (p - o_i); z_i], prismatic [z_i; 0]
   X_WT = isometry(a.R_WT, a.p_WT);
   J = a.J;
+}
+
+std::vector<JointAxis> joint_axes(const RobotModel& model, const JointVector& q) {
+  const Axes a = axes_at(model, q);
+  std::vector<JointAxis> out(model.dof());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i] = {a.o.col(static_cast<Eigen::Index>(i)), a.z.col(static_cast<Eigen::Index>(i))};
+  }
+  return out;
+}
+
+Eigen::VectorXd singular_values(const JointJacobian& J) {
+  return Eigen::JacobiSVD<Eigen::MatrixXd>(Eigen::MatrixXd(J)).singularValues();
 }
 
 Vector6d jacobian_dot_qdot(const RobotModel& model, const JointVector& q, const JointVector& q_dot) {

@@ -39,6 +39,20 @@ Vector6d jacobian_dot_qdot(const RobotModel& model, const JointVector& q, const 
 /// the sampling loop uses jacobian_dot_qdot.)
 std::vector<JointJacobian> influence_hessian(const RobotModel& model, const JointVector& q);
 
+/// A joint's axis in W: a point on it (the origin of the DH frame the joint turns about or
+/// slides along) [m] and its unit direction.
+struct JointAxis {
+  Eigen::Vector3d origin;
+  Eigen::Vector3d direction;
+};
+
+/// Every joint's axis at q, joint 0 first: the o_i and z_i of Eq. (1.9).
+/// Precondition (checked): q.size() == model.dof().
+std::vector<JointAxis> joint_axes(const RobotModel& model, const JointVector& q);
+
+/// The singular values of J, largest first (min(6, n) of them).
+Eigen::VectorXd singular_values(const JointJacobian& J);
+
 /// Yoshikawa's manipulability sqrt(det(J J^T)) of the 6 x n Jacobian (0 at a singularity).
 double manipulability(const JointJacobian& J);
 

@@ -36,6 +36,8 @@ std::string_view method_name(Method method) {
     case Method::kStreamSamples: return "StreamSamples";
     case Method::kAnalyzePath: return "AnalyzePath";
     case Method::kListRobots: return "ListRobots";
+    case Method::kComputeForwardKinematics: return "ComputeForwardKinematics";
+    case Method::kComputeInverseKinematics: return "ComputeInverseKinematics";
   }
   return "unknown";
 }

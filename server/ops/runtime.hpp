@@ -24,7 +24,15 @@
 namespace geotraj::server {
 
 /// The five RPCs of geotraj.v1.TrajectoryService.
-enum class Method { kConvertConstraints, kPlanTrajectory, kStreamSamples, kAnalyzePath, kListRobots };
+enum class Method {
+  kConvertConstraints,
+  kPlanTrajectory,
+  kStreamSamples,
+  kAnalyzePath,
+  kListRobots,
+  kComputeForwardKinematics,
+  kComputeInverseKinematics,
+};
 
 std::string_view method_name(Method method);
 

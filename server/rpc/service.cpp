@@ -30,6 +30,7 @@
 #include "core/format.hpp"
 #include "server/rpc/tsan.hpp"
 #include "server/wire/convert.hpp"
+#include "server/wire/kinematics.hpp"
 #include "server/wire/status.hpp"
 
 namespace geotraj::server {
@@ -388,18 +389,43 @@ grpc::Status analyze_path(const Abandon& abandon, const Services& services, cons
   return grpc::Status::OK;
 }
 
+// ComputeForwardKinematics: the tool pose, Jacobian and axes of one configuration.
+grpc::Status forward_kinematics(const Abandon& abandon, const Services& services,
+                                const v1::ForwardKinematicsRequest& request, v1::ForwardKinematicsResponse& response) {
+  if (auto stop = abandon.check()) return *stop;
+  auto input = forward_request_from_proto(request, services.robots);
+  if (!input) return invalid_argument(input.error());
+  to_proto(planner::forward_kinematics(*input), response);
+  return grpc::Status::OK;
+}
+
+// ComputeInverseKinematics: the joints of a pose, or the closest pose when out of reach.
+grpc::Status inverse_kinematics(const Abandon& abandon, const Services& services,
+                                const v1::InverseKinematicsRequest& request, v1::InverseKinematicsResponse& response) {
+  if (auto stop = abandon.check()) return *stop;
+  auto input = inverse_request_from_proto(request, services.robots);
+  if (!input) return invalid_argument(input.error());
+  auto answer = planner::inverse_kinematics(*input, budget_of(abandon, services));
+  if (!answer) return to_status(answer.error(), abandon);
+  to_proto(*answer, response);
+  return grpc::Status::OK;
+}
+
 // The methods that take a request are registered raw (bytes in, bytes out) so that a
 // request that does not parse is this service's INVALID_ARGUMENT, counted and logged like
 // any call, rather than gRPC's own answer (UNIMPLEMENTED with no message, in 1.51).
-using RawService = v1::TrajectoryService::WithRawCallbackMethod_ConvertConstraints<
-    v1::TrajectoryService::WithRawCallbackMethod_PlanTrajectory<v1::TrajectoryService::WithRawCallbackMethod_StreamSamples<
-        v1::TrajectoryService::WithRawCallbackMethod_AnalyzePath<
-            v1::TrajectoryService::WithCallbackMethod_ListRobots<v1::TrajectoryService::Service>>>>>;
+using Api = v1::TrajectoryService;
+using RawService = Api::WithRawCallbackMethod_ConvertConstraints<Api::WithRawCallbackMethod_PlanTrajectory<
+    Api::WithRawCallbackMethod_StreamSamples<Api::WithRawCallbackMethod_AnalyzePath<
+        Api::WithRawCallbackMethod_ComputeForwardKinematics<Api::WithRawCallbackMethod_ComputeInverseKinematics<
+            Api::WithCallbackMethod_ListRobots<Api::Service>>>>>>>;
 
 class TrajectoryService final : public RawService {
  public:
   // The synchronous overloads stay declared (the bases make them abort; never called).
   using RawService::AnalyzePath;
+  using RawService::ComputeForwardKinematics;
+  using RawService::ComputeInverseKinematics;
   using RawService::ConvertConstraints;
   using RawService::ListRobots;
   using RawService::PlanTrajectory;
@@ -478,6 +504,26 @@ class TrajectoryService final : public RawService {
   }
 
   // Copies the catalog: no long work, answered on gRPC's thread.
+  grpc::ServerUnaryReactor* ComputeForwardKinematics(grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
+                                                     grpc::ByteBuffer* out) override {
+    return unary(*context, Method::kComputeForwardKinematics, [this, context, in, out](std::stop_token stop) {
+      return raw<v1::ForwardKinematicsRequest, v1::ForwardKinematicsResponse>(
+          *context, *in, *out, limits().max_response_bytes, [&](const auto& request, auto& response) {
+            return forward_kinematics(abandon(*context, stop), services(), request, response);
+          });
+    });
+  }
+
+  grpc::ServerUnaryReactor* ComputeInverseKinematics(grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,
+                                                     grpc::ByteBuffer* out) override {
+    return unary(*context, Method::kComputeInverseKinematics, [this, context, in, out](std::stop_token stop) {
+      return raw<v1::InverseKinematicsRequest, v1::InverseKinematicsResponse>(
+          *context, *in, *out, limits().max_response_bytes, [&](const auto& request, auto& response) {
+            return inverse_kinematics(abandon(*context, stop), services(), request, response);
+          });
+    });
+  }
+
   grpc::ServerUnaryReactor* ListRobots(grpc::CallbackServerContext* context, const v1::ListRobotsRequest* /*request*/,
                                        v1::ListRobotsResponse* response) override {
     auto* reactor = context->DefaultReactor();

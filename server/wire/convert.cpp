@@ -416,11 +416,6 @@ void to_proto(const core::Path& path, const std::vector<core::ProfilePoint>& poi
   profile.set_arc_length(path.length());
 }
 
-// --- robots ---------------------------------------------------------------------------------
-
-namespace {
-
-// A Pose message as an isometry; violations under `field` (`robot.base`).
 Eigen::Isometry3d pose_from_proto(const v1::Pose& pose, const std::string& field, core::Violations& out) {
   Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
   const Vector3d p = to_core(pose.position());
@@ -439,15 +434,21 @@ Eigen::Isometry3d pose_from_proto(const v1::Pose& pose, const std::string& field
   return X;
 }
 
-void set(v1::Pose* out, const Eigen::Isometry3d& X) {
-  set(out->mutable_position(), X.translation());
+void to_proto(const Eigen::Isometry3d& X, v1::Pose& out) {
+  to_proto(Vector3d(X.translation()), *out.mutable_position());
   const Eigen::Quaterniond q(X.linear());
-  auto* o = out->mutable_orientation();
+  auto* o = out.mutable_orientation();
   o->set_w(q.w());
   o->set_x(q.x());
   o->set_y(q.y());
   o->set_z(q.z());
 }
+
+void to_proto(const Eigen::Vector3d& v, v1::Vec3& out) { set(&out, v); }
+
+// --- robots ---------------------------------------------------------------------------------
+
+namespace {
 
 v1::LimitKind to_proto(core::LimitKind k) {
   switch (k) {
@@ -534,13 +535,12 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
     limits->set_max_acceleration(l.max_acceleration);
     if (l.max_jerk) limits->set_max_jerk(*l.max_jerk);
   }
-  set(out.mutable_base(), model.base);
-  set(out.mutable_tool(), model.tool);
+  to_proto(model.base, *out.mutable_base());
+  to_proto(model.tool, *out.mutable_tool());
   for (double q : model.home) out.add_home(q);
 }
 
-core::Expected<planner::Robot> robot_from_request(const v1::PlanRequest& request, const RobotCatalog& catalog) {
-  const auto& spec = request.robot();
+core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog) {
   core::Violations out;
   planner::Robot resolved;
   resolved.inline_model = spec.has_model();
@@ -955,7 +955,7 @@ core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& reque
     violations = joined(std::move(violations), motion.error());
   }
   if (request.has_robot()) {
-    if (auto resolved = robot_from_request(request, catalog)) {
+    if (auto resolved = robot_from_request(request.robot(), catalog)) {
       out.robot = std::make_shared<const planner::Robot>(std::move(*resolved));
     } else {
       violations = joined(std::move(violations), resolved.error());

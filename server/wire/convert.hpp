@@ -81,6 +81,13 @@ void to_proto(const core::Path& path, const std::vector<core::AchievedFrame>& ac
 void to_proto(const core::Path& path, const std::vector<core::ProfilePoint>& points,
               v1::PathProfile& profile);
 
+/// A Pose message as an isometry (an absent orientation is the identity); violations under
+/// `field` (`robot.base.position` not finite, `robot.base.orientation` not a unit quaternion).
+Eigen::Isometry3d pose_from_proto(const v1::Pose& pose, const std::string& field, core::Violations& out);
+/// An isometry as a Pose message.
+void to_proto(const Eigen::Isometry3d& X, v1::Pose& out);
+void to_proto(const Eigen::Vector3d& v, v1::Vec3& out);
+
 // --- robots ---------------------------------------------------------------------------------
 
 /// The robot models a server knows by name: the built-in ones and those loaded from files.
@@ -105,11 +112,11 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out);
 /// Default RobotSpec.branchTolerance [m].
 inline constexpr double kDefaultBranchTolerance = 1e-3;
 
-/// PlanRequest.robot resolved against `catalog` (the model with the request's base and tool
+/// A request's `robot` resolved against `catalog` (the model with the request's base and tool
 /// applied, the seed from initialJoints or the home), or every violation (`robot.name` unknown,
 /// `robot.model...`, `robot.base.orientation`, `robot.initialJoints` size or limits,
-/// `robot.branchTolerance`). Precondition: request.has_robot().
-core::Expected<planner::Robot> robot_from_request(const v1::PlanRequest& request, const RobotCatalog& catalog);
+/// `robot.branchTolerance`); the field is `robot` in every request that has one.
+core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog);
 
 /// PlanTrajectory's joint-space report.
 void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out);

@@ -218,6 +218,42 @@ TEST(Cli, OptimizeFlagsFillTheRequest) {
   EXPECT_THAT(run.out, HasSubstr("unknown value 'flattest'"));
 }
 
+// fk and ik from flags: the pose fk prints is one ik solves, back to the same joints when
+// seeded with them; a pose out of reach exits 3 with the closest pose; bad flags exit 2.
+TEST(Cli, ForwardAndInverseKinematicsRoundTrip) {
+  const std::string joints = "0.3,-1.2,1.4,-0.8,1.1,0.5";
+  CliRun run = run_cli("--json fk --robot ur5 --joints " + joints);
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto fk = from_json<v1::ForwardKinematicsResponse>(run.out);
+  EXPECT_TRUE(fk.within_limits());
+  EXPECT_EQ(fk.jacobian_size(), 36);
+  const auto& p = fk.pose().position();
+  const auto& q = fk.pose().orientation();
+  char target[256];
+  std::snprintf(target, sizeof target, "--position %.17g,%.17g,%.17g --orientation %.17g,%.17g,%.17g,%.17g", p.x(),
+                p.y(), p.z(), q.w(), q.x(), q.y(), q.z());
+  run = run_cli("--json ik --robot ur5 --restarts 0 --seed " + joints + " " + target);
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto ik = from_json<v1::InverseKinematicsResponse>(run.out);
+  ASSERT_TRUE(ik.reachable());
+  const std::vector<double> expected = {0.3, -1.2, 1.4, -0.8, 1.1, 0.5};
+  ASSERT_EQ(ik.solutions(0).joints_size(), 6);
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(ik.solutions(0).joints(i), expected[static_cast<std::size_t>(i)], 1e-6);
+
+  run = run_cli("ik --robot ur5 --all " + std::string(target));
+  EXPECT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_THAT(run.out, HasSubstr("8 solutions"));
+  run = run_cli("ik --robot ur5 --position 2,0,0.5");
+  EXPECT_EQ(run.exit_code, 3) << run.out;
+  EXPECT_THAT(run.out, HasSubstr("out of reach"));
+  run = run_cli("ik --robot ur5 --position 2,0", true);
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.out, HasSubstr("--position takes x,y,z"));
+  run = run_cli("fk --robot ur5 --joints 0,0", true);
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_THAT(run.out, HasSubstr("joints: has 2 values for a 6-joint robot"));
+}
+
 // The same CLI against a server on a loopback port.
 class CliRemote : public ServerTest {};
 

@@ -304,13 +304,37 @@ void check_plan_request(const v1::PlanRequest& request) {
   }
 }
 
-void check_convert_request(const v1::ConvertRequest& request) {
+namespace {
+
+// One unary call of the stub's `method` on `request`, with the deadline, checked.
+template <class Response, class Request, class Method>
+void checked_call(const Request& request, std::string_view rpc, Method method) {
   const auto start = Clock::now();
   grpc::ClientContext context;
   set_deadline(context);
-  v1::ConvertResponse response;
-  const auto status = stub().ConvertConstraints(&context, request, &response);
-  check_unary(status, response, "ConvertConstraints", request, start);
+  Response response;
+  const auto status = (stub().*method)(&context, request, &response);
+  check_unary(status, response, rpc, request, start);
+}
+
+}  // namespace
+
+void check_convert_request(const v1::ConvertRequest& request) {
+  checked_call<v1::ConvertResponse>(request, "ConvertConstraints", &v1::TrajectoryService::Stub::ConvertConstraints);
+}
+
+void check_kinematics_request(const v1::ForwardKinematicsRequest& request) {
+  checked_call<v1::ForwardKinematicsResponse>(request, "ComputeForwardKinematics",
+                                              &v1::TrajectoryService::Stub::ComputeForwardKinematics);
+}
+
+void check_kinematics_request(const v1::InverseKinematicsRequest& request) {
+  v1::InverseKinematicsRequest bounded = request;
+  if (request.has_restarts() && request.restarts() > kFuzzIkRestarts && request.restarts() <= 100000) {
+    bounded.set_restarts(kFuzzIkRestarts);
+  }
+  checked_call<v1::InverseKinematicsResponse>(bounded, "ComputeInverseKinematics",
+                                              &v1::TrajectoryService::Stub::ComputeInverseKinematics);
 }
 
 }  // namespace geotraj::fuzz

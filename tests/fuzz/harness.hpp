@@ -61,6 +61,15 @@ void check_plan_request(const v1::PlanRequest& request);
 /// ConvertConstraints on `request`, checked.
 void check_convert_request(const v1::ConvertRequest& request);
 
+/// ComputeInverseKinematics: a fuzzed restarts above this is lowered to it (a valid 100000
+/// restarts is a second of solves, ten under the sanitizers: the deadline would end it, and
+/// the fuzzer would spend its time there). Larger values are passed on (INVALID_ARGUMENT).
+inline constexpr std::uint32_t kFuzzIkRestarts = 1000;
+
+/// ComputeForwardKinematics and ComputeInverseKinematics on `request`, checked.
+void check_kinematics_request(const v1::ForwardKinematicsRequest& request);
+void check_kinematics_request(const v1::InverseKinematicsRequest& request);
+
 /// Aborts (after printing `what`, the field path and `context`) when some double or float
 /// of `message`, at any depth, repeated or not, is NaN or infinite.
 void require_finite(const google::protobuf::Message& message, std::string_view what,

@@ -7,6 +7,9 @@
 //   OUT_DIR/seeds/fuzz_robot_model_json/   the built-in robot models and every request's
 //                                          robot.model, as robot model files (proto3 JSON)
 //   OUT_DIR/seeds/fuzz_http_head/          the hand-written request heads
+//   OUT_DIR/seeds/fuzz_kinematics/         every example that is a Forward- or
+//                                          InverseKinematicsRequest, binary after its
+//                                          selector byte (0 forward, 1 inverse)
 //   OUT_DIR/<target>.dict                  for the JSON targets: every field name (JSON and
 //                                          proto spelling) and enum value of the messages,
 //                                          and the JSON tokens of proto3's special numbers
@@ -121,7 +124,7 @@ int main(int argc, char** argv) {
   const fs::path examples = argv[2];
   const fs::path extra = argv[3];
   const fs::path seeds = out / "seeds";
-  int counts[5] = {0, 0, 0, 0, 0};
+  int counts[6] = {0, 0, 0, 0, 0, 0};
 
   // The documented example requests.
   for (const auto& file : files_in(examples, true)) {
@@ -137,6 +140,15 @@ int main(int argc, char** argv) {
         write(seeds / "fuzz_robot_model_json" / (stem + "_robot.json"), to_json(plan.robot().model()));
         counts[3]++;
       }
+    }
+    geotraj::v1::ForwardKinematicsRequest forward;
+    geotraj::v1::InverseKinematicsRequest inverse;
+    if (parse_json(text, forward)) {
+      write(seeds / "fuzz_kinematics" / (stem + ".bin"), std::string(1, '\0') + forward.SerializeAsString());
+      counts[5]++;
+    } else if (parse_json(text, inverse)) {
+      write(seeds / "fuzz_kinematics" / (stem + ".bin"), std::string(1, '\1') + inverse.SerializeAsString());
+      counts[5]++;
     }
     geotraj::v1::ConvertRequest convert;
     if (parse_json(text, convert)) {
@@ -199,7 +211,7 @@ int main(int argc, char** argv) {
   write_dictionary(out / "fuzz_plan_request_json.dict", geotraj::v1::PlanRequest::descriptor());
   write_dictionary(out / "fuzz_robot_model_json.dict", geotraj::v1::RobotModel::descriptor());
   std::printf("fuzz_seed_tool: seeds: %d fuzz_plan_request, %d fuzz_plan_request_json, %d fuzz_convert, "
-              "%d fuzz_robot_model_json, %d fuzz_http_head\n",
-              counts[0], counts[1], counts[2], counts[3], counts[4]);
+              "%d fuzz_robot_model_json, %d fuzz_http_head, %d fuzz_kinematics\n",
+              counts[0], counts[1], counts[2], counts[3], counts[4], counts[5]);
   return 0;
 }

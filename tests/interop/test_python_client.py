@@ -419,6 +419,51 @@ class PythonClient(unittest.TestCase):
                     worst = max(worst, abs(measured - 0.5 * (a.speed + b.speed)))
                 self.assertLess(worst, 1e-2 * peak)
 
+    def test_kinematics_calls(self):
+        # ComputeForwardKinematics against the forward kinematics written here; the pose it
+        # gives back through ComputeInverseKinematics (cold, from the home), whose joints
+        # reproduce it here; every branch of a UR5 pose; the closest pose out of reach.
+        import random
+        rng = random.Random(20261203)
+        models = self.robot_models()
+        for name in ("pa10", "ur5"):
+            m = models[name]
+            for _ in range(20):
+                q = [rng.uniform(lim.min_position, lim.max_position) for lim in m.limits]
+                fk = self.stub.ComputeForwardKinematics(pb.ForwardKinematicsRequest(robot=pb.RobotSpec(name=name), joints=q))
+                x = forward_kinematics(m, q)
+                mine = pose_matrix(fk.pose)
+                for i in range(3):
+                    for j in range(4):
+                        self.assertAlmostEqual(mine[i][j], x[i][j], delta=1e-12)
+                self.assertEqual(len(fk.jacobian), 6 * len(q))
+                self.assertTrue(fk.within_limits)
+                ik = self.stub.ComputeInverseKinematics(
+                    pb.InverseKinematicsRequest(robot=pb.RobotSpec(name=name), target=fk.pose))
+                self.assertTrue(ik.reachable, name)
+                y = forward_kinematics(m, ik.solutions[0].joints)
+                self.assertLess(math.dist(translation(y), translation(x)), 1e-8)
+                for i in range(3):
+                    for j in range(3):
+                        self.assertAlmostEqual(y[i][j], x[i][j], delta=1e-8)
+                for lim, qi in zip(m.limits, ik.solutions[0].joints):
+                    self.assertTrue(lim.min_position <= qi <= lim.max_position)
+        ur5 = models["ur5"]
+        q = [0.3, -1.2, 1.4, -0.8, 1.1, 0.5]
+        fk = self.stub.ComputeForwardKinematics(pb.ForwardKinematicsRequest(robot=pb.RobotSpec(name="ur5"), joints=q))
+        every = self.stub.ComputeInverseKinematics(pb.InverseKinematicsRequest(
+            robot=pb.RobotSpec(name="ur5"), target=fk.pose, all_solutions=True, restarts=1999))
+        self.assertEqual(len(every.solutions), 8)
+        for s in every.solutions:
+            self.assertLess(math.dist(translation(forward_kinematics(ur5, s.joints)), translation(pose_matrix(fk.pose))), 1e-8)
+        far = pb.InverseKinematicsRequest(robot=pb.RobotSpec(name="ur5"))
+        v3(far.target.position, 2.0, 0.0, 0.5)
+        out = self.stub.ComputeInverseKinematics(far)
+        self.assertFalse(out.reachable)
+        self.assertEqual(len(out.solutions), 0)
+        reached = translation(forward_kinematics(ur5, out.closest.joints))
+        self.assertAlmostEqual(out.closest.position_error, math.dist(reached, (2.0, 0.0, 0.5)), delta=1e-9)
+
     def test_robot_cannot_follow_details(self):
         # Path A in the thesis's 10 s is too fast for the PA-10: FAILED_PRECONDITION with a
         # google.rpc.PreconditionFailure listing the report's violations.

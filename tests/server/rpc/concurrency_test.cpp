@@ -107,6 +107,21 @@ class Concurrency : public ::testing::Test {
         status = read_stream(stub, example<v1::PlanRequest>("joint_move_pa10.json"), samples, *ctx);
         break;
       }
+      case 11: {  // forward kinematics
+        v1::ForwardKinematicsResponse response;
+        status = stub.ComputeForwardKinematics(ctx.get(), example<v1::ForwardKinematicsRequest>("fk_pa10.json"),
+                                               &response);
+        break;
+      }
+      case 12: {  // every branch of a UR5 pose (256 attempts of IK)
+        v1::InverseKinematicsResponse response;
+        status = stub.ComputeInverseKinematics(ctx.get(), example<v1::InverseKinematicsRequest>("ik_ur5_all.json"),
+                                               &response);
+        if (status.ok()) {
+          EXPECT_EQ(response.solutions_size(), 8);
+        }
+        break;
+      }
       default: {  // a health watch, read until cancelled or its deadline
         auto health_stub = grpc::health::v1::Health::NewStub(channel_for(stub));
         grpc::health::v1::HealthCheckRequest request;
@@ -133,7 +148,7 @@ class Concurrency : public ::testing::Test {
   server::RunningServer running_;
 };
 
-constexpr int kKinds = 12;
+constexpr int kKinds = 14;
 
 TEST_F(Concurrency, EveryRpcManyAtOnceSomeCancelledMidway) {
   constexpr int kClients = 6;

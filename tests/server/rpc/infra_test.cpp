@@ -144,7 +144,8 @@ TEST_F(InfraTest, ReflectionDescribesTheService) {
     std::vector<std::string> methods;
     for (const auto& m : file.service(0).method()) methods.push_back(m.name());
     EXPECT_THAT(methods, ::testing::ElementsAre("ConvertConstraints", "PlanTrajectory", "StreamSamples",
-                                                "AnalyzePath", "ListRobots"));
+                                                "AnalyzePath", "ListRobots", "ComputeForwardKinematics",
+                                                "ComputeInverseKinematics"));
     found = true;
   }
   EXPECT_TRUE(found) << "geotraj/v1/geotraj.proto not among the files sent";

@@ -8,6 +8,7 @@
 #include "core/format.hpp"
 #include "core/geometry/analysis.hpp"
 #include "core/motion/orientation.hpp"
+#include "core/robot/ik.hpp"
 #include "core/robot/kinematics.hpp"
 #include "optim/timing/time_optimal_jerk.hpp"
 
@@ -28,6 +29,10 @@ Error invalid(core::Violations violations) {
 void observe(const Budget& budget, std::string_view optimizer, Clock::time_point started) {
   if (budget.on_optimizer) budget.on_optimizer(optimizer, seconds_since(started));
 }
+
+// How far [rad or m] the last joints of a straight line to joint values may end from them:
+// the tracking's IK converges to 1e-9 on the goal's pose, so any larger gap is a branch.
+constexpr double kGoalJointTolerance = 1e-6;
 
 // Samples between two checks of the budget in the joint-space pass: an IK sample costs about
 // a microsecond when the pose is within reach and milliseconds when the solver fails on one
@@ -135,20 +140,86 @@ Expected<core::MotionPlan> time_optimal_timing(const core::Path& path, const cor
   return plan;
 }
 
+// The goal joints of a joint move to a pose: the IK solution nearest the start, every
+// branch searched; out of reach, kUnattainable on `jointMove.goalPose` with the distance.
+Expected<core::JointMoveSpec> resolve(const JointMoveToPose& move, const Robot& robot, const Budget& budget) {
+  core::JointMoveSpec spec{move.start, {}};
+  const auto n = static_cast<Eigen::Index>(robot.model.dof());
+  if (static_cast<Eigen::Index>(move.start.size()) != n) return spec;  // plan_joint_move names it
+  const core::JointVector start = Eigen::Map<const Eigen::VectorXd>(move.start.data(), n);
+  core::IkSearchOptions options;
+  options.all_solutions = true;
+  options.max_solutions = 1;  // the nearest the start
+  options.stopped = [&budget] { return budget.stop_requested() || budget.expired(); };
+  const core::IkSearchResult found = core::search_ik(robot.model, move.goal, start, options);
+  if (found.stopped) {
+    if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+  }
+  if (found.solutions.empty()) {
+    return tl::unexpected(invalid(core::Violations{core::unattainable(
+        "jointMove.goalPose", "is out of the robot's reach: the closest pose it reaches is " +
+                                  core::number(found.closest.position_error, 6) + " m and " +
+                                  core::number(found.closest.orientation_error, 6) + " rad away")}));
+  }
+  const core::JointVector& goal = found.solutions.front().q;
+  spec.goal.assign(goal.data(), goal.data() + goal.size());
+  return spec;
+}
+
+// The straight line to joint values: from the start pose to their forward kinematics.
+// Joint values of the wrong count or outside the limits are named on `linearMove.goalJoints`.
+Expected<core::LinearMoveSpec> resolve(const LinearMoveToJoints& move, const Robot& robot) {
+  const std::size_t n = robot.model.dof();
+  core::Violations v;
+  if (move.goal.size() != n) {
+    v.push_back({"linearMove.goalJoints", "has " + std::to_string(move.goal.size()) + " values for a " +
+                                              std::to_string(n) + "-joint robot: give one per joint"});
+  } else {
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& l = robot.model.limits[i];
+      if (!(move.goal[i] >= l.min_position && move.goal[i] <= l.max_position)) {
+        v.push_back({"linearMove.goalJoints[" + std::to_string(i) + "]",
+                     core::number(move.goal[i]) + " is outside joint " + std::to_string(i) + "'s position limits [" +
+                         core::number(l.min_position) + ", " + core::number(l.max_position) + "]"});
+      }
+    }
+  }
+  if (!v.empty()) return tl::unexpected(invalid(std::move(v)));
+  const core::JointVector q = Eigen::Map<const Eigen::VectorXd>(move.goal.data(), static_cast<Eigen::Index>(n));
+  const Eigen::Isometry3d X = core::forward_kinematics(robot.model, q);
+  core::LinearMoveSpec spec;
+  spec.start = move.start;
+  spec.goal.p_WT = X.translation();
+  spec.goal.q_WT = Eigen::Quaterniond(X.linear());
+  return spec;
+}
+
 // The trajectory of a request with a motion.
 Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget& budget, Clock::time_point deadline,
                                            OptimizerReports& reports) {
   const core::MotionSpec& motion = *request.motion;
   const Robot* robot = request.robot.get();
-  if (const auto* move = std::get_if<core::JointMoveSpec>(&request.geometry)) {
-    auto plan = core::plan_joint_move(robot->model, *move, motion);
+  const auto joint_move = [&](const core::JointMoveSpec& move) -> Expected<core::Trajectory> {
+    auto plan = core::plan_joint_move(robot->model, move, motion);
     if (!plan) return tl::unexpected(invalid(std::move(plan.error())));
     return core::Trajectory(std::in_place_type<core::JointMovePlan>, std::move(*plan));
-  }
-  if (const auto* move = std::get_if<core::LinearMoveSpec>(&request.geometry)) {
-    auto plan = core::plan_linear_move(*move, motion);
+  };
+  const auto linear_move = [&](const core::LinearMoveSpec& move) -> Expected<core::Trajectory> {
+    auto plan = core::plan_linear_move(move, motion);
     if (!plan) return tl::unexpected(invalid(std::move(plan.error())));
     return core::Trajectory(std::in_place_type<core::LinearMovePlan>, std::move(*plan));
+  };
+  if (const auto* move = std::get_if<core::JointMoveSpec>(&request.geometry)) return joint_move(*move);
+  if (const auto* move = std::get_if<core::LinearMoveSpec>(&request.geometry)) return linear_move(*move);
+  if (const auto* move = std::get_if<JointMoveToPose>(&request.geometry)) {
+    auto spec = resolve(*move, *robot, budget);
+    if (!spec) return tl::unexpected(std::move(spec.error()));
+    return joint_move(*spec);
+  }
+  if (const auto* move = std::get_if<LinearMoveToJoints>(&request.geometry)) {
+    auto spec = resolve(*move, *robot);
+    if (!spec) return tl::unexpected(std::move(spec.error()));
+    return linear_move(*spec);
   }
   auto spec = optimized_path(request, budget, deadline, reports);
   if (!spec) return tl::unexpected(std::move(spec.error()));
@@ -183,8 +254,13 @@ void add(ToolPeaks& peaks, const core::TrajectorySample& sample) {
 }
 
 // The joint-space pass over every sample (IK at each): the joint report and the tool's peaks.
-Expected<std::pair<core::JointMotionReport, ToolPeaks>> robot_pass(const core::Trajectory& trajectory,
-                                                                   const Robot& robot, const Budget& budget) {
+struct RobotPass {
+  core::JointMotionReport joints;
+  ToolPeaks peaks;
+  core::JointVector last;  ///< the joints of the last sample
+};
+
+Expected<RobotPass> robot_pass(const core::Trajectory& trajectory, const Robot& robot, const Budget& budget) {
   core::TrajectorySampler sampler(trajectory, &robot.model, robot.seed);
   core::JointReportBuilder builder(robot.model, robot.branch_tolerance);
   core::TrajectorySample sample;
@@ -197,7 +273,24 @@ Expected<std::pair<core::JointMotionReport, ToolPeaks>> robot_pass(const core::T
       if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
     }
   }
-  return std::make_pair(builder.report(), peaks);
+  return RobotPass{builder.report(), peaks, sample.joints.q};
+}
+
+// A straight line to joint values must end at them, not on another branch of their pose.
+std::optional<Error> ends_at_goal(const Request& request, const core::JointVector& last) {
+  const auto* move = std::get_if<LinearMoveToJoints>(&request.geometry);
+  if (move == nullptr || last.size() != static_cast<Eigen::Index>(move->goal.size())) return std::nullopt;
+  double worst = 0.0;
+  std::size_t joint = 0;
+  for (std::size_t i = 0; i < move->goal.size(); ++i) {
+    const double d = std::abs(last(static_cast<Eigen::Index>(i)) - move->goal[i]);
+    if (d > worst) worst = d, joint = i;
+  }
+  if (worst <= kGoalJointTolerance) return std::nullopt;
+  return invalid(core::Violations{core::unattainable(
+      "linearMove.goalJoints", "the straight line brings the robot to the goal's pose on another branch: joint " +
+                                   std::to_string(joint) + " ends " + core::number(worst, 6) +
+                                   " from its goal value; reach these joints with a jointMove")});
 }
 
 // The tool's peaks without a robot: the samples without IK.
@@ -284,7 +377,7 @@ Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& 
   if (request.robot) {
     auto pass = robot_pass(*result.trajectory, *request.robot, budget);
     if (!pass) return tl::unexpected(std::move(pass.error()));
-    auto& [joints, peaks] = *pass;
+    auto& [joints, peaks, last] = *pass;
     // reportOnly streams a motion that breaks joint limits (for simulation and analysis),
     // never one whose IK failed or jumped branches: those joints would be meaningless.
     const bool only_limits = std::all_of(joints.violations.begin(), joints.violations.end(), [](const auto& e) {
@@ -293,6 +386,9 @@ Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& 
     const bool allowed = request.robot->report_only && (purpose == Purpose::kPlan || only_limits);
     if (!joints.feasible() && !allowed) {
       return tl::unexpected(Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, request.robot->model.name});
+    }
+    if (joints.feasible()) {
+      if (auto refused = ends_at_goal(request, last)) return tl::unexpected(std::move(*refused));
     }
     if (purpose == Purpose::kPlan) result.tool = peaks;
     result.joints = std::move(joints);

@@ -56,8 +56,24 @@ struct Optimize {
   double budget_s = 10.0;     ///< all optimisers of the request together [s]
 };
 
-/// What a request plans: the key frames of a path, a joint move or a straight-line move.
-using Geometry = std::variant<core::PathSpec, core::JointMoveSpec, core::LinearMoveSpec>;
+/// A joint-interpolated move to a tool pose (Appendix C): the goal's joints are the IK
+/// solution nearest the start, every branch searched (core::search_ik).
+struct JointMoveToPose {
+  std::vector<double> start;  ///< [rad or m], one per joint
+  Eigen::Isometry3d goal = Eigen::Isometry3d::Identity();  ///< X_WT at the goal
+};
+
+/// A straight-line move to joint values (Appendix C, Cartesian-interpolated): the goal pose
+/// is their forward kinematics, and the robot tracking the line must end at them.
+struct LinearMoveToJoints {
+  core::ToolPose start;       ///< X_WT at the start
+  std::vector<double> goal;   ///< [rad or m], one per joint
+};
+
+/// What a request plans: the key frames of a path, a joint move or a straight-line move,
+/// each move to joints or to a pose.
+using Geometry = std::variant<core::PathSpec, core::JointMoveSpec, core::LinearMoveSpec, JointMoveToPose,
+                              LinearMoveToJoints>;
 
 /// Everything a plan request says, converted once by the wire layer.
 struct Request {

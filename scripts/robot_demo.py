@@ -95,7 +95,7 @@ def plot(filename, path, t, q, qd, qdd, model):
         svg.append(f'<line x1="{x}" x2="{x + 24}" y1="{y}" y2="{y}" stroke="{COLOURS[j % len(COLOURS)]}" '
                    f'stroke-width="2"/>')
         lim = model["limits"][j]
-        svg.append(f'<text x="{x + 30}" y="{y + 4}">joint {j + 1} (|qd| &lt;= {lim["maxVelocity"]:.3g})</text>')
+        svg.append(f'<text x="{x + 30}" y="{y + 4}">joint {j} (|qd| &lt;= {lim["maxVelocity"]:.3g})</text>')
     svg.append("</svg>")
     with open(filename, "w") as f:
         f.write("\n".join(svg) + "\n")
@@ -127,7 +127,7 @@ def time_optimal(cli, tmp, model, out):
             rows = list(csv.DictReader(io.StringIO(run(cli, "stream", name))))
             n = len(model["links"])
             t = [float(r["t"]) for r in rows]
-            series = [[[float(r[f"{k}{j + 1}"]) for r in rows] for j in range(n)] for k in ("q", "qd", "qdd")]
+            series = [[[float(r[f"{k}{j}"]) for r in rows] for j in range(n)] for k in ("q", "qd", "qdd")]
             file = os.path.join(out, "joints_path_c_time_optimal.svg")
             plot(file, "C (time-optimal)", t, *series, model)
             print(f"wrote {file} ({len(rows)} samples): every joint velocity and acceleration within its limit")
@@ -152,9 +152,9 @@ def main():
             rows = list(csv.DictReader(io.StringIO(run(cli, "stream", req))))
             n = len(model["links"])
             t = [float(r["t"]) for r in rows]
-            q = [[float(r[f"q{j + 1}"]) for r in rows] for j in range(n)]
-            qd = [[float(r[f"qd{j + 1}"]) for r in rows] for j in range(n)]
-            qdd = [[float(r[f"qdd{j + 1}"]) for r in rows] for j in range(n)]
+            q = [[float(r[f"q{j}"]) for r in rows] for j in range(n)]
+            qd = [[float(r[f"qd{j}"]) for r in rows] for j in range(n)]
+            qdd = [[float(r[f"qdd{j}"]) for r in rows] for j in range(n)]
             name = os.path.join(out, f"joints_path_{path.lower()}.svg")
             plot(name, path, t, q, qd, qdd, model)
             print(f"wrote {name} ({len(rows)} samples)")

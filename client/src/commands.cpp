@@ -206,10 +206,10 @@ int run_stream(const Connection& connection, const CallOptions& options) {
         (void)google::protobuf::util::MessageToJsonString(s, &json, print);
         std::cout << json << '\n';
       } else {
-        if (!header_written) {  // joint columns q1.., qd1.., qdd1.. when the samples carry joints
+        if (!header_written) {  // joint columns q0.., qd0.., qdd0.. (joint 0 at the base) when the samples carry joints
           std::cout << "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz";
           for (const char* name : {"q", "qd", "qdd"}) {
-            for (int j = 1; j <= s.joints_size(); ++j) std::cout << ',' << name << j;
+            for (int j = 0; j < s.joints_size(); ++j) std::cout << ',' << name << j;
           }
           std::cout << '\n';
           header_written = true;

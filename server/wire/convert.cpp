@@ -691,25 +691,30 @@ void to_proto(const std::string& robot_name, const core::JointMotionReport& repo
   for (const auto& b : report.binding) to_proto(b, *out.add_binding());
 }
 
-core::Expected<core::JointMoveSpec> joint_move_from_request(const v1::PlanRequest& request,
-                                                             const core::RobotModel& /*model*/,
-                                                             const core::JointVector& seed) {
+core::Expected<planner::Geometry> joint_move_from_request(const v1::PlanRequest& request,
+                                                          const core::JointVector& seed) {
   const auto& move = request.joint_move();
-  core::JointMoveSpec spec;
+  std::vector<double> start;
   if (move.start_size() == 0) {
-    spec.start.assign(seed.data(), seed.data() + seed.size());
+    start.assign(seed.data(), seed.data() + seed.size());
   } else {
-    spec.start.assign(move.start().begin(), move.start().end());
+    start.assign(move.start().begin(), move.start().end());
   }
-  spec.goal.assign(move.goal().begin(), move.goal().end());
-  if (spec.goal.empty()) {
-    return tl::unexpected(core::Violations{{"jointMove.goal", "is required: the joint values at the goal, one per joint"}});
+  const bool joints = move.goal_size() > 0;
+  if (joints == move.has_goal_pose()) {
+    return tl::unexpected(core::Violations{
+        {"jointMove.goal", joints ? "give `goal` (joint values) or `goalPose` (a tool pose), not both"
+                                  : "is required: the joint values at the goal, one per joint (or `goalPose`)"}});
   }
-  return spec;  // sizes and limits: core::plan_joint_move
+  if (joints) return planner::Geometry(core::JointMoveSpec{std::move(start), {move.goal().begin(), move.goal().end()}});
+  core::Violations out;
+  const Eigen::Isometry3d goal = pose_from_proto(move.goal_pose(), "jointMove.goalPose", out);
+  if (!out.empty()) return tl::unexpected(std::move(out));
+  return planner::Geometry(planner::JointMoveToPose{std::move(start), goal});
 }
 
-core::Expected<core::LinearMoveSpec> linear_move_from_request(const v1::PlanRequest& request,
-                                                               const planner::Robot* robot) {
+core::Expected<planner::Geometry> linear_move_from_request(const v1::PlanRequest& request,
+                                                           const planner::Robot* robot) {
   const auto& move = request.linear_move();
   core::Violations out;
   core::LinearMoveSpec spec;
@@ -731,13 +736,28 @@ core::Expected<core::LinearMoveSpec> linear_move_from_request(const v1::PlanRequ
   } else {
     out.push_back({"linearMove.start", "is required without a robot (with one, the pose of its initialJoints)"});
   }
-  if (move.has_goal()) {
+  const bool joints = move.goal_joints_size() > 0;
+  if (joints && move.has_goal()) {
+    out.push_back({"linearMove.goal", "give `goal` (a tool pose) or `goalJoints` (joint values), not both"});
+  } else if (joints) {
+    if (robot == nullptr) out.push_back({"linearMove.goalJoints", "needs `robot`: the joints belong to a robot model"});
+    for (int i = 0; i < move.goal_joints_size(); ++i) {
+      if (!std::isfinite(move.goal_joints(i))) {
+        out.push_back({"linearMove.goalJoints[" + std::to_string(i) + "]",
+                       "must be finite, got " + core::number(move.goal_joints(i))});
+      }
+    }
+  } else if (move.has_goal()) {
     spec.goal = tool_pose(move.goal());
   } else {
-    out.push_back({"linearMove.goal", "is required: the tool pose at the end of the move"});
+    out.push_back({"linearMove.goal", "is required: the tool pose at the end of the move (or `goalJoints`)"});
   }
   if (!out.empty()) return tl::unexpected(std::move(out));
-  return spec;
+  if (joints) {
+    return planner::Geometry(
+        planner::LinearMoveToJoints{spec.start, {move.goal_joints().begin(), move.goal_joints().end()}});
+  }
+  return planner::Geometry(spec);
 }
 
 void to_proto(const core::TrajectorySample& sample, v1::Sample& out) {
@@ -966,7 +986,7 @@ core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& reque
       violations.push_back({"robot", "is required by a jointMove: the joints belong to a robot model"});
     }
     if (!violations.empty()) return tl::unexpected(std::move(violations));
-    auto move = joint_move_from_request(request, out.robot->model, out.robot->seed);
+    auto move = joint_move_from_request(request, out.robot->seed);
     if (!move) return tl::unexpected(std::move(move.error()));
     out.geometry = std::move(*move);
     return out;

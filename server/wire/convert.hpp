@@ -132,16 +132,19 @@ std::string describe(const core::LimitEvent& event);
 /// One streamed sample of any trajectory, with the joints when it has them.
 void to_proto(const core::TrajectorySample& sample, v1::Sample& out);
 
-/// PlanRequest.jointMove as a core spec: an empty start takes `seed` (initialJoints or the
-/// home configuration); sizes and limits are checked (`jointMove.goal[3]`, ...).
-core::Expected<core::JointMoveSpec> joint_move_from_request(const v1::PlanRequest& request,
-                                                             const core::RobotModel& model,
-                                                             const core::JointVector& seed);
+/// PlanRequest.jointMove as the planner's geometry: a core::JointMoveSpec (goal joints) or a
+/// planner::JointMoveToPose (goalPose); an empty start takes `seed` (initialJoints or the
+/// home configuration). Exactly one of `goal` and `goalPose`; sizes and limits of the joints
+/// are core::plan_joint_move's checks (`jointMove.goal[3]`, ...).
+core::Expected<planner::Geometry> joint_move_from_request(const v1::PlanRequest& request,
+                                                          const core::JointVector& seed);
 
-/// PlanRequest.linearMove as a core spec: an absent start takes the pose of the robot's
-/// seed configuration (with a robot); poses are checked (`linearMove.goal.orientation`).
-core::Expected<core::LinearMoveSpec> linear_move_from_request(const v1::PlanRequest& request,
-                                                               const planner::Robot* robot);
+/// PlanRequest.linearMove as the planner's geometry: a core::LinearMoveSpec (goal pose) or a
+/// planner::LinearMoveToJoints (goalJoints, with a robot); an absent start takes the pose of
+/// the robot's seed configuration (with a robot); poses are checked
+/// (`linearMove.goal.orientation`).
+core::Expected<planner::Geometry> linear_move_from_request(const v1::PlanRequest& request,
+                                                           const planner::Robot* robot);
 
 // --- optimisation --------------------------------------------------------------------------
 

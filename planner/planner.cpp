@@ -260,6 +260,27 @@ struct RobotPass {
   core::JointVector last;  ///< the joints of the last sample
 };
 
+// A path is followed from where the robot is: its first tool pose must be the pose of the
+// robot's initial joints (within the robot's start tolerances), else kUnattainable on
+// `robot.initialJoints` with the distance.
+std::optional<Error> starts_at_robot(const core::Trajectory& trajectory, const Robot& robot) {
+  if (!std::holds_alternative<core::PathMotion>(trajectory)) return std::nullopt;
+  core::TrajectorySampler sampler(trajectory, nullptr, {});
+  core::TrajectorySample first;
+  if (!sampler.next(first)) return std::nullopt;
+  const Eigen::Isometry3d X = core::forward_kinematics(robot.model, robot.seed);
+  const double dp = (first.tool.X_WT.translation() - X.translation()).norm();
+  const double dr = Eigen::AngleAxisd(first.tool.X_WT.linear() * X.linear().transpose()).angle();
+  if (dp <= robot.start_position_tolerance && dr <= robot.start_orientation_tolerance) return std::nullopt;
+  return invalid(core::Violations{core::unattainable(
+      "robot.initialJoints",
+      "the path starts " + core::number(dp, 6) + " m and " + core::number(dr, 6) +
+          " rad from the tool pose of the robot's initial joints (tolerances " +
+          core::number(robot.start_position_tolerance) + " m, " + core::number(robot.start_orientation_tolerance) +
+          " rad: robot.startPositionTolerance, robot.startOrientationTolerance): move the robot to the path's "
+          "start first (a jointMove with goalPose), or give initialJoints there")});
+}
+
 Expected<RobotPass> robot_pass(const core::Trajectory& trajectory, const Robot& robot, const Budget& budget) {
   core::TrajectorySampler sampler(trajectory, &robot.model, robot.seed);
   core::JointReportBuilder builder(robot.model, robot.branch_tolerance);
@@ -375,6 +396,7 @@ Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& 
   }
   if (auto refused = sample_limit(*result.trajectory, limits)) return tl::unexpected(std::move(*refused));
   if (request.robot) {
+    if (auto refused = starts_at_robot(*result.trajectory, *request.robot)) return tl::unexpected(std::move(*refused));
     auto pass = robot_pass(*result.trajectory, *request.robot, budget);
     if (!pass) return tl::unexpected(std::move(pass.error()));
     auto& [joints, peaks, last] = *pass;

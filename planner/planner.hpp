@@ -44,6 +44,9 @@ struct Robot {
   core::JointVector seed;          ///< the initial joints, or the model's home [rad, m]
   bool report_only = false;        ///< report broken limits instead of refusing the plan
   double branch_tolerance = 1e-3;  ///< [m]
+  /// How far a path's first tool pose may be from the pose of `seed` [m], [rad].
+  double start_position_tolerance = 1e-4;
+  double start_orientation_tolerance = 1e-3;
   bool inline_model = false;       ///< given as `robot.model` (not by name): where its errors point
 };
 

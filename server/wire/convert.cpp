@@ -577,6 +577,17 @@ core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, con
       out.push_back({"robot.branchTolerance", "must be finite and > 0 [m], got " + core::number(resolved.branch_tolerance, 6)});
     }
   }
+  const auto tolerance = [&out](bool given, double value, const char* field, const char* unit, double& to) {
+    if (!given) return;
+    if (!(std::isfinite(value) && value > 0.0)) {
+      out.push_back({field, std::string("must be finite and > 0 [") + unit + "], got " + core::number(value)});
+    }
+    to = value;
+  };
+  tolerance(spec.has_start_position_tolerance(), spec.start_position_tolerance(), "robot.startPositionTolerance",
+            "m", resolved.start_position_tolerance);
+  tolerance(spec.has_start_orientation_tolerance(), spec.start_orientation_tolerance(),
+            "robot.startOrientationTolerance", "rad", resolved.start_orientation_tolerance);
   const std::size_t n = resolved.model.dof();
   if (n > 0) {
     if (spec.initial_joints_size() == 0) {

@@ -239,7 +239,13 @@ TEST(Robot, AnUnreachableReportOnlyPlanHasNoInfinity) {
   }
   request.mutable_robot()->set_report_only(true);
   v1::PlanResponse response;
-  const auto status = stub->PlanTrajectory(short_context(120).get(), request, &response);
+  // A path that does not start at the robot is refused first, naming how far it is.
+  auto status = stub->PlanTrajectory(short_context(120).get(), request, &response);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << status.error_message();
+  EXPECT_THAT(status.error_message(), HasSubstr("the path starts 5 m and "));
+  // Tolerated (for simulation), it is reported sample by sample.
+  request.mutable_robot()->set_start_position_tolerance(10.0);
+  status = stub->PlanTrajectory(short_context(120).get(), request, &response);
   ASSERT_TRUE(status.ok()) << status.error_message();
   EXPECT_EQ(response.robot().converged_samples(), 0u);
   EXPECT_FALSE(response.robot().feasible());

@@ -48,6 +48,17 @@ std::vector<google::rpc::PreconditionFailure::Violation> precondition_violations
   return out;
 }
 
+void set_pose(v1::Pose& out, const Eigen::Isometry3d& X) {
+  const Eigen::Quaterniond q(X.linear());
+  out.mutable_position()->set_x(X.translation().x());
+  out.mutable_position()->set_y(X.translation().y());
+  out.mutable_position()->set_z(X.translation().z());
+  out.mutable_orientation()->set_w(q.w());
+  out.mutable_orientation()->set_x(q.x());
+  out.mutable_orientation()->set_y(q.y());
+  out.mutable_orientation()->set_z(q.z());
+}
+
 class RobotTest : public ServerTest {
  protected:
   v1::ListRobotsResponse list_robots() {
@@ -448,6 +459,40 @@ TEST_F(RobotTest, InlineModelWithMinPositionAboveMaxPosition) {
   EXPECT_NE(violation_of(violations, "robot.model.limits[3].minPosition"), "") << describe(violations);
 }
 
+// A path 14 cm from the PA-10's home (its tool pose at the initial joints) is refused: the
+// robot would jump to it at the first sample. FAILED_PRECONDITION names the distance; the
+// same path from initialJoints at its start plans.
+TEST_F(RobotTest, APathMustStartWhereTheRobotIs) {
+  auto request = pa10_path_a(60.0, false);
+  for (auto& frame : *request.mutable_path()->mutable_frames()) {
+    frame.mutable_position()->set_y(frame.position().y() + 0.14);
+  }
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << status.error_message();
+  const auto violations = precondition_violations(status);
+  ASSERT_EQ(violations.size(), 1u);
+  EXPECT_EQ(violations[0].subject(), "robot.initialJoints");
+  EXPECT_THAT(violations[0].description(), HasSubstr("the path starts 0.14 m and "));
+  grpc::Status stream_status;
+  EXPECT_TRUE(stream_all(request, stream_status).empty());
+  EXPECT_EQ(stream_status.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+
+  // The joints of the path's start (the IK nearest the home), given as initialJoints.
+  const auto pa10 = robot_model("pa10");
+  v1::InverseKinematicsRequest ik;
+  ik.mutable_robot()->set_name("pa10");
+  Eigen::Isometry3d start = forward_kinematics(pa10, pa10.home());
+  start.translation().y() += 0.14;
+  set_pose(*ik.mutable_target(), start);
+  v1::InverseKinematicsResponse at_start;
+  ASSERT_TRUE(stub_->ComputeInverseKinematics(context().get(), ik, &at_start).ok());
+  ASSERT_TRUE(at_start.reachable());
+  *request.mutable_robot()->mutable_initial_joints() = at_start.solutions(0).joints();
+  const auto planned = plan(request, response);
+  EXPECT_TRUE(planned.ok()) << planned.error_message();
+}
+
 TEST_F(RobotTest, JointMoveNeedsARobot) {
   auto request = from_json<v1::PlanRequest>(
       R"({"jointMove": {"goal": [0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8]}, "motion": {"durationS": 3}})");
@@ -537,17 +582,6 @@ TEST_F(RobotTest, MinimumTimeJointMoveNeedsNoCartesianLimits) {
   grpc::Status stream_status;
   EXPECT_EQ(stream_all(request, stream_status).size(), response.motion().sample_count());
   EXPECT_TRUE(stream_status.ok()) << stream_status.error_message();
-}
-
-void set_pose(v1::Pose& out, const Eigen::Isometry3d& X) {
-  const Eigen::Quaterniond q(X.linear());
-  out.mutable_position()->set_x(X.translation().x());
-  out.mutable_position()->set_y(X.translation().y());
-  out.mutable_position()->set_z(X.translation().z());
-  out.mutable_orientation()->set_w(q.w());
-  out.mutable_orientation()->set_x(q.x());
-  out.mutable_orientation()->set_y(q.y());
-  out.mutable_orientation()->set_z(q.z());
 }
 
 // Appendix C's joint move to a pose: the UR5 from its home to the pose of other joints, in

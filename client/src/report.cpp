@@ -216,13 +216,15 @@ void print_table(const v1::ListRobotsResponse& robots, std::ostream& out) {
   for (const auto& m : robots.robots()) {
     out << m.name() << "  (" << m.links_size() << " joints, "
         << short_enum(v1::DhConvention_Name(m.dh_convention()), "DH_CONVENTION_") << " DH)\n  " << m.description()
-        << "\n  joint  type          a [m]  alpha [rad]       d [m]  theta [rad]     min q     max q  max qd  max qdd\n";
+        << "\n  joint  name           type          a [m]  alpha [rad]       d [m]  theta [rad]     min q     max q  "
+           "max qd  max qdd\n";
     for (int i = 0; i < m.links_size(); ++i) {
       const auto& l = m.links(i);
       const auto& lim = m.limits(i);
-      char buf[200];
-      std::snprintf(buf, sizeof buf, "  %5d  %-9s %9.5f %12.6f %11.5f %12.6f %9.4f %9.4f %7.4f %8.4f\n", i,
-                    short_enum(v1::JointType_Name(l.joint_type()), "JOINT_TYPE_").c_str(), l.a(), l.alpha(), l.d(),
+      char buf[300];
+      std::snprintf(buf, sizeof buf, "  %5d  %-14.14s %-9s %9.5f %12.6f %11.5f %12.6f %9.4f %9.4f %7.4f %8.4f\n", i,
+                    l.name().c_str(), short_enum(v1::JointType_Name(l.joint_type()), "JOINT_TYPE_").c_str(), l.a(),
+                    l.alpha(), l.d(),
                     l.theta() + l.offset(), lim.min_position(), lim.max_position(), lim.max_velocity(),
                     lim.max_acceleration());
       out << buf;

@@ -3,6 +3,7 @@
 #include "core/format.hpp"
 
 #include <cmath>
+#include <initializer_list>
 #include <cstdio>
 #include <numbers>
 #include <string>
@@ -38,6 +39,11 @@ JointLimits revolute_limits(double range_deg, double speed_deg_s, double accel_d
 // manufacturer's PA10-7C specification (S1 177, S2 94, S3 174, E1 137, E2 255, W1 165,
 // W2 255 degrees; 57 deg/s on S1, S2, 114 deg/s on S3, E1, 360 deg/s on E2, W1, W2).
 // Acceleration limits are not published: 2 x the speed limit per second is assumed.
+void name_joints(RobotModel& m, std::initializer_list<const char*> names) {
+  std::size_t i = 0;
+  for (const char* name : names) m.links[i++].name = name;
+}
+
 RobotModel pa10() {
   RobotModel m;
   m.name = "pa10";
@@ -62,6 +68,7 @@ RobotModel pa10() {
   // (W2 = +180 deg is the same pose, but the demo paths then turn W2 to within 0.02 rad of
   // its +255 deg limit; from -180 deg they keep it 1.3 rad away).
   m.home = {0.0, -0.761313, 0.0, 1.567648, 0.0, 0.764461, -std::numbers::pi};
+  name_joints(m, {"S1", "S2", "S3", "E1", "E2", "W1", "W2"});  // Mitsubishi's names, shoulder to wrist
   return m;
 }
 
@@ -84,6 +91,7 @@ RobotModel ur5() {
              {0.0, h, 0.10915, 0.0},   {0.0, -h, 0.09465, 0.0}, {0.0, 0.0, 0.0823, 0.0}};
   for (int i = 0; i < 6; ++i) m.limits.push_back(revolute_limits(360, 180, 360));
   m.home = {0.0, -h, h, -h, -h, 0.0};
+  name_joints(m, {"shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"});  // Universal Robots' names
   return m;
 }
 
@@ -106,6 +114,10 @@ Violations validate_robot(const RobotModel& model) {
         {"a", l.a}, {"alpha", l.alpha}, {"d", l.d}, {"theta", l.theta}, {"offset", l.offset}};
     for (const auto& [name, v] : values) {
       if (!std::isfinite(v)) out.push_back({idx("links", i, name), "must be finite, got " + number(v)});
+    }
+    if (l.name.size() > kMaxJointName) {
+      out.push_back({idx("links", i, "name"), "has " + std::to_string(l.name.size()) + " bytes; at most " +
+                                                   std::to_string(kMaxJointName)});
     }
   }
   for (std::size_t i = 0; i < model.limits.size(); ++i) {

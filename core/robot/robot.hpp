@@ -52,7 +52,13 @@ struct DhLink {
   double theta = 0.0;
   JointType type = JointType::kRevolute;
   double offset = 0.0;  ///< added to theta (revolute) [rad] or d (prismatic) [m] with q
+  /// The joint's name for people ("S1", "shoulder_pan"); joints are numbered from 0 at the
+  /// base everywhere, the name says which one that is. Empty: none. At most kMaxJointName bytes.
+  std::string name{};
 };
+
+/// The longest joint name [bytes].
+inline constexpr std::size_t kMaxJointName = 64;
 
 /// One joint's limits (proto JointLimits).
 struct JointLimits {

@@ -485,7 +485,7 @@ core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& mo
     m.links.push_back({l.a(), l.alpha(), l.d(), l.theta(),
                        l.joint_type() == v1::JOINT_TYPE_PRISMATIC ? core::JointType::kPrismatic
                                                                   : core::JointType::kRevolute,
-                       l.offset()});
+                       l.offset(), l.name()});
   }
   for (const auto& l : model.limits()) {
     core::JointLimits limits{l.min_position(), l.max_position(), l.max_velocity(), l.max_acceleration(),
@@ -526,6 +526,7 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
     link->set_theta(l.theta);
     link->set_joint_type(l.type == core::JointType::kPrismatic ? v1::JOINT_TYPE_PRISMATIC : v1::JOINT_TYPE_REVOLUTE);
     link->set_offset(l.offset);
+    link->set_name(l.name);
   }
   for (const auto& l : model.limits) {
     auto* limits = out.add_limits();

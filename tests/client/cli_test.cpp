@@ -97,6 +97,8 @@ TEST(Cli, RobotsListsTheBuiltInModels) {
   ASSERT_EQ(run.exit_code, 0) << run.out;
   EXPECT_THAT(run.out, HasSubstr("pa10  (7 joints, MODIFIED DH)"));
   EXPECT_THAT(run.out, HasSubstr("ur5  (6 joints, STANDARD DH)"));
+  EXPECT_THAT(run.out, HasSubstr("      0  S1             REVOLUTE"));
+  EXPECT_THAT(run.out, HasSubstr("      5  wrist_3        REVOLUTE"));
 
   const CliRun json = run_cli("--json robots");
   ASSERT_EQ(json.exit_code, 0) << json.out;

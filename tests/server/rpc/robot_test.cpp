@@ -127,6 +127,14 @@ TEST_F(RobotTest, ListRobotsReturnsTheBuiltInModelsInFull) {
       EXPECT_LE(m.home(i), lim.max_position()) << "joint " << i;
     }
   }
+  // Joints numbered from 0 at the base, named as their makers name them.
+  std::vector<std::string> pa10_names, ur5_names;
+  const auto pa10_model = robot_model("pa10"), ur5_model = robot_model("ur5");
+  for (const auto& l : pa10_model.links()) pa10_names.push_back(l.name());
+  for (const auto& l : ur5_model.links()) ur5_names.push_back(l.name());
+  EXPECT_EQ(pa10_names, (std::vector<std::string>{"S1", "S2", "S3", "E1", "E2", "W1", "W2"}));
+  EXPECT_EQ(ur5_names,
+            (std::vector<std::string>{"shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"}));
   // The PA-10's home puts the tool on the first key frame of the thesis's demonstration
   // paths (Table 7.8: (0.106, 0, 0.975) m), so a demo plan starts where the arm rests.
   const auto pa10 = robot_model("pa10");
@@ -447,6 +455,16 @@ TEST_F(RobotTest, InlineModelWithANaNLink) {
   *request.mutable_robot()->mutable_model() = m;
   const auto violations = refused(request);
   EXPECT_THAT(violation_of(violations, "robot.model.links[1].a"), HasSubstr("finite")) << describe(violations);
+}
+
+TEST_F(RobotTest, InlineModelWithTooLongAJointName) {
+  auto request = pa10_path_a(60.0, false);
+  auto m = robot_model("pa10");
+  m.mutable_links(2)->set_name(std::string(65, 'x'));
+  *request.mutable_robot()->mutable_model() = m;
+  const auto violations = refused(request);
+  EXPECT_THAT(violation_of(violations, "robot.model.links[2].name"), HasSubstr("65 bytes; at most 64"))
+      << describe(violations);
 }
 
 TEST_F(RobotTest, InlineModelWithMinPositionAboveMaxPosition) {

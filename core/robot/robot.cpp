@@ -113,7 +113,12 @@ Violations validate_robot(const RobotModel& model) {
     const std::pair<const char*, double> values[] = {
         {"a", l.a}, {"alpha", l.alpha}, {"d", l.d}, {"theta", l.theta}, {"offset", l.offset}};
     for (const auto& [name, v] : values) {
-      if (!std::isfinite(v)) out.push_back({idx("links", i, name), "must be finite, got " + number(v)});
+      if (!std::isfinite(v)) {
+        out.push_back({idx("links", i, name), "must be finite, got " + number(v)});
+      } else if (std::abs(v) > kMaxModelMagnitude) {
+        out.push_back({idx("links", i, name), "magnitude must be at most " + number(kMaxModelMagnitude) + ", got " +
+                                                  number(v)});
+      }
     }
     if (l.name.size() > kMaxJointName) {
       out.push_back({idx("links", i, "name"), "has " + std::to_string(l.name.size()) + " bytes; at most " +
@@ -122,8 +127,15 @@ Violations validate_robot(const RobotModel& model) {
   }
   for (std::size_t i = 0; i < model.limits.size(); ++i) {
     const JointLimits& l = model.limits[i];
-    if (!std::isfinite(l.min_position)) out.push_back({idx("limits", i, "minPosition"), "must be finite"});
-    if (!std::isfinite(l.max_position)) out.push_back({idx("limits", i, "maxPosition"), "must be finite"});
+    for (const auto& [name, v] : {std::pair<const char*, double>{"minPosition", l.min_position},
+                                  std::pair<const char*, double>{"maxPosition", l.max_position}}) {
+      if (!std::isfinite(v)) {
+        out.push_back({idx("limits", i, name), "must be finite"});
+      } else if (std::abs(v) > kMaxModelMagnitude) {
+        out.push_back({idx("limits", i, name), "magnitude must be at most " + number(kMaxModelMagnitude) + ", got " +
+                                                   number(v)});
+      }
+    }
     if (std::isfinite(l.min_position) && std::isfinite(l.max_position) && l.min_position > l.max_position) {
       out.push_back({idx("limits", i, "minPosition"),
                      number(l.min_position) + " is above maxPosition " + number(l.max_position)});

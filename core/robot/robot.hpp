@@ -60,6 +60,11 @@ struct DhLink {
 /// The longest joint name [bytes].
 inline constexpr std::size_t kMaxJointName = 64;
 
+/// The largest |length| of a model (a, d, offset [m]) and |joint value| (position limits,
+/// joint values given to the kinematics [rad or m]): far beyond any arm, and small enough
+/// that no pose, Jacobian or manipulability of 12 joints overflows.
+inline constexpr double kMaxModelMagnitude = 1e6;
+
 /// One joint's limits (proto JointLimits).
 struct JointLimits {
   double min_position = 0.0;   ///< [rad or m]

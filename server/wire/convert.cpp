@@ -721,6 +721,10 @@ core::Expected<planner::Geometry> joint_move_from_request(const v1::PlanRequest&
   if (joints) return planner::Geometry(core::JointMoveSpec{std::move(start), {move.goal().begin(), move.goal().end()}});
   core::Violations out;
   const Eigen::Isometry3d goal = pose_from_proto(move.goal_pose(), "jointMove.goalPose", out);
+  if (goal.translation().allFinite() && goal.translation().cwiseAbs().maxCoeff() > core::PathLimits{}.max_coordinate) {
+    out.push_back({"jointMove.goalPose.position",
+                   "coordinates must lie within " + core::number(core::PathLimits{}.max_coordinate) + " m of the origin"});
+  }
   if (!out.empty()) return tl::unexpected(std::move(out));
   return planner::Geometry(planner::JointMoveToPose{std::move(start), goal});
 }

@@ -52,7 +52,11 @@ core::Expected<planner::ForwardRequest> forward_request_from_proto(const v1::For
       converted.joints.resize(static_cast<Eigen::Index>(n));
       for (std::size_t i = 0; i < n; ++i) {
         const double q = request.joints(static_cast<int>(i));
-        if (!std::isfinite(q)) out.push_back({"joints[" + std::to_string(i) + "]", "must be finite, got " + core::number(q)});
+        if (!(std::isfinite(q) && std::abs(q) <= core::kMaxModelMagnitude)) {
+          out.push_back({"joints[" + std::to_string(i) + "]", "must be finite with a magnitude of at most " +
+                                                                  core::number(core::kMaxModelMagnitude) + ", got " +
+                                                                  core::number(q)});
+        }
         converted.joints(static_cast<Eigen::Index>(i)) = q;
       }
     }
@@ -70,6 +74,11 @@ core::Expected<planner::InverseRequest> inverse_request_from_proto(const v1::Inv
     out.push_back({"target", "is required: the tool pose in W to reach (position [m], orientation)"});
   } else {
     converted.target = pose_from_proto(request.target(), "target", out);
+    if (converted.target.translation().allFinite() &&
+        converted.target.translation().cwiseAbs().maxCoeff() > kMaxTargetCoordinate) {
+      out.push_back({"target.position", "coordinates must lie within " + core::number(kMaxTargetCoordinate) +
+                                            " m of the origin"});
+    }
   }
   auto& search = converted.search;
   const std::uint32_t restarts = request.has_restarts() ? request.restarts() : kDefaultIkRestarts;

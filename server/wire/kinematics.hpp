@@ -15,14 +15,16 @@ inline constexpr std::uint32_t kDefaultIkRestarts = 255;
 inline constexpr std::uint32_t kMaxIkRestarts = 100'000;
 inline constexpr std::uint32_t kDefaultIkSolutions = 16;
 inline constexpr std::uint32_t kMaxIkSolutions = 1000;
+/// The largest |coordinate| of an IK target [m], as for a key frame (core::PathLimits).
+inline constexpr double kMaxTargetCoordinate = 1e6;
 
 /// A ForwardKinematicsRequest converted, or every violation: `robot` (required; as in a
-/// PlanRequest), `joints` (one per joint, finite).
+/// PlanRequest), `joints` (one per joint, finite, magnitude at most 1e6).
 core::Expected<planner::ForwardRequest> forward_request_from_proto(const v1::ForwardKinematicsRequest& request,
                                                                    const RobotCatalog& catalog);
 
 /// An InverseKinematicsRequest converted, or every violation: `robot`, `target` (required;
-/// finite position, unit quaternion), `restarts`, `maxSolutions`, `positionTolerance`,
+/// a position within 1e6 m of the origin, a unit quaternion), `restarts`, `maxSolutions`, `positionTolerance`,
 /// `orientationTolerance` (their ranges in the proto).
 core::Expected<planner::InverseRequest> inverse_request_from_proto(const v1::InverseKinematicsRequest& request,
                                                                    const RobotCatalog& catalog);

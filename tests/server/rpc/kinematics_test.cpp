@@ -271,6 +271,20 @@ TEST_F(KinematicsTest, BadRequestsNameTheirFields) {
     EXPECT_THAT(violation_of(violations, "positionTolerance"), HasSubstr("above 0")) << describe(violations);
     EXPECT_THAT(violation_of(violations, "orientationTolerance"), HasSubstr("at most pi")) << describe(violations);
   }
+  {  // magnitudes beyond any arm: no pose or error could be computed without overflow
+    v1::ForwardKinematicsRequest forward;
+    forward.mutable_robot()->set_name("ur5");
+    for (double x : {1e300, 0.0, 0.0, 0.0, 0.0, 0.0}) forward.add_joints(x);
+    v1::ForwardKinematicsResponse fk_response;
+    const auto fk_violations = bad_request_violations(fk(forward, fk_response));
+    EXPECT_THAT(violation_of(fk_violations, "joints[0]"), HasSubstr("magnitude of at most")) << describe(fk_violations);
+    v1::InverseKinematicsRequest inverse;
+    inverse.mutable_robot()->set_name("ur5");
+    inverse.mutable_target()->mutable_position()->set_x(1e200);
+    v1::InverseKinematicsResponse ik_response;
+    const auto ik_violations = bad_request_violations(ik(inverse, ik_response));
+    EXPECT_THAT(violation_of(ik_violations, "target.position"), HasSubstr("within 1e+06 m")) << describe(ik_violations);
+  }
   {
     v1::InverseKinematicsRequest request;
     request.mutable_robot()->set_name("pa10");

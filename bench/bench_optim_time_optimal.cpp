@@ -98,7 +98,7 @@ void BM_JerkPlan(benchmark::State& state) {
   core::Expected<optim::JerkLimitedPlan> r;
   for (auto _ : state) {
     r = optim::plan_time_optimal_jerk(setup().path, setup().orientation, spec, &robot,
-                                      core::home_configuration(robot), {}, opt);
+                                      core::home_configuration(robot), optim::jerk_exact_options(), opt);
     benchmark::DoNotOptimize(r);
   }
   if (!r) {

@@ -113,11 +113,15 @@ Expected<core::MotionPlan> time_optimal_timing(const core::Path& path, const cor
     optim::JerkTimingOptions options;
     options.time_budget_s = std::max(0.0, std::chrono::duration<double>(deadline - started).count());
     options.stop = budget.stop;
-    auto result = optim::plan_time_optimal_jerk(path, orientation, motion, model, seed, {}, options);
+    auto result = optim::plan_time_optimal_jerk(path, orientation, motion, model, seed, optim::jerk_exact_options(), options);
     if (!result) return tl::unexpected(invalid(std::move(result.error())));
     plan = std::move(result->motion);
     timing.binding = result->exact.binding;
     timing.report = result->report;
+    timing.check_rate_hz = result->check_rate_hz;
+    timing.worst_limit_usage = result->worst_sample_usage;
+    timing.refinements = result->refinements;
+    timing.duration_grid_error_s = result->duration_grid_error;
   } else {
     auto result = core::plan_time_optimal(path, orientation, motion, model, seed);
     if (!result) return tl::unexpected(invalid(std::move(result.error())));
@@ -125,6 +129,10 @@ Expected<core::MotionPlan> time_optimal_timing(const core::Path& path, const cor
     timing.binding = std::move(result->binding);
     timing.report.status = optim::OptimizerStatus::kConverged;
     timing.report.iterations = result->refinements + 1;
+    timing.check_rate_hz = result->check_rate_hz;
+    timing.worst_limit_usage = result->worst_sample_usage;
+    timing.refinements = result->refinements;
+    timing.duration_grid_error_s = result->duration_grid_error;
   }
   observe(budget, jerk_limited ? "time_optimal_jerk" : "time_optimal", started);
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));

@@ -138,10 +138,20 @@ struct ToolPeaks {
   double angular_speed = 0.0;  ///< |omega_WT| [rad/s]
 };
 
-/// What the timing optimiser did, with which limit binds where along the path.
+/// What the timing optimiser did, with which limit binds where along the path, and how far
+/// its result can be trusted between the samples and from its grid.
 struct TimingReport {
   optim::OptimizerReport report;
   std::vector<core::BindingStretch> binding;
+  /// The finest rate at which every limit was checked on the result (the cycle rate, then
+  /// core::TimeOptimalOptions::check_rate_hz) [Hz].
+  double check_rate_hz = 0.0;
+  /// The largest value / limit over every sample checked (velocity, acceleration, jerk).
+  double worst_limit_usage = 0.0;
+  /// Re-solves after a sample broke a limit.
+  int refinements = 0;
+  /// |T(N) - T(N / 2)| [s]: the duration's error from the grid, estimated.
+  double duration_grid_error_s = 0.0;
 };
 
 /// The reports of the optimisers that ran.

@@ -156,6 +156,13 @@ void print_table(const v1::OptimizationReport& report, std::ostream& out) {
   if (report.has_timing()) {
     const auto& t = report.timing();
     print_optimizer("timing", "s", t, out);
+    if (t.check_rate_hz() > 0.0) {
+      char row[240];
+      std::snprintf(row, sizeof row,
+                    "  limits checked at %g Hz: worst %.9g of a limit after %u re-solves; duration grid error %.3g s\n",
+                    t.check_rate_hz(), t.worst_limit_usage(), t.refinements(), t.duration_grid_error_s());
+      out << row;
+    }
     if (t.binding_size() > 0) out << "  which limit binds where:\n";
     for (const auto& b : t.binding()) {
       char row[240];

@@ -156,6 +156,46 @@ Expected<SpeedProfile> scurve_profile(double length, double duration, double ram
   return b.finish(length);
 }
 
+Expected<SpeedProfile> continuous_acceleration_profile(const std::vector<double>& dt, const std::vector<double>& u,
+                                                       double length) {
+  const std::size_t N = dt.size();
+  const bool finite = std::all_of(dt.begin(), dt.end(), [](double x) { return std::isfinite(x) && x > 0.0; }) &&
+                      std::all_of(u.begin(), u.end(), [](double x) { return std::isfinite(x); });
+  if (N < 2 || u.size() != N || !finite || !std::isfinite(length) || !(length > 0.0))
+    return tl::make_unexpected(Violations{{"motion", "a smoothed grid profile needs at least 2 intervals of positive "
+                                                     "duration, finite accelerations and a positive length"}});
+  // Grid point i at the grid's time T_i (i = 0 .. N) steps u_{i-1} -> u_i (u_{-1} = u_N = 0:
+  // the rests) over its window; every time is shifted by h_0, so the motion starts with
+  // point 0's window at t = 0.
+  auto half_width = [&](std::size_t i) {
+    return i == 0 ? dt[0] / 4 : i == N ? dt[N - 1] / 4 : std::min(dt[i - 1], dt[i]) / 2;
+  };
+  Builder b;
+  double T_i = 0.0, v_min = 0.0, v_max = 0.0;
+  const double shift = half_width(0);
+  for (std::size_t i = 0; i <= N; ++i) {
+    const double h = half_width(i), before = i == 0 ? 0.0 : u[i - 1], after = i == N ? 0.0 : u[i];
+    b.add(T_i + shift - h - b.t, 0.0);  // at u_{i-1} up to the window (nothing before point 0's)
+    const double v0 = b.v, a0 = b.a, j = (after - before) / (2 * h);
+    b.add(2 * h, j);
+    v_min = std::min(v_min, b.v), v_max = std::max(v_max, b.v);
+    if (j != 0.0) {  // the speed's extremum inside the window, where a = a0 + j t = 0
+      const double at = -a0 / j;
+      if (at > 0.0 && at < 2 * h) v_min = std::min(v_min, v0 + at * (a0 + at * j / 2));
+    }
+    if (i < N) T_i += dt[i];
+  }
+  if (v_min < -1e-9 * v_max || !(b.s > 0.0))
+    return tl::make_unexpected(Violations{core::unattainable(
+        "motion", "smoothing the grid profile's acceleration steps turns the speed negative (" + number(v_min, 6) +
+                      " m/s): use a finer grid")});
+  // Each window moves the position by (u_i - u_{i-1}) h_i^2 / 6 (the speed is exact at both of
+  // its ends): the whole motion is scaled to end after exactly `length` (s, v, a, j alike).
+  const double scale = length / b.s;
+  for (ProfilePiece& q : b.profile.pieces) q.s0 *= scale, q.v0 *= scale, q.a0 *= scale, q.j *= scale;
+  return b.finish(length);
+}
+
 Expected<SpeedProfile> min_time_trapezoid(double length, double v_max, double a_max) {
   Violations v;
   check_length(length, v);

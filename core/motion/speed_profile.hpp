@@ -91,6 +91,28 @@ Expected<SpeedProfile> min_time_trapezoid(double length, double v_max, double a_
 /// `rampFraction`, `maxSpeed`, `maxAcceleration`.
 Expected<SpeedProfile> min_time_scurve(double length, double ramp_fraction, double v_max, double a_max);
 
+/// The grid profile of a timing optimiser with its acceleration steps smoothed out, so that
+/// the jerk is finite at any sampling rate and the motion starts and ends with zero
+/// acceleration. Input: N >= 2 intervals, interval i lasting dt_i > 0 [s] at the constant
+/// acceleration u_i [m/s^2] (a profile whose acceleration steps at the grid points T_i, the
+/// sums of the dt before i), and the length L > 0 [m] they cover from rest to rest.
+/// Output: each step u_{i-1} -> u_i (u_{-1} = u_N = 0: the rests) replaced by a linear ramp
+/// of jerk (u_i - u_{i-1}) / (2 h_i) over a window [T_i - h_i, T_i + h_i]:
+///   interior points  h_i = min(dt_{i-1}, dt_i) / 2   (windows never overlap),
+///   the rests        h_0 = dt_0 / 4, h_N = dt_{N-1} / 4,
+/// the rests' windows taking the whole motion later by h_0 and longer by h_0 + h_N (at the
+/// rests the jerk is then u_0 / (dt_0 / 2), the j_0 of time_optimal_jerk.hpp; inside, the
+/// jerk is the j_i there, (u_i - u_{i-1}) / tau_i, where neighbouring intervals last alike,
+/// and up to twice it where one lasts much longer). A linear ramp centred on the step keeps
+/// the speed at both ends of its window exactly (so the speed at every grid point is the
+/// grid's: no drift along the path) and moves the position by (u_i - u_{i-1}) h_i^2 / 6;
+/// the profile is then scaled by L / s(T') so that it ends after exactly L (a relative change
+/// of the order of (dt / T)^2). Constant jerk pieces, the acceleration continuous and zero at
+/// both ends. Errors (field `motion`): the inputs are not as stated, or the speed turns
+/// negative inside a window (a grid too coarse for its accelerations).
+Expected<SpeedProfile> continuous_acceleration_profile(const std::vector<double>& dt, const std::vector<double>& u,
+                                                       double length);
+
 /// Minimum-time double S (seven phases, rest to rest; Biagiotti & Melchiorri 3.4) under
 /// v_max, a_max and |jerk| <= j_max [m/s^3]. Cases: v_max reached or not (then the peak
 /// speed v_lim < v_max and there is no cruise), and a_max reached or not (then each

@@ -262,6 +262,13 @@ std::string describe(const BindingStretch& st) {
          " m, t " + number(st.t_start, 6) + "-" + number(st.t_end, 6) + " s";
 }
 
+std::vector<std::size_t> every_second_point(std::size_t n) {
+  std::vector<std::size_t> points;
+  for (std::size_t i = 0; i < n; i += 2) points.push_back(i);
+  if (n > 0 && points.back() != n - 1) points.push_back(n - 1);
+  return points;
+}
+
 Expected<TimeOptimalSolution> solve_time_optimal(const std::vector<GridPoint>& grid, const TimeOptimalLimits& limits) {
   return sweep(grid, limits, nullptr);
 }
@@ -371,45 +378,97 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
   GEOTRAJ_CHECK(grids.size() == motion.portions.size());
   SampleCheck out;
   out.shrink.resize(grids.size());
-  for (std::size_t p = 0; p < grids.size(); ++p) out.shrink[p].assign(grids[p].size(), 1.0);
-  MotionSampler sampler(path, motion);
+  out.jerk_shrink.resize(grids.size());
+  for (std::size_t p = 0; p < grids.size(); ++p) {
+    out.shrink[p].assign(grids[p].size(), 1.0);
+    out.jerk_shrink[p].assign(grids[p].size(), 1.0);
+  }
+  const bool joint_jerk = limits.joint_jerk.size() > 0 &&
+                          (limits.joint_jerk.array() < kInf).any();
+  const bool path_jerk = limits.jerk < kInf;
   std::optional<JointTracker> tracker;
   if (robot) tracker.emplace(*robot, seed, options.ik);
   MotionSample ms;
   JointSample js;
-  while (sampler.next(ms)) {
-    const MotionPortion& por = motion.portions[ms.portion];
-    const std::size_t N = grids[ms.portion].size() - 1;
-    const double h = por.length / static_cast<double>(N);
-    const std::size_t k =
-        h > 0.0 ? std::min(N - 1, static_cast<std::size_t>(std::max(0.0, (ms.s - por.s_start) / h))) : 0;
-    // ratio r of a velocity-like limit shrinks sigma by 1 / r; of an acceleration by 1 / sqrt(r).
-    auto note = [&](double value, double limit, bool accel) {
-      if (!(limit < kInf)) return;
-      const double r = value / limit;
-      out.worst_usage = std::max(out.worst_usage, r);
-      if (r > 1.0 + options.sample_tolerance) {
-        out.broken = true;
-        const double f = (accel ? 1.0 / std::sqrt(r) : 1.0 / r) * (1.0 - 1e-6);
-        out.shrink[ms.portion][k] = std::min(out.shrink[ms.portion][k], f);
-        out.shrink[ms.portion][k + 1] = std::min(out.shrink[ms.portion][k + 1], f);
+  JointVector q_ddot_prev;
+  // One pass over the samples of `plan` (the motion at one rate).
+  auto pass = [&](const MotionPlan& plan) -> std::optional<Violations> {
+    MotionSampler sampler(path, plan);
+    if (tracker) tracker->reset(seed);
+    double t_prev = 0.0, s_ddot_prev = 0.0;
+    bool first = true;
+    while (sampler.next(ms)) {
+      const MotionPortion& por = plan.portions[ms.portion];
+      const std::size_t N = grids[ms.portion].size() - 1;
+      const double h = por.length / static_cast<double>(N);
+      const std::size_t k =
+          h > 0.0 ? std::min(N - 1, static_cast<std::size_t>(std::max(0.0, (ms.s - por.s_start) / h))) : 0;
+      // A ratio r shrinks sigma by 1 / r^2 for a velocity, 1 / r for an acceleration, and the
+      // jerk limit by 1 / r^2.
+      auto note = [&](double value, double limit, int order, Eigen::Index joint = -1) {
+        if (!(limit < kInf)) return;
+        const double r = value / limit;
+        if (r > out.worst_usage) {
+          static constexpr const char* kKind[] = {"", "velocity", "acceleration", "jerk"};
+          static constexpr const char* kUnit[] = {"", "rad/s", "rad/s^2", "rad/s^3"};
+          out.worst_usage = r;
+          out.worst = (joint >= 0 ? "joint " + std::to_string(joint) + " " + kKind[order] + " " + number(value, 6) +
+                                        " of " + number(limit, 6) + " " + kUnit[order]
+                                  : std::string(order == 2 ? "centripetal acceleration " : "path jerk ") +
+                                        number(value, 6) + " of " + number(limit, 6) + (order == 2 ? " m/s^2" : " m/s^3")) +
+                      " at t = " + number(ms.t, 6) + " s (s = " + number(ms.s, 6) + " m, " +
+                      number(plan.spec.cycle_rate_hz, 6) + " Hz)";
+        }
+        if (r > 1.0 + options.sample_tolerance) {
+          out.broken = true;
+          auto& shrink = order == 3 ? out.jerk_shrink[ms.portion] : out.shrink[ms.portion];
+          // Twice the correction that would remove the excess where it was measured: the
+          // limits of neighbouring samples move too, and the loop settles in fewer rounds.
+          const double f = (order == 2 ? 1.0 / r : 1.0 / (r * r)) * (1.0 - 1e-6);
+          // A jerk comes from the acceleration's change across a grid point and the
+          // estimated third derivative of the joint path there: the points around the
+          // interval tighten too.
+          const std::size_t lo = order == 3 && k > 0 ? k - 1 : k, hi = order == 3 ? std::min(N, k + 2) : k + 1;
+          for (std::size_t i = lo; i <= hi; ++i) shrink[i] = std::min(shrink[i], f);
+        }
+      };
+      const double dt = ms.t - t_prev;
+      if (ms.speed > 0.0) {
+        const Eigen::Vector3d T = ms.v_W / ms.speed;
+        note((ms.a_W - ms.a_W.dot(T) * T).norm(), limits.centripetal, 2);
       }
-    };
-    if (ms.speed > 0.0) {
-      const Eigen::Vector3d T = ms.v_W / ms.speed;
-      note((ms.a_W - ms.a_W.dot(T) * T).norm(), limits.centripetal, true);
-    }
-    if (tracker) {
-      const CartesianState x = cartesian_state(path, orientation, ms);
-      if (!tracker->track(x, js))
-        return tl::make_unexpected(Violations{unattainable("motion", "the IK fails at t = " + number(ms.t, 6) + " s (s = " +
-                                                                         number(ms.s, 6) + " m, u = " + number(ms.u, 6) +
-                                                                         ")")});
-      for (Eigen::Index j = 0; j < js.q_dot.size(); ++j) {
-        note(std::abs(js.q_dot(j)), limits.joint_velocity(j), false);
-        note(std::abs(js.q_ddot(j)), limits.joint_acceleration(j), true);
+      if (path_jerk && !first && dt > 0.0) note(std::abs(ms.s_ddot - s_ddot_prev) / dt, limits.jerk, 3);
+      if (tracker) {
+        const CartesianState x = cartesian_state(path, orientation, ms);
+        if (!tracker->track(x, js))
+          return Violations{unattainable("motion", "the IK fails at t = " + number(ms.t, 6) + " s (s = " +
+                                                       number(ms.s, 6) + " m, u = " + number(ms.u, 6) + ")")};
+        for (Eigen::Index j = 0; j < js.q_dot.size(); ++j) {
+          note(std::abs(js.q_dot(j)), limits.joint_velocity(j), 1, j);
+          note(std::abs(js.q_ddot(j)), limits.joint_acceleration(j), 2, j);
+          if (joint_jerk && !first && dt > 0.0)
+            note(std::abs(js.q_ddot(j) - q_ddot_prev(j)) / dt, limits.joint_jerk(j), 3, j);
+        }
+        q_ddot_prev = js.q_ddot;
       }
+      t_prev = ms.t, s_ddot_prev = ms.s_ddot, first = false;
     }
+    return std::nullopt;
+  };
+  if (auto failed = pass(motion)) return tl::make_unexpected(std::move(*failed));
+  out.check_rate_hz = motion.spec.cycle_rate_hz;
+  if (out.broken) return out;
+  // The check rate: a multiple of the cycle rate, within max_check_samples.
+  const double f = motion.spec.cycle_rate_hz;
+  double multiple = options.check_rate_hz > f ? std::ceil(options.check_rate_hz / f * (1.0 - 1e-12)) : 1.0;
+  const double budget = static_cast<double>(options.max_check_samples) / std::max(1.0, motion.duration_s * f);
+  multiple = std::min(multiple, std::max(1.0, std::floor(budget)));
+  if (multiple > 1.0) {
+    MotionPlan fine = motion;
+    fine.spec.cycle_rate_hz = f * multiple;
+    fine.sample_count = grid_sample_count(fine.duration_s, fine.spec.cycle_rate_hz);
+    if (auto failed = pass(fine)) return tl::make_unexpected(std::move(*failed));
+    out.check_rate_hz = fine.spec.cycle_rate_hz;
   }
   return out;
 }
@@ -468,16 +527,31 @@ Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationP
         check_time_optimal_samples(path, orientation, out.motion, out.grids, out.limits, robot, seed, options);
     if (!check) return tl::make_unexpected(check.error());
     out.worst_sample_usage = check->worst_usage;
+    out.check_rate_hz = check->check_rate_hz;
     if (!check->broken) break;
     if (round >= options.max_refinements)
       return tl::make_unexpected(Violations{
           unattainable("motion", "the sampled motion still exceeds a limit by " +
                                      number(100.0 * (out.worst_sample_usage - 1.0), 6) + " % after " +
-                                     std::to_string(round) + " refinements: use a finer grid")});
+                                     std::to_string(round) + " refinements (" + check->worst +
+                                     "): use a finer grid")});
     for (std::size_t p = 0; p < P; ++p)
       for (std::size_t i = 0; i < sigma[p].size(); ++i) sigma[p][i] *= check->shrink[p][i];
   }
 
+  // The grid error of the duration: the same limits on every second grid point.
+  double half_duration = 0.0;
+  for (std::size_t p = 0; p < P; ++p) {
+    std::vector<GridPoint> half;
+    std::vector<double> half_sigma;
+    for (const std::size_t i : every_second_point(out.grids[p].size()))
+      half.push_back(out.grids[p][i]), half_sigma.push_back(sigma[p][i]);
+    if (auto sol = sweep(half, out.limits, &half_sigma)) half_duration += sol->duration;
+    else half_duration = kInf;
+  }
+  out.duration_grid_error = std::isfinite(half_duration)
+                                ? std::abs(half_duration - out.motion.duration_s)
+                                : 0.0;
   for (std::size_t p = 0; p < P; ++p) {
     const MotionPortion& por = out.motion.portions[p];
     for (BindingStretch st : out.solutions[p].binding) {

@@ -59,6 +59,10 @@ struct TimeOptimalLimits {
   double speed = std::numeric_limits<double>::infinity();         ///< Cartesian maxSpeed [m/s]
   double tangential = std::numeric_limits<double>::infinity();    ///< |s_ddot| <= [m/s^2]
   double centripetal = std::numeric_limits<double>::infinity();   ///< kappa s_dot^2 <= [m/s^2]
+  /// Jerk limits, checked on the samples (check_time_optimal_samples) and imposed by the
+  /// jerk-limited timing (optim/timing/time_optimal_jerk.hpp); the sweep has no jerk.
+  JointVector joint_jerk;  ///< j_max,j [rad/s^3 or m/s^3] per joint; empty: none
+  double jerk = std::numeric_limits<double>::infinity();  ///< |s_dddot| <= maxJerk [m/s^3]
 };
 
 /// The exact solution of one portion's grid.
@@ -77,12 +81,21 @@ struct TimeOptimalSolution {
 /// portion's start) and the limit (joint and kind) that stops it.
 Expected<TimeOptimalSolution> solve_time_optimal(const std::vector<GridPoint>& grid, const TimeOptimalLimits& limits);
 
+/// The indices 0, 2, 4, ... of a grid of n points, and n - 1 (the end) when n is even: the
+/// coarser grid of a duration's grid-error estimate.
+std::vector<std::size_t> every_second_point(std::size_t n);
+
 /// Options of plan_time_optimal.
 struct TimeOptimalOptions {
-  /// Grid intervals per portion. 200 intervals put the grid points about 5 mm apart on the
-  /// thesis's demo paths (portions of about 1 m): finer than the curvature features of the
-  /// blends, and the time changes by less than 0.1 % from 200 to 1,000.
-  std::size_t grid_intervals = 200;
+  /// Grid intervals per portion. The duration converges about linearly in the grid
+  /// spacing; measured on the PA-10 along demo path C (portions of about 1 m; 100 Hz):
+  ///   intervals   100     200     400     800     1,000   1,600   3,200
+  ///   T [s]       6.123   5.813   5.705   5.674   5.669   5.660   5.653
+  ///   plan [ms]   31      46      48      58      61      76      104
+  /// 1,000 intervals (1 mm apart) put the duration within 0.4 % of the limit for a third more
+  /// time than 200 (5 mm apart, 3 % slower); TimeOptimalPlan::duration_grid_error reports
+  /// the estimate for each plan.
+  std::size_t grid_intervals = 1000;
   /// Stream the result through MotionSampler (and JointTracker with a robot) and check
   /// every sample; where one breaks a limit, tighten the limits at that interval by the
   /// ratio and solve again (at most `max_refinements` times).
@@ -91,6 +104,20 @@ struct TimeOptimalOptions {
   /// Relative slack of the sample check: a sample passes when value <= limit (1 + slack)
   /// (the IK's rounding; 1e-9).
   double sample_tolerance = 1e-9;
+  /// Limits hold between the samples too: once the samples at the cycle rate are within
+  /// the limits, the motion is checked (and refined) at the smallest multiple of the cycle
+  /// rate at or above this rate [Hz], so that every sample of a stream at the cycle rate, or
+  /// at any rate dividing the check rate, is one of the samples checked. Between two checked
+  /// samples h = 1 / f apart a joint velocity can pass the larger of its two checked values
+  /// by at most a_max h / 2 (2.5e-4 rad/s for 1 rad/s^2 at 2 kHz), an acceleration by the
+  /// jerk times h / 2; a jerk is checked as the mean over each period h (what a controller
+  /// differentiating accelerations at any rate dividing f sees is a mean of those). The
+  /// default, 2 kHz: a 10-second PA-10 motion is 20,000 IK solutions (about 25 ms).
+  /// 0: the cycle rate only.
+  double check_rate_hz = 2'000.0;
+  /// The check rate is lowered (to a multiple of the cycle rate) so that a check takes at
+  /// most this many samples: a minute of motion at 10 kHz is 600,000 IK solutions.
+  std::size_t max_check_samples = 200'000;
   IkOptions ik;
 };
 
@@ -105,6 +132,11 @@ struct TimeOptimalPlan {
   TimeOptimalLimits limits;                    ///< the limits used (speedScale applied)
   int refinements = 0;          ///< re-solves after the sample check
   double worst_sample_usage = 0.0;  ///< largest value / limit over every sample checked
+  double check_rate_hz = 0.0;       ///< the rate of the last sample check [Hz]
+  /// |T(N) - T(N / 2)| [s]: the duration on this grid against the duration on every second
+  /// point of it (the same limits and refinements), an estimate of the duration's error
+  /// from the grid (the time converges at least linearly in the grid spacing).
+  double duration_grid_error = 0.0;
 };
 
 /// The joint path's derivatives along `path`: for each portion of `portions` (as
@@ -152,15 +184,28 @@ struct SampleCheck {
   /// Per portion and grid point, the factor (in (0, 1]) by which to scale that point's
   /// limits (velocities by it, accelerations by its square) before solving again: for each
   /// sample with value / limit r > 1 + sample_tolerance on grid interval k, both ends k and
-  /// k + 1 get at most (1 / r of a velocity, 1 / sqrt(r) of an acceleration) (1 - 1e-6).
+  /// k + 1 get at most (1 / r^2 of a velocity, 1 / r of an acceleration) (1 - 1e-6): twice the
+  /// correction that removes the excess where it was measured, so the loop settles in fewer
+  /// rounds.
   std::vector<std::vector<double>> shrink;
+  /// The same for the jerk limits (1 / r^2 of a jerk, at the points k - 1 .. k + 2: a jerk
+  /// comes from the acceleration's change across a point), where the limits have any.
+  std::vector<std::vector<double>> jerk_shrink;
+  /// Where the worst usage is: "joint 3 jerk 51.2 of 50 rad/s^3 at t = 1.25 s (s = 0.4 m)".
+  std::string worst;
+  double check_rate_hz = 0.0;  ///< the finest rate checked [Hz]
 };
 
-/// Streams `motion` through MotionSampler at its cycle rate (and, with a robot, through a
-/// JointTracker seeded with `seed` and options.ik) and compares every sample with `limits`:
-/// joint velocity |q_dot,j| [rad/s or m/s], joint acceleration |q_ddot,j| [rad/s^2 or m/s^2]
-/// and the centripetal acceleration |a_W - (a_W . T) T| [m/s^2] (maxSpeed and the tangential
-/// limit hold exactly between grid points and are not sampled). `grids` are the portions'
+/// Streams `motion` through MotionSampler at its cycle rate, then, if every sample there
+/// is within the limits, at the check rate (TimeOptimalOptions::check_rate_hz: a refinement
+/// loop re-solves on the cheap check's findings first), each time (with a robot) through a JointTracker
+/// seeded with `seed` and options.ik, and compares every sample with `limits`: joint
+/// velocity |q_dot,j| [rad/s or m/s], joint acceleration |q_ddot,j| [rad/s^2 or m/s^2], the
+/// centripetal acceleration |a_W - (a_W . T) T| [m/s^2] and, where `limits` has them, the
+/// joint jerk |q_ddot,j(t_k) - q_ddot,j(t_{k-1})| / (t_k - t_{k-1}) [rad/s^3 or m/s^3] and
+/// the path's |s_ddot(t_k) - s_ddot(t_{k-1})| / (t_k - t_{k-1}) [m/s^3] (the mean jerk over
+/// each sample period: what a controller differentiating the set points sees; maxSpeed
+/// and the tangential limit hold exactly between grid points and are not sampled). `grids` are the portions'
 /// grids (uniform in s, as time_optimal_grids makes them); a sample belongs to the grid
 /// interval of its arc length. Used by plan_time_optimal after each sweep; any timing on
 /// the same grids may use it the same way.

@@ -25,6 +25,9 @@ namespace {
 using Ipopt::Index;
 using Ipopt::Number;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// Joint jerk rows per joint and grid point: with the ramp's jerk at either end of the ramp,
+// without it either side (the header).
+constexpr int kJerkFamilies = 4;
 constexpr double kIpoptInf = 1e19;
 /// Relative room an implied jerk row keeps below its limit (JerkTimingNlp::select_jerk_rows):
 /// the rows that imply it hold to Ipopt's tolerance only.
@@ -58,7 +61,9 @@ class JerkTimingNlp : public Ipopt::TNLP {
       if (opt.joint_jerk.size() == nj && std::isfinite(opt.joint_jerk(j))) jerk_joints_.push_back(j);
     cart_jerk_ = opt.max_jerk.has_value() && std::isfinite(*opt.max_jerk);
     build_linear_rows();
-    jerk_rows_per_point_ = static_cast<Index>(jerk_joints_.size()) + (cart_jerk_ ? 1 : 0);
+    // Per joint four rows (families): s_ddot at the ramp's start (u_{p-1}) and at its end
+    // (u_p), with the ramp's jerk j_p and without it (the constant accelerations either side).
+    jerk_rows_per_point_ = kJerkFamilies * static_cast<Index>(jerk_joints_.size()) + (cart_jerk_ ? 1 : 0);
     select_jerk_rows();
     hess_offset_.resize(static_cast<std::size_t>(n_var()) + 1, 0);
     for (Index k = 0; k < n_var(); ++k) hess_offset_[k + 1] = hess_offset_[k] + std::min<Index>(k, 2) + 1;
@@ -100,13 +105,20 @@ class JerkTimingNlp : public Ipopt::TNLP {
       lo = lin_lo_[r], hi = lin_hi_[r];
       return;
     }
+    const Index p = (r - n_lin()) / jerk_rows_per_point_;
     Index c = (r - n_lin()) % jerk_rows_per_point_;
     if (cart_jerk_ && c-- == 0) {
-      lo = -*opt_.max_jerk, hi = *opt_.max_jerk;
+      hi = *opt_.max_jerk * jerk_sigma(p);
+      lo = -hi;
       return;
     }
-    const Index j = jerk_joints_[static_cast<std::size_t>(c)];
-    lo = -opt_.joint_jerk(j), hi = opt_.joint_jerk(j);
+    const Index j = jerk_joints_[static_cast<std::size_t>(c) % jerk_joints_.size()];
+    hi = opt_.joint_jerk(j) * jerk_sigma(p);
+    lo = -hi;
+  }
+  /// The jerk limits' factor at grid point p (JerkTimingOptions::jerk_scale; 1 without).
+  double jerk_sigma(Index p) const {
+    return opt_.jerk_scale.empty() ? 1.0 : opt_.jerk_scale[static_cast<std::size_t>(p)];
   }
   /// Largest excess of x over any bound or row, the left-out jerk rows included, in the
   /// limit's unit (0: feasible).
@@ -320,12 +332,20 @@ class JerkTimingNlp : public Ipopt::TNLP {
         for (Index c = 0; c < jerk_rows_per_point_; ++c) active_.push_back(base + c);
         continue;
       }
+      // A joint row's family (the constructor; -1: the Cartesian row, whose implications hold
+      // in any); two rows imply one another only in one family (the same s_dot s_ddot).
+      auto family = [&](Index c) {
+        return cart_jerk_ && c == 0 ? Index{-1}
+                                    : static_cast<Index>(static_cast<std::size_t>(c - (cart_jerk_ ? 1 : 0)) /
+                                                         jerk_joints_.size());
+      };
       // Row c as (q_s, 3 q_ss, q_sss, J).
       auto coef = [&](Index c, int w) {
-        if (cart_jerk_ && c == 0) return w == 0 ? 1.0 : w == 3 ? *opt_.max_jerk : 0.0;
-        const Index k = jerk_joints_[static_cast<std::size_t>(c - (cart_jerk_ ? 1 : 0))];
+        if (cart_jerk_ && c == 0) return w == 0 ? 1.0 : w == 3 ? *opt_.max_jerk * jerk_sigma(p) : 0.0;
+        const Index k = jerk_joints_[static_cast<std::size_t>(c - (cart_jerk_ ? 1 : 0)) % jerk_joints_.size()];
+        if (w == 0 && family(c) >= 2) return 0.0;  // no ramp: no j term
         return w == 0 ? gp.q_s(k) : w == 1 ? 3.0 * gp.q_ss(k) : w == 2 ? q_sss_[static_cast<std::size_t>(p)](k)
-                                                                        : opt_.joint_jerk(k);
+                                                                        : opt_.joint_jerk(k) * jerk_sigma(p);
       };
       order.clear();
       for (Index c = 0; c < jerk_rows_per_point_; ++c) {
@@ -338,6 +358,7 @@ class JerkTimingNlp : public Ipopt::TNLP {
       for (const auto& [bound, r] : order) {
         bool implied = false;
         for (const Index k : kept) {
+          if (family(r) >= 0 && family(k) >= 0 && family(r) % 2 != family(k) % 2) continue;
           const double rho = coef(r, 0) / coef(k, 0);
           const double worst = std::abs(rho) * coef(k, 3) + std::abs(coef(r, 1) - rho * coef(k, 1)) * a_max +
                                std::abs(coef(r, 2) - rho * coef(k, 2)) * c_max;
@@ -440,16 +461,24 @@ class JerkTimingNlp : public Ipopt::TNLP {
         b[l] = k >= 0 ? variable(x[k], l) : constant(0.0);
         r[l] = k >= 0 ? sqrt(b[l]) : constant(0.0);
       }
-      D3 tau, u_prev, u_next;
+      D3 tau, u_prev, u_next, half_prev, half_next;
       if (p >= 1) {
-        tau = tau + (ds(p - 1) * reciprocal(r[0] + r[1]));  // t_{p-1} / 2
+        half_prev = ds(p - 1) * reciprocal(r[0] + r[1]);  // t_{p-1} / 2
         u_prev = (0.5 / ds(p - 1)) * (b[1] - b[0]);
       }
       if (p <= N_ - 1) {
-        tau = tau + (ds(p) * reciprocal(r[1] + r[2]));  // t_p / 2
+        half_next = ds(p) * reciprocal(r[1] + r[2]);  // t_p / 2
         u_next = (0.5 / ds(p)) * (b[2] - b[1]);
       }
-      const D3 j = (u_next - u_prev) / tau;
+      tau = half_prev + half_next;
+      // The ramp's width: at a rest the one half there; inside, the smooth lower bound of
+      // min(t_{p-1}, t_p) (the header).
+      D3 width = tau;
+      if (p >= 1 && p <= N_ - 1) {
+        const D3 d = half_prev - half_next;
+        width = tau - sqrt(d * d + kJerkWindowSmoothing * (half_prev * half_next));
+      }
+      const D3 j = (u_next - u_prev) / width;
       Terms& t = terms_[static_cast<std::size_t>(p)];
       t.j = j.f;
       t.obj = w > 0.0 ? tau + w * (j * j * tau) : tau;
@@ -457,9 +486,15 @@ class JerkTimingNlp : public Ipopt::TNLP {
       if (cart_jerk_) *rows++ = j;
       if (!jerk_joints_.empty()) {
         const core::GridPoint& gp = g_[static_cast<std::size_t>(p)];
-        const D3 v_a = 0.5 * (r[1] * (u_prev + u_next)), v3 = r[1] * b[1];  // s_dot s_ddot, s_dot^3
-        for (const Index jj : jerk_joints_)
-          *rows++ = gp.q_s(jj) * j + (3.0 * gp.q_ss(jj)) * v_a + q_sss_[static_cast<std::size_t>(p)](jj) * v3;
+        // s_dot s_ddot at either end of the ramp (the joint jerk is linear in s_ddot there, so
+        // its extremes over the ramp are at the ends), s_dot^3.
+        const D3 v3 = r[1] * b[1];
+        const std::array<D3, 2> v_a{r[1] * u_prev, r[1] * u_next};
+        for (int f = 0; f < kJerkFamilies; ++f)
+          for (const Index jj : jerk_joints_) {
+            const D3 rest = (3.0 * gp.q_ss(jj)) * v_a[f % 2] + q_sss_[static_cast<std::size_t>(p)](jj) * v3;
+            *rows++ = f < 2 ? gp.q_s(jj) * j + rest : rest;
+          }
       }
     }
     ok_ = true;
@@ -515,6 +550,7 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
   GEOTRAJ_CHECK(n_pts >= 3 && start.b.size() == n_pts && start.u.size() == N);
 
   GEOTRAJ_CHECK(options.limit_scale.empty() || options.limit_scale.size() == n_pts);
+  GEOTRAJ_CHECK(options.jerk_scale.empty() || options.jerk_scale.size() == n_pts);
   GEOTRAJ_CHECK(options.start_scale > 0.0 && options.start_scale <= 1.0);
   // The start: `start`'s b times start_scale, off zero (the sweep may stop at an interior
   // point, b_i = 0, where sqrt(b) has no derivative). The scaled profile is the same motion,
@@ -629,6 +665,13 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
   out.b.assign(n_pts, 0.0);
   std::copy(xs.begin(), xs.end(), out.b.begin() + 1);
   out.profile = profile_of(grid, out.b, out.u, out.dt);
+  // The acceleration steps at the grid points ramped over the NLP's tau (zero at the rests).
+  if (auto smooth = core::continuous_acceleration_profile(out.dt, out.u, grid.back().s)) {
+    out.profile = std::move(*smooth);
+  } else {
+    out.report.status = OptimizerStatus::kFailed;
+    out.report.message += "; " + smooth.error().front().description;
+  }
   out.jerk = nlp->jerk(xs.data());
   out.duration = out.profile.duration;
   out.jerk_rows = nlp->n_jerk_rows();
@@ -669,9 +712,21 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
   limits.speed *= 1.0 - kJerkLimitMargin;
   limits.tangential *= 1.0 - kJerkLimitMargin;
   limits.centripetal *= 1.0 - kJerkLimitMargin;
+  // The sample check is against the real jerk limits (`checked`, below).
+  const core::JointVector joint_jerk = options.joint_jerk;
+  const std::optional<double> max_jerk = options.max_jerk;
+  options.joint_jerk *= 1.0 - kJerkLimitMargin;
+  if (options.max_jerk) *options.max_jerk *= 1.0 - kJerkLimitMargin;
   const std::size_t P = exact->grids.size();
-  std::vector<std::vector<double>> sigma(P);
-  for (std::size_t p = 0; p < P; ++p) sigma[p].assign(exact->grids[p].size(), 1.0);
+  std::vector<std::vector<double>> sigma(P), jerk_sigma(P);
+  for (std::size_t p = 0; p < P; ++p) {
+    sigma[p].assign(exact->grids[p].size(), 1.0);
+    jerk_sigma[p].assign(exact->grids[p].size(), 1.0);
+  }
+  // The samples are checked against every limit, the jerk included.
+  core::TimeOptimalLimits checked = exact->limits;
+  checked.joint_jerk = joint_jerk;
+  if (max_jerk) checked.jerk = *max_jerk;
   // The starts: the exact sweep's b (within the margin), then each round's result.
   std::vector<core::TimeOptimalSolution> starts = exact->solutions;
   for (auto& st : starts)
@@ -684,6 +739,7 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
       options.time_budget_s =
           std::max(1e-3, budget - std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
       options.limit_scale = sigma[p];
+      options.jerk_scale = jerk_sigma[p];
       // A re-solve starts from the last result within the tightened limits: scaled by the
       // smallest sigma^2 of the portion (velocities by sigma, accelerations by sigma^2).
       options.start_scale =
@@ -707,21 +763,51 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
     // Every sample at the cycle rate against the real limits, as plan_time_optimal checks
     // the sweep's; where one breaks a limit, that interval's limits tighten and the NLP runs
     // again from its last result.
-    auto check = core::check_time_optimal_samples(path, orientation, out.motion, exact->grids, exact->limits, robot,
-                                                  seed, exact_options);
+    auto check = core::check_time_optimal_samples(path, orientation, out.motion, exact->grids, checked, robot, seed,
+                                                  exact_options);
     if (!check) return tl::make_unexpected(check.error());
     out.worst_sample_usage = check->worst_usage;
+    out.check_rate_hz = check->check_rate_hz;
     if (!check->broken) break;
     if (round >= exact_options.max_refinements)
       return tl::make_unexpected(core::Violations{core::unattainable(
           "motion", "the sampled jerk-limited motion still exceeds a limit by " +
                         core::number(100.0 * (check->worst_usage - 1.0), 6) + " % after " + std::to_string(round) +
-                        " refinements: use a finer grid")});
+                        " refinements (" + check->worst + "): use a finer grid")});
     for (std::size_t p = 0; p < P; ++p)
-      for (std::size_t i = 0; i < sigma[p].size(); ++i) sigma[p][i] *= check->shrink[p][i];
+      for (std::size_t i = 0; i < sigma[p].size(); ++i) {
+        sigma[p][i] *= check->shrink[p][i];
+        jerk_sigma[p][i] *= check->jerk_shrink[p][i];
+      }
   }
   out.report.objective_after = 0.0;
   for (const JerkTiming& jt : out.portions) out.report.objective_after += jt.report.objective_after;
+  // The grid error of the duration: the same programme, limits and tightenings on every
+  // second grid point (no sample check), against the result.
+  double half_duration = 0.0;
+  for (std::size_t p = 0; p < P && std::isfinite(half_duration); ++p) {
+    const auto& grid = exact->grids[p];
+    std::vector<core::GridPoint> half;
+    JerkTimingOptions ho = options;
+    ho.limit_scale.clear();
+    ho.jerk_scale.clear();
+    for (const std::size_t i : core::every_second_point(grid.size())) {
+      half.push_back(grid[i]);
+      ho.limit_scale.push_back(sigma[p][i]);
+      ho.jerk_scale.push_back(jerk_sigma[p][i]);
+    }
+    auto start = half.size() >= 3 ? core::solve_time_optimal(half, limits) : core::Expected<core::TimeOptimalSolution>();
+    if (half.size() < 3 || !start) {
+      half_duration = kInf;
+      break;
+    }
+    ho.start_scale = std::pow(*std::min_element(ho.limit_scale.begin(), ho.limit_scale.end()), 2) * first_scale;
+    ho.time_budget_s =
+        std::max(1e-3, budget - std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    const JerkTiming jt = optimise_jerk_timing(half, limits, *start, ho);
+    half_duration = jt.report.status == OptimizerStatus::kConverged ? half_duration + jt.duration : kInf;
+  }
+  out.duration_grid_error = std::isfinite(half_duration) ? std::abs(half_duration - out.motion.duration_s) : 0.0;
   out.report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   out.exact = std::move(*exact);
   return out;

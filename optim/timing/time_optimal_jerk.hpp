@@ -15,18 +15,26 @@
 //   tangential          |u_i| <= maxAcceleration
 // so the sweep's b is feasible, and without jerk limits the programme is convex (T is
 // convex in b) with the sweep's b as its minimum.
-// Jerk. The acceleration steps from u_{i-1} to u_i at s_i; the step is spread over the time
-// between the two intervals' midpoints, tau_i = (t_{i-1} + t_i) / 2, giving the jerk at each
-// grid point (u_{-1} = u_N = 0 and t_{-1} = t_N = 0: the rests)
-//   j_i = (u_i - u_{i-1}) / tau_i                                          [m/s^3]
+// Jerk. The acceleration steps from u_{i-1} to u_i at s_i; the profile returned ramps each
+// step linearly over a window centred on it (core::continuous_acceleration_profile: the
+// speed at the window's ends is kept), of width min(t_{i-1}, t_i) inside and t_0 / 2,
+// t_{N-1} / 2 at the rests, giving the jerk at each grid point (u_{-1} = u_N = 0: the rests)
+//   j_i = (u_i - u_{i-1}) / w_i                                            [m/s^3]
+// with w_i the smooth lower bound of min(t_{i-1}, t_i) (halves h_a = t_{i-1} / 2, h_b = t_i / 2)
+//   w_i = h_a + h_b - sqrt((h_a - h_b)^2 + c h_a h_b),  c = kJerkWindowSmoothing = 0.0025,
+// within 2.5 % of the window and never above it (so the modelled jerk bounds the
+// profile's), and w_0 = t_0 / 2, w_N = t_{N-1} / 2 exactly;
 // and the joint jerk q_dddot = q_s s_dddot + 3 q_ss s_dot s_ddot + q_sss s_dot^3 with
-// s_dot = sqrt(b_i), s_ddot = (u_{i-1} + u_i) / 2 and q_sss by central differences of q_ss:
-//   joint jerk   |q_s,j j_i + 3 q_ss,j sqrt(b_i) (u_{i-1} + u_i) / 2 + q_sss,j b_i^(3/2)| <= j_max,j
+// s_dot = sqrt(b_i), q_sss by central differences of q_ss and s_ddot at either end of the
+// ramp (the jerk is linear in s_ddot, so these are its extremes over the ramp):
+//   joint jerk   |q_s,j j_i + 3 q_ss,j sqrt(b_i) u + q_sss,j b_i^(3/2)| <= j_max,j,  u = u_{i-1}, u_i
 //   Cartesian    |j_i| <= maxJerk
-// at every grid point. Deviation (from a profile of constant-jerk pieces): the result is
-// the sweep's kind of profile, one constant-acceleration piece per interval, whose
-// acceleration steps by at most j_max tau_i at s_i; j_i is the jerk of the profile whose
-// acceleration ramps linearly between interval midpoints (the grid's resolution in time).
+// at every grid point, and, for the stretches of constant acceleration between two ramps
+// (where the path's jerk is 0, and the joints' is not where the joint path curves),
+//   joint jerk   |3 q_ss,j sqrt(b_i) u + q_sss,j b_i^(3/2)| <= j_max,j,  u = u_{i-1}, u_i. Between the grid points
+// the profile's joint jerk is not modelled (q_sss is estimated, the windows' edges are
+// not grid points): the sample check (plan_time_optimal_jerk) measures it and tightens the
+// jerk limits around any excess. With tau_i = (t_{i-1} + t_i) / 2 (t_{-1} = t_N = 0):
 // Objective: T + w sum_i j_i^2 tau_i (T = sum_i t_i = sum_i tau_i; w = smoothness_weight
 // [s^5/m^2] times the integral of the squared jerk [m^2/s^5]). Exact first and second
 // derivatives; Jacobian and Hessian are banded (each jerk couples b_{i-1}, b_i, b_{i+1}).
@@ -42,6 +50,10 @@
 #include "optim/common/report.hpp"
 
 namespace geotraj::optim {
+
+/// c of the ramp width w_i above: with equal halves the width is (2 - sqrt(c)) h, 2.5 % below
+/// the ramp's.
+inline constexpr double kJerkWindowSmoothing = 0.0025;
 
 /// Which solver runs the NLP.
 enum class JerkSolver {
@@ -69,6 +81,9 @@ struct JerkTimingOptions {
   /// sigma, its joint and centripetal acceleration limits by sigma^2 (the sample check's
   /// tightening, as in plan_time_optimal); empty: 1 everywhere, else one per grid point.
   std::vector<double> limit_scale;
+  /// Per grid point, in (0, 1]: that point's jerk limits (joint and Cartesian) are
+  /// multiplied by it (the sample check's tightening of the jerk); empty: 1 everywhere.
+  std::vector<double> jerk_scale;
   /// The solver starts from the start's b times this, in (0, 1]: the same motion slower
   /// (velocities x sqrt, accelerations x, jerks x ^(3/2)), strictly inside the limits the
   /// start meets. An interior point method started on the sweep's many active limits takes
@@ -90,7 +105,10 @@ struct JerkTimingOptions {
 
 /// The outcome for one portion.
 struct JerkTiming {
-  core::SpeedProfile profile;  ///< one constant-acceleration piece per interval, exact times
+  /// The grid profile with its acceleration steps ramped (core::continuous_acceleration_profile):
+  /// continuous acceleration, zero at both rests, constant jerk pieces; it lasts dt_0 / 4 +
+  /// dt_{N-1} / 4 longer than the grid's sum of dt.
+  core::SpeedProfile profile;
   std::vector<double> b;       ///< s_dot^2 at the grid points [m^2/s^2] (b.front() = b.back() = 0)
   std::vector<double> u;       ///< acceleration on each interval [m/s^2]
   std::vector<double> dt;      ///< time of each interval [s]
@@ -116,7 +134,7 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
                                 const core::TimeOptimalSolution& start, const JerkTimingOptions& options);
 
 /// A whole plan: the exact plan (core::plan_time_optimal) re-timed portion by portion.
-/// Relative margin inside every velocity and acceleration limit that plan_time_optimal_jerk
+/// Relative margin inside every velocity, acceleration and jerk limit that plan_time_optimal_jerk
 /// keeps at its grid points (the solvers meet the constraints to their tolerance only).
 inline constexpr double kJerkLimitMargin = 1e-6;
 
@@ -127,25 +145,42 @@ struct JerkLimitedPlan {
   OptimizerReport report;                ///< summed iterations, the worst status, wall time [s]
   int refinements = 0;                   ///< re-solves after the sample check
   double worst_sample_usage = 0.0;       ///< largest value / limit over every sample checked
+  double check_rate_hz = 0.0;            ///< the rate of the last sample check [Hz]
+  /// |T(N) - T(N / 2)| [s]: the duration against that of the same programme (limits and
+  /// tightenings) on every second grid point, an estimate of its error from the grid.
+  double duration_grid_error = 0.0;
 };
 
+/// The exact plan's options under a jerk-limited one: 200 grid intervals per portion (the
+/// NLP's cost grows with the grid: 4 ms at 100 points, 62 ms at 1,000), the rest as
+/// core::TimeOptimalOptions.
+inline core::TimeOptimalOptions jerk_exact_options() {
+  core::TimeOptimalOptions options;
+  options.grid_intervals = 200;
+  return options;
+}
+
 /// plan_time_optimal, then optimise_jerk_timing on every portion with the robot's
-/// JointLimits::max_jerk (where given) and spec.max_jerk, scaled by speedScale^3; then, as
-/// plan_time_optimal does for the sweep, every sample at the cycle rate is checked against
-/// the joint velocity, joint acceleration and centripetal limits
-/// (core::check_time_optimal_samples) and, where one breaks a limit, the limits at that
-/// interval's grid points are tightened (JerkTimingOptions::limit_scale) and the NLP runs
-/// again from its last result, at most exact_options.max_refinements times.
-/// Guarantee: every streamed sample within those limits to exact_options.sample_tolerance;
-/// maxSpeed and the tangential limit everywhere; the jerk limits at the grid points (the
-/// grid's time resolution, above).
+/// JointLimits::max_jerk (where given) and spec.max_jerk, scaled by speedScale^3, each
+/// portion's profile smoothed (JerkTiming::profile: zero acceleration at the rests, finite
+/// jerk); then, as plan_time_optimal does for the sweep, every sample at the cycle rate and
+/// at the check rate (exact_options.check_rate_hz) is checked against the joint velocity,
+/// acceleration and jerk limits, the centripetal limit and maxJerk
+/// (core::check_time_optimal_samples: the jerk as the difference of successive
+/// accelerations over the period) and, where one breaks a limit, the limits at that
+/// interval's grid points are tightened (JerkTimingOptions::limit_scale, jerk_scale) and the
+/// NLP runs again from its last result, at most exact_options.max_refinements times.
+/// Guarantee: every sample at the cycle rate and at the check rate within every limit to
+/// exact_options.sample_tolerance, the jerk included (so a controller differentiating the
+/// accelerations at any rate dividing the check rate sees at most the limit: the mean of
+/// the jerk over a period is a mean of the checked ones); maxSpeed everywhere.
 /// Errors: plan_time_optimal's; `motion` when the samples still break a limit after the
 /// last refinement, or the IK fails at a sample.
 core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
                                                        const core::OrientationPlan& orientation,
                                                        const core::MotionSpec& spec, const core::RobotModel* robot,
                                                        const core::JointVector& seed,
-                                                       const core::TimeOptimalOptions& exact_options = {},
+                                                       const core::TimeOptimalOptions& exact_options = jerk_exact_options(),
                                                        JerkTimingOptions options = {});
 
 }  // namespace geotraj::optim

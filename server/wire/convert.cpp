@@ -889,10 +889,13 @@ void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& o
   out.set_length_weight(result.length_weight);
 }
 
-void to_proto(const optim::OptimizerReport& report, const std::vector<core::BindingStretch>& binding,
-              v1::TimingReport& out) {
-  set_report(report, out);
-  for (const auto& b : binding) to_proto(b, *out.add_binding());
+void to_proto(const planner::TimingReport& report, v1::TimingReport& out) {
+  set_report(report.report, out);
+  for (const auto& b : report.binding) to_proto(b, *out.add_binding());
+  out.set_check_rate_hz(report.check_rate_hz);
+  out.set_worst_limit_usage(report.worst_limit_usage);
+  out.set_refinements(static_cast<std::uint32_t>(std::max(0, report.refinements)));
+  out.set_duration_grid_error_s(report.duration_grid_error_s);
 }
 
 void to_proto(const optim::BreakpointResult& result, v1::BreakpointReport& out) {
@@ -1029,7 +1032,7 @@ core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& reque
 void to_proto(const planner::OptimizerReports& reports, v1::OptimizationReport& out) {
   if (reports.tangent_scales) to_proto(*reports.tangent_scales, *out.mutable_tangent_scales());
   if (reports.breakpoints) to_proto(*reports.breakpoints, *out.mutable_breakpoints());
-  if (reports.timing) to_proto(reports.timing->report, reports.timing->binding, *out.mutable_timing());
+  if (reports.timing) to_proto(*reports.timing, *out.mutable_timing());
 }
 
 void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanResponse& response) {

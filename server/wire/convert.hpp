@@ -188,7 +188,6 @@ void to_proto(const optim::BreakpointResult& result, v1::BreakpointReport& out);
 /// The reports of the optimisers that ran (PlanResponse.optimization).
 void to_proto(const planner::OptimizerReports& reports, v1::OptimizationReport& out);
 /// The timing optimiser's report with which limit binds where.
-void to_proto(const optim::OptimizerReport& report, const std::vector<core::BindingStretch>& binding,
-              v1::TimingReport& out);
+void to_proto(const planner::TimingReport& report, v1::TimingReport& out);
 
 }  // namespace geotraj::server

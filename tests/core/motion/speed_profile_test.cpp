@@ -3,6 +3,7 @@
 // rest to rest, s(T) = L, continuity, limits respected and tight.
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -193,6 +194,81 @@ TEST(SpeedProfile, MinTimeIsMonotoneInTheLimits) {
     // The double S is never faster than the trapezoid under the same v and a.
     EXPECT_GE(base, core::min_time_trapezoid(L, 1.0, 2.0)->duration - 1e-12);
   }
+}
+
+}  // namespace
+}  // namespace geotraj::test
+
+namespace geotraj::test {
+namespace {
+
+// A grid profile as a timing optimiser makes it: b = s_dot^2 linear on each of N intervals
+// uniform in s, here a trapezoid of 1 m/s and 2 m/s^2 over 1 m.
+struct GridProfile {
+  std::vector<double> dt, u;
+  double length = 1.0;
+};
+GridProfile trapezoid_grid(std::size_t N) {
+  GridProfile g;
+  const double L = g.length, v = 1.0, a = 2.0, ds = L / static_cast<double>(N);
+  auto b = [&](double s) { return std::min({2 * a * s, v * v, 2 * a * (L - s)}); };
+  for (std::size_t i = 0; i < N; ++i) {
+    const double s0 = ds * static_cast<double>(i), b0 = b(s0), b1 = b(s0 + ds);
+    g.u.push_back((b1 - b0) / (2 * ds));
+    g.dt.push_back(2 * ds / (std::sqrt(b0) + std::sqrt(b1)));
+  }
+  return g;
+}
+
+TEST(ContinuousAccelerationProfile, StartsAndEndsAtRestWithZeroAccelerationAfterTheLength) {
+  for (const std::size_t N : {2u, 7u, 100u, 1000u}) {
+    const GridProfile g = trapezoid_grid(N);
+    auto p = core::continuous_acceleration_profile(g.dt, g.u, g.length);
+    ASSERT_TRUE(p) << p.error().front().description;
+    double T = 0.0;
+    for (double d : g.dt) T += d;
+    EXPECT_NEAR(p->duration, T + g.dt.front() / 4 + g.dt.back() / 4, 1e-12) << "the rests' ramps add their time";
+    EXPECT_EQ(p->pieces.front().a0, 0.0);
+    // The end of the last piece, integrated (not evaluate's exact end): at rest, no
+    // acceleration, at L.
+    const core::ProfilePiece& last = p->pieces.back();
+    const double h = p->duration - last.t0;
+    EXPECT_NEAR(last.a0 + last.j * h, 0.0, 1e-9);
+    EXPECT_NEAR(last.v0 + h * (last.a0 + h * last.j / 2), 0.0, 1e-9);
+    EXPECT_NEAR(last.s0 + h * (last.v0 + h * (last.a0 / 2 + h * last.j / 6)), g.length, 1e-9);
+    const Walk w = walk(*p, /*continuous_a=*/true);
+    // The ramps keep the speed at every grid point; between them and in the scaling the
+    // speed and acceleration move by a small amount only.
+    EXPECT_LE(w.v_max, 1.0 + 1.0 / static_cast<double>(N * N)) << N;
+    EXPECT_LE(w.a_max, 2.0 * (1.0 + 1.0 / static_cast<double>(N * N))) << N;
+    EXPECT_GT(w.j_max, 0.0);
+    EXPECT_TRUE(std::isfinite(w.j_max));
+  }
+}
+
+TEST(ContinuousAccelerationProfile, TheJerkIsTheStepOverItsWindow) {
+  // Inside, the jerk is (u_i - u_{i-1}) / min(dt_{i-1}, dt_i) at a step and 0 elsewhere; at the
+  // start u_0 / (dt_0 / 2).
+  const GridProfile g = trapezoid_grid(400);
+  auto p = core::continuous_acceleration_profile(g.dt, g.u, g.length);
+  ASSERT_TRUE(p);
+  double model_peak = std::abs(g.u[0]) / (g.dt[0] / 2);
+  for (std::size_t i = 1; i < g.dt.size(); ++i)
+    model_peak = std::max(model_peak, std::abs(g.u[i] - g.u[i - 1]) / std::min(g.dt[i - 1], g.dt[i]));
+  EXPECT_NEAR(core::peak_jerk(*p), model_peak, 1e-3 * model_peak);  // the final scaling
+  EXPECT_NEAR(p->pieces.front().j, g.u[0] / (g.dt[0] / 2), 1e-3 * std::abs(p->pieces.front().j));
+  EXPECT_EQ(core::evaluate(*p, 0.0).a, 0.0);
+}
+
+TEST(ContinuousAccelerationProfile, BadGridsAreRefused) {
+  EXPECT_FALSE(core::continuous_acceleration_profile({1.0}, {0.0}, 1.0));
+  EXPECT_FALSE(core::continuous_acceleration_profile({1.0, 0.0}, {1.0, -1.0}, 1.0));
+  EXPECT_FALSE(core::continuous_acceleration_profile({1.0, 1.0}, {1.0}, 1.0));
+  EXPECT_FALSE(core::continuous_acceleration_profile({1.0, 1.0}, {1.0, std::nan("")}, 1.0));
+  EXPECT_FALSE(core::continuous_acceleration_profile({1.0, 1.0}, {1.0, -1.0}, 0.0));
+  const auto e = core::continuous_acceleration_profile({1.0, 1.0}, {1.0, -1.0}, -1.0);
+  ASSERT_FALSE(e);
+  EXPECT_EQ(e.error().front().field, "motion");
 }
 
 }  // namespace

@@ -336,6 +336,27 @@ TEST(TimeOptimalPlan, Pa10DemoPathC) {
   EXPECT_LE(slower->motion.peak_speed, 0.2 + 1e-12);
 }
 
+// The duration's grid error: |T(N) - T(N/2)| bounds how far T(N) is from the duration on a
+// much finer grid (first-order convergence or better), and a finer grid is closer.
+TEST(TimeOptimalPlan, DurationGridErrorBoundsTheChangeToAFinerGrid) {
+  Pa10C c;
+  core::MotionSpec m;
+  core::TimeOptimalOptions coarse, fine;
+  coarse.grid_intervals = 200;
+  fine.grid_intervals = 1600;
+  const auto a = core::plan_time_optimal(c.path, c.orientation, m, c.robot, c.seed, coarse);
+  const auto b = core::plan_time_optimal(c.path, c.orientation, m, c.robot, c.seed, fine);
+  ASSERT_TRUE(a) << a.error()[0].description;
+  ASSERT_TRUE(b) << b.error()[0].description;
+  const double change = std::abs(a->motion.duration_s - b->motion.duration_s);
+  std::printf("200 intervals: %.6f s, estimated grid error %.6f s; 1,600: %.6f s (%.6f s)\n", a->motion.duration_s,
+              a->duration_grid_error, b->motion.duration_s, b->duration_grid_error);
+  EXPECT_GT(a->duration_grid_error, 0.0);
+  EXPECT_LE(change, a->duration_grid_error);
+  EXPECT_LT(b->duration_grid_error, a->duration_grid_error);
+  EXPECT_EQ(a->check_rate_hz, 2000.0);  // 100 Hz, checked at 2 kHz between the samples
+}
+
 // The grid's claim: JointTracker at s_dot = 1, s_ddot = 0 gives q_s and q_ss = dq_s/ds
 // (central differences of q_s over a 0.25 mm grid: error h^2 q_ssss / 6; near the path's
 // start, where frame 1 leaves the curvature free, q_ss falls from about 640 to 220 rad/m^2

@@ -134,7 +134,10 @@ TEST(BandedIpm, StraightLineDoubleSMatchesIpopt) {
   const JerkTiming r = expect_same_optimum(g, lim, *exact, opt, 1e-6 * 10.0, "double S");
   const auto ref = core::min_time_double_s(1.0, 1.0, 2.0, 10.0);
   ASSERT_TRUE(ref);
-  EXPECT_NEAR(r.duration, ref->duration, 0.01 * ref->duration);
+  // No faster than the double S (the optimum in continuous time); the grid's resolution of
+  // the jerk costs a few per cent (time_optimal_jerk_test.cpp).
+  EXPECT_GE(r.duration, ref->duration * (1 - 1e-9));
+  EXPECT_LE(r.duration, ref->duration * 1.07);
 }
 
 TEST(BandedIpm, LooseJerkMatchesTheExactSweepAndIpopt) {
@@ -146,7 +149,10 @@ TEST(BandedIpm, LooseJerkMatchesTheExactSweepAndIpopt) {
   opt.joint_jerk = JointVector::Constant(2, 1e6);
   opt.max_jerk = 1e6;
   const JerkTiming r = expect_same_optimum(g, lim, *exact, opt, 1e-7, "loose jerk");
-  EXPECT_NEAR(r.duration, exact->duration, 1e-6 * exact->duration);
+  // The grid's time (the profile adds its ramps at the rests: dt_0 / 4 + dt_{N-1} / 4).
+  double grid_time = 0.0;
+  for (double d : r.dt) grid_time += d;
+  EXPECT_NEAR(grid_time, exact->duration, 1e-6 * exact->duration);
 }
 
 TEST(BandedIpm, JointJerkLimitsMatchIpopt) {
@@ -262,7 +268,7 @@ TEST(BandedIpm, Pa10PlanNeverFallsBack) {
   spec.cycle_rate_hz = 100.0;
   JerkTimingOptions opt;
   opt.time_budget_s = 30.0;
-  const auto plan = plan_time_optimal_jerk(*path, *orientation, spec, &robot, core::home_configuration(robot), {}, opt);
+  const auto plan = plan_time_optimal_jerk(*path, *orientation, spec, &robot, core::home_configuration(robot), jerk_exact_options(), opt);
   ASSERT_TRUE(plan) << plan.error()[0].description;
   EXPECT_EQ(plan->report.status, OptimizerStatus::kConverged) << plan->report.message;
   std::printf("PA-10 plan: %d refinements, %d iterations, %.1f ms, %.4f s\n", plan->refinements,

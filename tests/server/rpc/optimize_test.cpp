@@ -579,13 +579,23 @@ TEST_F(OptimizeTest, JerkLimitedAnswersWithinTheDeadline) {
   std::printf("[ measured ] jerkLimited: %s (%s) in %.3f s\n", status.ok() ? "OK" : "error",
               status.error_message().c_str(), plan_s);
   // The jerk-limited plan is checked sample by sample like the exact one, so the service
-  // accepts it. With no jerk limit given it is the time-optimal motion again, to within the
-  // two planners' different tightening of their grid limits where a sample broke one (1 %).
+  // accepts it. With no jerk limit given it is the time-optimal motion again, on its coarser
+  // grid (200 intervals against 1,000, 3 % slower: core/planning/time_optimal.hpp) and with
+  // ramps at the rests (zero acceleration at both ends): no faster than the exact minimum,
+  // and at most 6 % slower.
   ASSERT_TRUE(status.ok()) << status.error_message();
   ASSERT_TRUE(response.optimization().has_timing());
-  const double exact = plan_ok(pa10_path_c_fastest()).motion().duration_s();
-  EXPECT_NEAR(response.motion().duration_s(), exact, 0.01 * exact);
+  const auto exact_response = plan_ok(pa10_path_c_fastest());
+  const double exact = exact_response.motion().duration_s();
+  const auto& timing = response.optimization().timing();
+  EXPECT_GE(response.motion().duration_s(), exact - exact_response.optimization().timing().duration_grid_error_s());
+  EXPECT_LE(response.motion().duration_s(), 1.06 * exact);
   EXPECT_TRUE(response.robot().feasible());
+  // The report says how the limits were checked between the samples.
+  EXPECT_EQ(timing.check_rate_hz(), 2000.0);
+  EXPECT_LE(timing.worst_limit_usage(), 1.0 + 1e-9);
+  EXPECT_GT(timing.worst_limit_usage(), 0.99);
+  EXPECT_GT(timing.duration_grid_error_s(), 0.0);
   std::printf("[ measured ] jerk-limited %.4f s against %.4f s without jerk limits\n",
               response.motion().duration_s(), exact);
 }

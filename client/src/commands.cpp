@@ -78,6 +78,15 @@ bool apply(const OptimizeFlags& flags, v1::PlanRequest& request) {
     request.mutable_path()->set_unspecified(static_cast<v1::UnspecifiedConstraints>(reading));
   }
   if (flags.max_curvature > 0.0) request.mutable_path()->set_max_curvature(flags.max_curvature);
+  if (flags.velocity_scale || flags.acceleration_scale) {
+    if (!request.has_robot()) {
+      std::cerr << "geotraj: --velocity-scale and --acceleration-scale scale a robot's joint limits: the request has "
+                   "no robot\n";
+      return false;
+    }
+    if (flags.velocity_scale) request.mutable_robot()->set_velocity_scale(*flags.velocity_scale);
+    if (flags.acceleration_scale) request.mutable_robot()->set_acceleration_scale(*flags.acceleration_scale);
+  }
   const bool any = !flags.tangent_scales.empty() || !flags.breakpoints.empty() || flags.time_optimal ||
                    flags.jerk_limited || flags.budget_s > 0.0 || flags.length_weight;
   if (!any) return true;  // the request's own `optimize`, if any, stays as it is

@@ -20,6 +20,8 @@ struct OptimizeFlags {
   bool time_optimal = false;   ///< optimize.timing.timeOptimal
   bool jerk_limited = false;   ///< optimize.timing.jerkLimited
   double budget_s = 0.0;       ///< optimize.timeBudgetS when > 0
+  std::optional<double> velocity_scale;      ///< robot.velocityScale; absent: the request's
+  std::optional<double> acceleration_scale;  ///< robot.accelerationScale; absent: the request's
 };
 
 /// What `fk` and `ik` flags write into their requests (over a request file's own).

@@ -59,6 +59,11 @@ int main(int argc, char** argv) {
     sub->add_flag("--jerk-limited", options.optimize.jerk_limited, "time-optimal with jerk limits as well (Ipopt)");
     sub->add_option("--optimize-budget", options.optimize.budget_s, "wall-clock budget of the optimisers [s]")
         ->check(CLI::PositiveNumber);
+    sub->add_option("--velocity-scale", options.optimize.velocity_scale,
+                    "fraction of the robot's joint velocity limits to use, in (0, 1] (robot.velocityScale)");
+    sub->add_option("--acceleration-scale", options.optimize.acceleration_scale,
+                    "fraction of the robot's joint acceleration and jerk limits to use, in (0, 1] "
+                    "(robot.accelerationScale)");
   };
   auto* convert = app.add_subcommand("convert", "ConvertConstraints: key-frame constraints -> parametric derivatives");
   request_arg(convert, "a ConvertRequest");

@@ -183,6 +183,15 @@ const RobotModel* find_builtin_robot(std::string_view name) {
   return nullptr;
 }
 
+RobotModel with_scaled_limits(RobotModel model, double velocity, double acceleration) {
+  for (JointLimits& l : model.limits) {
+    l.max_velocity *= velocity;
+    l.max_acceleration *= acceleration;
+    if (l.max_jerk) *l.max_jerk *= acceleration;
+  }
+  return model;
+}
+
 JointVector home_configuration(const RobotModel& model) {
   JointVector q = JointVector::Zero(static_cast<Eigen::Index>(model.dof()));
   if (model.home.size() == model.dof()) {

@@ -110,4 +110,10 @@ const RobotModel* find_builtin_robot(std::string_view name);
 /// The model's home configuration as a JointVector (zeros when `home` is empty).
 JointVector home_configuration(const RobotModel& model);
 
+/// The model with its joint limits overridden for one motion (the thesis's SpeedScale, Table
+/// 6.2, per limit; MoveIt's velocity and acceleration scaling factors): every maxVelocity
+/// times `velocity`, every maxAcceleration and maxJerk times `acceleration`, both in (0, 1]
+/// (checked by the caller). Position limits are unchanged.
+RobotModel with_scaled_limits(RobotModel model, double velocity, double acceleration);
+
 }  // namespace geotraj::core

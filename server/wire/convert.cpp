@@ -589,6 +589,18 @@ core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, con
             "m", resolved.start_position_tolerance);
   tolerance(spec.has_start_orientation_tolerance(), spec.start_orientation_tolerance(),
             "robot.startOrientationTolerance", "rad", resolved.start_orientation_tolerance);
+  const auto factor = [&out](bool given, double value, const char* field) {
+    if (given && !(std::isfinite(value) && value > 0.0 && value <= 1.0)) {
+      out.push_back({field, "must be in (0, 1] (a fraction of the model's limits), got " + core::number(value)});
+    }
+    return given ? value : 1.0;
+  };
+  const double velocity_scale = factor(spec.has_velocity_scale(), spec.velocity_scale(), "robot.velocityScale");
+  const double acceleration_scale =
+      factor(spec.has_acceleration_scale(), spec.acceleration_scale(), "robot.accelerationScale");
+  if (out.empty() && (velocity_scale != 1.0 || acceleration_scale != 1.0)) {
+    resolved.model = core::with_scaled_limits(std::move(resolved.model), velocity_scale, acceleration_scale);
+  }
   const std::size_t n = resolved.model.dof();
   if (n > 0) {
     if (spec.initial_joints_size() == 0) {

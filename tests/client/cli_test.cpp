@@ -192,6 +192,17 @@ TEST(Cli, OptimizeFlagsFillTheRequest) {
   EXPECT_THAT(run.out, HasSubstr("which limit binds where:"));
   // About 5.4 s at 100 Hz against the fixed 10 s.
   EXPECT_THAT(run.out, ::testing::ContainsRegex("robot pa10: 5[0-9][0-9] samples, within every limit"));
+  EXPECT_THAT(run.out, HasSubstr("limits checked at 2000 Hz"));
+  // Half the joint speeds: about twice the time.
+  run = run_cli("plan --json --time-optimal --velocity-scale 0.5 --acceleration-scale 0.25 -", false, request);
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_GT(from_json<v1::PlanResponse>(run.out).motion().duration_s(), 9.0);
+  run = run_cli("plan --velocity-scale 2 -", true, request);
+  EXPECT_EQ(run.exit_code, 1) << run.out;  // the server's INVALID_ARGUMENT
+  EXPECT_THAT(run.out, HasSubstr("robot.velocityScale"));
+  run = run_cli("plan --velocity-scale 0.5 " + example_path("plan_demo_path_a.json"), true);
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.out, HasSubstr("the request has no robot"));
 
   run = run_cli("plan --unspecified lowest-degree --optimize-tangent-scales arc-length " +
                 example_path("plan_demo_path_a.json"));

@@ -388,6 +388,52 @@ TEST_F(RobotTest, FastestDemonstrationStreamsWithinTheLimitsUnderTheDefaultReadi
   }
 }
 
+// Override factors on the joint limits (robot.velocityScale, robot.accelerationScale): the
+// fastest motion along path C then uses at most those fractions of the model's limits, and
+// reaches them.
+TEST_F(RobotTest, LimitOverridesScaleTheJointLimits) {
+  const auto pa10 = robot_model("pa10");
+  auto request = example<v1::PlanRequest>("plan_pa10_path_c.json");
+  request.mutable_motion()->set_duration_s(0.0);
+  v1::PlanResponse full;
+  ASSERT_TRUE(plan(request, full).ok());
+  request.mutable_robot()->set_velocity_scale(0.5);
+  request.mutable_robot()->set_acceleration_scale(0.25);
+  v1::PlanResponse scaled;
+  const auto plan_status = plan(request, scaled);
+  ASSERT_TRUE(plan_status.ok()) << plan_status.error_message();
+  EXPECT_GT(scaled.motion().duration_s(), 1.5 * full.motion().duration_s());
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  double worst_v = 0.0, worst_a = 0.0;
+  for (const auto& smp : samples)
+    for (int j = 0; j < 7; ++j) {
+      worst_v = std::max(worst_v, std::abs(smp.joint_velocities(j)) / pa10.limits(j).max_velocity());
+      worst_a = std::max(worst_a, std::abs(smp.joint_accelerations(j)) / pa10.limits(j).max_acceleration());
+    }
+  std::printf("[ measured ] scaled 0.5 / 0.25: %.3f s against %.3f s; velocity %.6f, acceleration %.6f of the model's\n",
+              scaled.motion().duration_s(), full.motion().duration_s(), worst_v, worst_a);
+  EXPECT_LE(worst_v, 0.5 * (1 + 1e-9));
+  EXPECT_LE(worst_a, 0.25 * (1 + 1e-9));
+  EXPECT_GT(std::max(worst_v / 0.5, worst_a / 0.25), 0.99) << "a scaled limit binds";
+  // The report's limits are the scaled ones.
+  const auto& tightest = scaled.robot().tightest_velocity();
+  EXPECT_NEAR(tightest.limit(), 0.5 * pa10.limits(static_cast<int>(tightest.joint())).max_velocity(), 1e-12);
+
+  for (const double bad : {0.0, 1.5, -1.0, std::nan("")}) {
+    auto wrong = request;
+    wrong.mutable_robot()->set_velocity_scale(bad);
+    wrong.mutable_robot()->set_acceleration_scale(bad);
+    v1::PlanResponse response;
+    const auto refused = plan(wrong, response);
+    ASSERT_EQ(refused.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << bad;
+    const auto violations = bad_request_violations(refused);
+    EXPECT_NE(violation_of(violations, "robot.velocityScale"), "") << bad;
+    EXPECT_NE(violation_of(violations, "robot.accelerationScale"), "") << bad;
+  }
+}
+
 // A limit broken on purpose: an inline copy of the PA-10 whose joint 2 may barely move.
 TEST_F(RobotTest, ABrokenLimitNamesItsJoint) {
   auto slow = robot_model("pa10");

@@ -60,7 +60,8 @@ std::size_t head_end(std::string_view in) {
   return end;
 }
 
-// What RFC 9112 requires a server to refuse and cpp-httplib 0.11 accepts: more than one
+// What RFC 9112 requires a server to refuse and cpp-httplib 0.11 accepts: a method that is
+// not a token (3.1: cpp-httplib skips leading whitespace such as a tab), more than one
 // space between the parts of the request line (3), a target that is not in origin form
 // (3.2.1), a header line without a colon or with whitespace before it (5.1). cpp-httplib
 // itself refuses an unknown method or version and bare LF line ends.
@@ -72,7 +73,7 @@ bool breaks_rfc9112(std::string_view head) {
   const std::size_t sp1 = request_line.find(' ');
   const std::size_t sp2 = sp1 == std::string_view::npos ? sp1 : request_line.find(' ', sp1 + 1);
   if (sp2 == std::string_view::npos || sp2 == sp1 + 1 || request_line.find(' ', sp2 + 1) != std::string_view::npos ||
-      request_line[sp1 + 1] != '/') {
+      request_line[sp1 + 1] != '/' || !is_token(request_line.substr(0, sp1))) {
     return true;
   }
   for (std::string_view rest = head.substr(line_end + 2); !rest.empty() && !rest.starts_with("\r\n");) {

@@ -314,7 +314,9 @@ TEST_F(Exporter, AnswersMalformedRequestsWith400) {
                               "GET metrics HTTP/1.1\r\n\r\n", "GET  /metrics HTTP/1.1\r\n\r\n",
                               "GET /metrics HTTP/1.1\r\nno colon here\r\n\r\n",
                               "GET /metrics HTTP/1.1\r\nBad Name: x\r\n\r\n", "G(T /metrics HTTP/1.1\r\n\r\n",
-                              "GET /metrics HTTP/1.1\r\nName : x\r\n\r\n", "GET /healthz HTTP/1.1\n\n"}) {
+                              "GET /metrics HTTP/1.1\r\nName : x\r\n\r\n", "GET /healthz HTTP/1.1\n\n",
+                              // fuzz_http_head's finding: a tab before the method (cpp-httplib skipped it)
+                              "\tHEAD /healthz?x=1 HTTP/1.0\r\n\r\n", " GET /metrics HTTP/1.1\r\n\r\n"}) {
     EXPECT_THAT(exchange(exporter_->port(), request), StartsWith("HTTP/1.1 400 Bad Request\r\n")) << request;
   }
 }

@@ -263,6 +263,7 @@ int main(int argc, char** argv) {
   int signal = 0;
   sigwait(&stop_signals, &signal);
   const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
+  geotraj::server::begin_drain(*running);  // refusing new calls before saying so
   std::printf("geotrajd: %s received, draining (up to %s s); a second signal stops at once\n", name,
               geotraj::core::number(drain_s, 6).c_str());
   std::fflush(stdout);

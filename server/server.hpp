@@ -147,6 +147,11 @@ struct RunningServer {
 /// invalid: the file and the field are named).
 tl::expected<RunningServer, std::string> start_server(const ServerOptions& options);
 
+/// The first step of stop_server alone (idempotent): health turns NOT_SERVING and new calls
+/// are refused with UNAVAILABLE from its return on. geotrajd calls it before it announces
+/// the drain, so that a client that reads the announcement is refused.
+void begin_drain(RunningServer& running);
+
 /// Graceful shutdown: health turns NOT_SERVING on every name, new calls are refused with
 /// UNAVAILABLE (trailers only, so clients retry them elsewhere), and calls in flight may
 /// finish until `drain` has passed; new calls are refused for `lame_duck` at least (at most

@@ -405,12 +405,17 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
   return running;
 }
 
+void begin_drain(RunningServer& running) {
+  if (!running.server) return;
+  running.runtime->start_draining();
+  running.health->set_all(false);
+}
+
 void stop_server(RunningServer& running, std::chrono::milliseconds drain, std::chrono::milliseconds lame_duck,
                  std::stop_token now) {
   if (!running.server) return;
   const auto began = std::chrono::steady_clock::now();
-  running.runtime->start_draining();
-  running.health->set_all(false);
+  begin_drain(running);
   // New calls are refused (UNAVAILABLE) from now on; those in flight may finish.
   // The lame duck: even with no call in flight, keep refusing (UNAVAILABLE, which clients
   // retry elsewhere) while clients and load balancers see NOT_SERVING; calls that reach a

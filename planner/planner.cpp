@@ -235,8 +235,10 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
   if (!path) return tl::unexpected(std::move(path.error()));
   // A straight start keeps the tool as the robot holds it at its initial joints (or the
   // world axes without a robot): see plan_orientation.
-  const Eigen::Quaterniond start_W = robot ? Eigen::Quaterniond(core::forward_kinematics(robot->model, robot->seed).rotation())
-                                           : Eigen::Quaterniond::Identity();
+  const Eigen::Quaterniond start_W =
+      request.start_orientation ? *request.start_orientation
+      : robot                   ? Eigen::Quaterniond(core::forward_kinematics(robot->model, robot->seed).rotation())
+                                : Eigen::Quaterniond::Identity();
   auto orientation = core::plan_orientation(*path, start_W);
   if (!orientation) return tl::unexpected(invalid(core::prefixed(std::move(orientation.error()), "path.")));
   // As fast as the limits allow: the time-optimal timing, with a robot (joint limits) or
@@ -306,8 +308,8 @@ Expected<RobotPass> robot_pass(const core::Trajectory& trajectory, const Robot& 
 }
 
 // A straight line to joint values must end at them, not on another branch of their pose.
-std::optional<Error> ends_at_goal(const Request& request, const core::JointVector& last) {
-  const auto* move = std::get_if<LinearMoveToJoints>(&request.geometry);
+std::optional<Error> ends_at_goal(const Geometry& geometry, const core::JointVector& last) {
+  const auto* move = std::get_if<LinearMoveToJoints>(&geometry);
   if (move == nullptr || last.size() != static_cast<Eigen::Index>(move->goal.size())) return std::nullopt;
   double worst = 0.0;
   std::size_t joint = 0;
@@ -358,6 +360,240 @@ PathReport report_of(const core::Path& path) {
   return report;
 }
 
+// ---------------------------------------------------------------------------------------
+// Sequences
+
+constexpr double kSequenceJointTolerance = 1e-6;  // [rad or m]: a given start must be the previous end
+
+// Violations of step i named from the request's root: the step's own fields under
+// `sequence[i].`, the request's motion (when the step has none of its own) and robot as
+// they are, the step said in the message.
+Error in_step(Error error, std::size_t i, const Step& step) {
+  const std::string prefix = "sequence[" + std::to_string(i) + "].";
+  for (auto& v : error.violations) {
+    const bool motion = v.field.rfind("motion", 0) == 0;
+    const bool own = v.field.rfind("path", 0) == 0 || v.field.rfind("jointMove", 0) == 0 ||
+                     v.field.rfind("linearMove", 0) == 0 || (motion && step.own_motion);
+    if (own) {
+      v.field = prefix + v.field;
+    } else {
+      v.description += " (in " + prefix.substr(0, prefix.size() - 1) + ")";
+    }
+  }
+  return error;
+}
+
+double rotation_angle(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
+  return Eigen::AngleAxisd(a.toRotationMatrix() * b.toRotationMatrix().transpose()).angle();
+}
+
+std::string kind_of(const Geometry& g) {
+  if (std::holds_alternative<core::PathSpec>(g)) return "path";
+  if (std::holds_alternative<core::JointMoveSpec>(g) || std::holds_alternative<JointMoveToPose>(g)) return "jointMove";
+  return "linearMove";
+}
+
+// Where the previous step ended: the tool pose and, with a robot, the joints.
+struct StepEnd {
+  core::ToolPose pose;
+  core::JointVector q;
+};
+
+// Step i's geometry with its start at `end` (absent) or checked against it (given).
+Expected<Geometry> started_at(const Step& step, std::size_t i, const StepEnd& end, const Robot* robot) {
+  const std::string field = "sequence[" + std::to_string(i) + "].";
+  Geometry g = step.geometry;
+  const auto joint_start = [&](std::vector<double>& start) -> std::optional<Error> {
+    if (!step.start_given) {
+      start.assign(end.q.data(), end.q.data() + end.q.size());
+      return std::nullopt;
+    }
+    if (start.size() != static_cast<std::size_t>(end.q.size())) return std::nullopt;  // plan_joint_move names it
+    for (std::size_t j = 0; j < start.size(); ++j) {
+      const double d = std::abs(start[j] - end.q(static_cast<Eigen::Index>(j)));
+      if (d > kSequenceJointTolerance) {
+        return invalid(core::Violations{
+            {field + "jointMove.start[" + std::to_string(j) + "]",
+             "is " + core::number(d, 6) + " from joint " + std::to_string(j) + "'s value where sequence[" +
+                 std::to_string(i - 1) + "] ends (" + core::number(end.q(static_cast<Eigen::Index>(j))) +
+                 "): a step starts where the previous one ends; leave `start` out to take that"}});
+      }
+    }
+    return std::nullopt;
+  };
+  const auto pose_start = [&](core::ToolPose& start) -> std::optional<Error> {
+    if (!step.start_given) {
+      start = end.pose;
+      return std::nullopt;
+    }
+    const double dp = (start.p_WT - end.pose.p_WT).norm();
+    const double dr = start.q_WT.norm() > 0.0 ? rotation_angle(start.q_WT.normalized(), end.pose.q_WT) : 0.0;
+    const double tp = robot ? robot->start_position_tolerance : Robot{}.start_position_tolerance;
+    const double tr = robot ? robot->start_orientation_tolerance : Robot{}.start_orientation_tolerance;
+    if (dp <= tp && dr <= tr) {
+      start = end.pose;  // exactly where the previous step ended
+      return std::nullopt;
+    }
+    return invalid(core::Violations{{field + "linearMove.start",
+                                     "is " + core::number(dp, 6) + " m and " + core::number(dr, 6) +
+                                         " rad from where sequence[" + std::to_string(i - 1) + "] ends (tolerances " +
+                                         core::number(tp) + " m, " + core::number(tr) +
+                                         " rad): a step starts where the previous one ends; leave `start` out to "
+                                         "take that"}});
+  };
+  std::optional<Error> error;
+  if (auto* m = std::get_if<core::JointMoveSpec>(&g)) error = joint_start(m->start);
+  if (auto* m = std::get_if<JointMoveToPose>(&g)) error = joint_start(m->start);
+  if (auto* m = std::get_if<core::LinearMoveSpec>(&g)) error = pose_start(m->start);
+  if (auto* m = std::get_if<LinearMoveToJoints>(&g)) error = pose_start(m->start);
+  if (error) return tl::unexpected(std::move(*error));
+  return g;
+}
+
+// A path step must start where the previous step ended (its first sample, `first`).
+std::optional<Error> path_starts_at(const core::TrajectorySample& first, const StepEnd& end, std::size_t i,
+                                    const Robot* robot) {
+  const double dp = (first.tool.X_WT.translation() - end.pose.p_WT).norm();
+  const double dr = rotation_angle(first.q_WT, end.pose.q_WT);
+  const double tp = robot ? robot->start_position_tolerance : Robot{}.start_position_tolerance;
+  const double tr = robot ? robot->start_orientation_tolerance : Robot{}.start_orientation_tolerance;
+  if (dp <= tp && dr <= tr) return std::nullopt;
+  return invalid(core::Violations{core::unattainable(
+      "sequence[" + std::to_string(i) + "].path",
+      "starts " + core::number(dp, 6) + " m and " + core::number(dr, 6) + " rad from where sequence[" +
+          std::to_string(i - 1) + "] ends (tolerances " + core::number(tp) + " m, " + core::number(tr) +
+          " rad): its first key frame must be there, with the tool's orientation (a frame normal, or a "
+          "straight start that keeps the orientation)")});
+}
+
+double arc_length_of(const core::StepMotion& m) {
+  if (const auto* path = std::get_if<core::PathMotion>(&m)) return path->path.length();
+  if (const auto* line = std::get_if<core::LinearMovePlan>(&m)) return line->length;
+  return 0.0;
+}
+
+core::StepMotion as_step(core::Trajectory&& t) {
+  if (auto* m = std::get_if<core::PathMotion>(&t)) return core::StepMotion(std::move(*m));
+  if (auto* m = std::get_if<core::JointMovePlan>(&t)) return core::StepMotion(std::move(*m));
+  return core::StepMotion(std::move(std::get<core::LinearMovePlan>(t)));
+}
+
+Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose) {
+  const auto deadline = optimizer_deadline(request, budget);
+  const Robot* robot = request.robot.get();
+  Plan result;
+  result.robot = request.robot;
+  std::vector<core::StepMotion> steps;
+  std::optional<core::JointReportBuilder> builder;
+  if (robot) builder.emplace(robot->model, robot->branch_tolerance);
+  ToolPeaks peaks;
+  StepEnd end;
+  if (robot) {
+    end.q = robot->seed;
+    const Eigen::Isometry3d X = core::forward_kinematics(robot->model, robot->seed);
+    end.pose.p_WT = X.translation();
+    end.pose.q_WT = Eigen::Quaterniond(X.linear());
+  }
+  const double rate = request.sequence.front().motion.cycle_rate_hz;
+  std::size_t first = 0;  // global index of the step's first sample
+  for (std::size_t i = 0; i < request.sequence.size(); ++i) {
+    const Step& step = request.sequence[i];
+    if (step.motion.cycle_rate_hz != rate) {
+      return tl::unexpected(invalid(core::Violations{
+          {"sequence[" + std::to_string(i) + "].motion.cycleRateHz",
+           "is " + core::number(step.motion.cycle_rate_hz) + " Hz; every step of a sequence streams at one rate, " +
+               core::number(rate) + " Hz (sequence[0]'s)"}}));
+    }
+    Request sub;
+    if (i == 0) {
+      sub.geometry = step.geometry;
+    } else {
+      auto started = started_at(step, i, end, robot);
+      if (!started) return tl::unexpected(std::move(started.error()));
+      sub.geometry = std::move(*started);
+      sub.start_orientation = end.pose.q_WT;
+    }
+    sub.motion = step.motion;
+    if (robot) {
+      auto at_end = std::make_shared<Robot>(*robot);
+      at_end->seed = end.q;
+      sub.robot = std::move(at_end);
+    }
+    const bool path = std::holds_alternative<core::PathSpec>(sub.geometry);
+    if (path) sub.optimize = request.optimize;
+    StepReport report;
+    report.kind = kind_of(step.geometry);
+    auto trajectory = plan_trajectory(sub, budget, deadline, report.optimizers);
+    if (!trajectory) return tl::unexpected(in_step(std::move(trajectory.error()), i, step));
+    if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+    if (i == 0 && robot) {
+      if (auto refused = starts_at_robot(*trajectory, *robot)) return tl::unexpected(std::move(*refused));
+    }
+    core::StepMotion motion = as_step(std::move(*trajectory));
+    const std::size_t n = core::sample_count(motion);
+    const bool last_step = i + 1 == request.sequence.size();
+    report.start_time_s = static_cast<double>(first) / rate;
+    report.duration_s = core::duration(motion);
+    report.first_sample = first;
+    report.sample_count = last_step ? n : n - 1;
+    report.arc_length = arc_length_of(motion);
+    if (path && purpose == Purpose::kPlan) report.path = report_of(std::get<core::PathMotion>(motion).path);
+    if (first + report.sample_count > limits.max_samples) {
+      return tl::unexpected(invalid(core::Violations{
+          {"sequence", "the sequence has more than " + std::to_string(limits.max_samples) +
+                           " samples by sequence[" + std::to_string(i) + "] (" +
+                           core::number(report.start_time_s + report.duration_s, 6) +
+                           " s at the cycle rate); this server streams and checks at most " +
+                           std::to_string(limits.max_samples) + " per call" +
+                           (limits.max_samples_name.empty() ? "" : " (" + limits.max_samples_name + ")") +
+                           ": shorten it or lower cycleRateHz"}}));
+    }
+    // The step's samples, as the sequence streams them: the joint report and the tool's
+    // peaks over the whole sequence, and where the step ends.
+    const auto ref = std::visit([](const auto& m) { return core::StepRef(&m); }, motion);
+    core::StepSampler sampler(ref, robot ? &robot->model : nullptr, end.q, {});
+    core::TrajectorySample sample;
+    while (sampler.next(sample)) {
+      const std::size_t j = sampler.index() - 1;
+      if (j == 0 && i > 0 && path) {
+        if (auto refused = path_starts_at(sample, end, i, robot)) return tl::unexpected(std::move(*refused));
+      }
+      if (last_step || j + 1 < n) {
+        const double t = report.start_time_s + sample.t;
+        if (builder) builder->add(first + j, t, sample.s, sample.joints);
+        add(peaks, sample);
+      }
+      if (j % (robot ? kSamplesPerCheck : kToolSamplesPerCheck) == 0) {
+        if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+      }
+    }
+    end.pose.p_WT = sample.tool.X_WT.translation();
+    end.pose.q_WT = sample.q_WT;
+    if (robot) {
+      end.q = sample.joints.q;
+      if (auto refused = ends_at_goal(sub.geometry, end.q)) return tl::unexpected(in_step(std::move(*refused), i, step));
+    }
+    first += report.sample_count;
+    result.steps.push_back(std::move(report));
+    steps.push_back(std::move(motion));
+  }
+  result.trajectory = core::make_sequence(std::move(steps), rate);
+  if (builder) {
+    core::JointMotionReport joints = builder->report();
+    const bool only_limits = std::all_of(joints.violations.begin(), joints.violations.end(), [](const auto& e) {
+      return e.kind != core::LimitKind::kIk && e.kind != core::LimitKind::kBranch;
+    });
+    const bool allowed = robot->report_only && (purpose == Purpose::kPlan || only_limits);
+    if (!joints.feasible() && !allowed) {
+      return tl::unexpected(Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, robot->model.name});
+    }
+    result.joints = std::move(joints);
+  }
+  if (purpose == Purpose::kPlan) result.tool = peaks;
+  if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+  return result;
+}
+
 }  // namespace
 
 bool time_optimally_timed(const core::MotionSpec& motion, bool robot, bool time_optimal, bool jerk_limited) {
@@ -382,6 +618,7 @@ const core::Path* Plan::followed_path() const {
 
 Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose) {
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+  if (!request.sequence.empty()) return plan_sequence(request, budget, limits, purpose);
   const auto deadline = optimizer_deadline(request, budget);
   Plan result;
   result.robot = request.robot;
@@ -418,7 +655,7 @@ Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& 
       return tl::unexpected(Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, request.robot->model.name});
     }
     if (joints.feasible()) {
-      if (auto refused = ends_at_goal(request, last)) return tl::unexpected(std::move(*refused));
+      if (auto refused = ends_at_goal(request.geometry, last)) return tl::unexpected(std::move(*refused));
     }
     if (purpose == Purpose::kPlan) result.tool = peaks;
     result.joints = std::move(joints);

@@ -78,12 +78,29 @@ struct LinearMoveToJoints {
 using Geometry = std::variant<core::PathSpec, core::JointMoveSpec, core::LinearMoveSpec, JointMoveToPose,
                               LinearMoveToJoints>;
 
+/// One step of a sequence (PlanRequest.sequence[i]), converted. Its errors are named
+/// `sequence[i].<field>`.
+struct Step {
+  Geometry geometry;
+  core::MotionSpec motion;
+  bool own_motion = false;   ///< sequence[i].motion was given (else the request's motion)
+  /// A move's start was given (jointMove.start, linearMove.start): it must be where the
+  /// previous step ends. Not given: it is that end (the wire's placeholder is replaced).
+  bool start_given = false;
+};
+
 /// Everything a plan request says, converted once by the wire layer.
 struct Request {
-  Geometry geometry;
+  Geometry geometry;                       ///< unused when `sequence` is given
   std::optional<core::MotionSpec> motion;  ///< absent: the path's geometry only
   std::shared_ptr<const Robot> robot;      ///< shared: a plan's samplers refer to its model
   std::optional<Optimize> optimize;
+  /// Steps planned in order instead of `geometry` (PlanRequest.sequence); `optimize` applies
+  /// to each path among them.
+  std::vector<Step> sequence;
+  /// The tool orientation a path starts in where its first frame defines none (see
+  /// core::plan_orientation). Absent: the robot's at its initial joints, or the world axes.
+  std::optional<Eigen::Quaterniond> start_orientation;
 };
 
 /// The server's bounds on one call's work.
@@ -169,6 +186,18 @@ struct PathReport {
   core::GeometryReport geometry;
 };
 
+/// One step of a planned sequence, where it lies in time and in the samples.
+struct StepReport {
+  std::string kind;           ///< "path", "jointMove" or "linearMove"
+  double start_time_s = 0.0;  ///< [s]
+  double duration_s = 0.0;    ///< [s]
+  std::size_t first_sample = 0;
+  std::size_t sample_count = 0;  ///< streamed (its last rest is the next step's first sample)
+  double arc_length = 0.0;    ///< [m] (paths and linear moves)
+  std::optional<PathReport> path;  ///< a path, kPlan
+  OptimizerReports optimizers;     ///< a path's optimisers
+};
+
 /// What a request plans for.
 enum class Purpose {
   kPlan,    ///< PlanTrajectory: reports, the robot's joint report (reportOnly keeps every limit
@@ -186,6 +215,7 @@ struct Plan {
   OptimizerReports optimizers;
   std::optional<core::JointMotionReport> joints;  ///< with a robot
   std::optional<ToolPeaks> tool;                  ///< kPlan with a motion
+  std::vector<StepReport> steps;                  ///< a sequence: one per step
 
   /// The path the plan follows, if any.
   const core::Path* followed_path() const;

@@ -24,6 +24,8 @@
 #   linear_move_ur5.json      PlanRequest with a linearMove (thesis 6.2.2.2): the UR5's tool on a
 #                             straight line from its home pose (start absent), turning 90 degrees
 #                             about z, in 2 s
+#   sequence_ur5.json         PlanRequest with a sequence: the UR5 down a line to a pick pose, up
+#                             in 1.5 s, a joint move to above the place pose, down a line
 #   fk_pa10.json              ForwardKinematicsRequest: the PA-10's tool pose, Jacobian and axes
 #   ik_ur5_all.json           InverseKinematicsRequest: every branch of a UR5 tool pose (eight)
 # Each works with StreamSamples too (the joints in every sample): StreamSamples refuses a
@@ -56,7 +58,7 @@ call AnalyzePath "$here/analyze_demo_path_a.json"
 
 echo "== ListRobots"
 grpcurl -plaintext -d '{}' "$address" geotraj.v1.TrajectoryService/ListRobots
-for request in plan_pa10_path_c joint_move_pa10 linear_move_ur5; do
+for request in plan_pa10_path_c joint_move_pa10 linear_move_ur5 sequence_ur5; do
   call PlanTrajectory "$here/$request.json"
 done
 call ComputeForwardKinematics "$here/fk_pa10.json"

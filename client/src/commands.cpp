@@ -55,6 +55,16 @@ bool read_request(const std::string& input, Request& request) {
   return true;
 }
 
+// The request's paths: its `path`, or every path of its sequence.
+std::vector<v1::PathSpec*> paths_of(v1::PlanRequest& request) {
+  if (request.sequence_size() == 0) return {request.mutable_path()};
+  std::vector<v1::PathSpec*> paths;
+  for (auto& step : *request.mutable_sequence()) {
+    if (step.has_path()) paths.push_back(step.mutable_path());
+  }
+  return paths;
+}
+
 // The `--optimize-*` flags written into the request; false (with a message) for an unknown
 // objective name.
 bool apply(const OptimizeFlags& flags, v1::PlanRequest& request) {
@@ -75,9 +85,11 @@ bool apply(const OptimizeFlags& flags, v1::PlanRequest& request) {
     if (!enum_value(flags.unspecified, "UNSPECIFIED_CONSTRAINTS_", v1::UnspecifiedConstraints_descriptor(), reading)) {
       return false;
     }
-    request.mutable_path()->set_unspecified(static_cast<v1::UnspecifiedConstraints>(reading));
+    for (auto* path : paths_of(request)) path->set_unspecified(static_cast<v1::UnspecifiedConstraints>(reading));
   }
-  if (flags.max_curvature > 0.0) request.mutable_path()->set_max_curvature(flags.max_curvature);
+  if (flags.max_curvature > 0.0) {
+    for (auto* path : paths_of(request)) path->set_max_curvature(flags.max_curvature);
+  }
   if (flags.velocity_scale || flags.acceleration_scale) {
     if (!request.has_robot()) {
       std::cerr << "geotraj: --velocity-scale and --acceleration-scale scale a robot's joint limits: the request has "
@@ -202,6 +214,7 @@ int run_stream(const Connection& connection, const CallOptions& options) {
   if (options.timeout_s > 0.0) set_deadline(context, options.timeout_s);  // else none: see CallOptions
   auto reader = stub->StreamSamples(&context, request);
   bool header_written = options.json;
+  const bool sequence = request.sequence_size() > 0;  // a `step` column after the tool's state
   google::protobuf::util::JsonPrintOptions print;
   print.add_whitespace = false;
   v1::SampleBatch batch;
@@ -217,6 +230,7 @@ int run_stream(const Connection& connection, const CallOptions& options) {
       } else {
         if (!header_written) {  // joint columns q0.., qd0.., qdd0.. (joint 0 at the base) when the samples carry joints
           std::cout << "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz";
+          if (sequence) std::cout << ",step";
           for (const char* name : {"q", "qd", "qdd"}) {
             for (int j = 0; j < s.joints_size(); ++j) std::cout << ',' << name << j;
           }
@@ -234,6 +248,7 @@ int run_stream(const Connection& connection, const CallOptions& options) {
                       s.t(), s.u(), s.s(), s.segment(), p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z(), v.x(), v.y(),
                       v.z(), a.x(), a.y(), a.z(), s.speed(), w.x(), w.y(), w.z());
         std::cout.write(line, static_cast<std::streamsize>(std::strlen(line) - 1));  // without the newline
+        if (sequence) std::cout << ',' << s.step();
         for (const auto* values : {&s.joints(), &s.joint_velocities(), &s.joint_accelerations()}) {
           for (double x : *values) {
             std::snprintf(line, sizeof line, ",%.17g", x);

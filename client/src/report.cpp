@@ -58,7 +58,36 @@ void print_table(const v1::ConvertResponse& response, std::ostream& out) {
   }
 }
 
+namespace {
+
+// A sequence's steps: where each lies in time and in the samples, and each path's closed loop.
+void print_steps(const v1::PlanResponse& response, std::ostream& out) {
+  out << "sequence: " << response.steps_size() << " steps, the robot at rest between them\n"
+      << " step  kind            start [s]  duration [s]  first sample   samples   length [m]  closed loop\n";
+  for (const auto& s : response.steps()) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "%5u  %-12s %12.4f  %12.4f  %12llu  %8llu  %11.6g", s.index(), s.kind().c_str(),
+                  s.start_time_s(), s.duration_s(), static_cast<unsigned long long>(s.first_sample()),
+                  static_cast<unsigned long long>(s.sample_count()), s.arc_length());
+    out << buf;
+    if (s.kind() == "path") out << "  max error" << num(s.closed_loop().max_error(), 1);
+    out << '\n';
+    for (const auto& w : s.warnings()) {
+      out << "  WARNING " << short_enum(v1::PlanWarningCode_Name(w.code()), "PLAN_WARNING_CODE_") << ": " << w.message()
+          << '\n';
+    }
+  }
+}
+
+}  // namespace
+
 void print_table(const v1::PlanResponse& response, std::ostream& out) {
+  if (response.steps_size() > 0 || (response.segments_size() == 0 && response.has_motion())) {
+    // A sequence or a move: no path of its own to tabulate.
+    if (response.steps_size() > 0) print_steps(response, out);
+    print_motion_and_reports(response, out);
+    return;
+  }
   out << "segments: " << response.segments_size() << ", total arc length" << num(response.arc_length(), 1)
       << " m\n"
       << "  seg  from    to  blend         degree  orders     arc length [m]\n";
@@ -104,6 +133,10 @@ void print_table(const v1::PlanResponse& response, std::ostream& out) {
     out << "WARNING " << short_enum(v1::PlanWarningCode_Name(w.code()), "PLAN_WARNING_CODE_") << ": " << w.message()
         << '\n';
   }
+  print_motion_and_reports(response, out);
+}
+
+void print_motion_and_reports(const v1::PlanResponse& response, std::ostream& out) {
   if (response.has_motion()) {
     const auto& m = response.motion();
     out << "\nmotion: duration" << num(m.duration_s(), 1) << " s, peak speed" << num(m.peak_speed(), 1)

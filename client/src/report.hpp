@@ -11,6 +11,8 @@ namespace geotraj::cli {
 
 void print_table(const v1::ConvertResponse& response, std::ostream& out);
 void print_table(const v1::PlanResponse& response, std::ostream& out);
+/// A plan's motion summary, optimisation and robot reports (what follows its path tables).
+void print_motion_and_reports(const v1::PlanResponse& response, std::ostream& out);
 void print_table(const v1::PathProfile& profile, std::ostream& out);
 /// What the optimisers did.
 void print_table(const v1::OptimizationReport& report, std::ostream& out);

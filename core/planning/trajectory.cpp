@@ -13,35 +13,68 @@ Overloaded(F...) -> Overloaded<F...>;
 
 }  // namespace
 
-std::size_t sample_count(const Trajectory& trajectory) {
+std::size_t sample_count(const StepMotion& step) {
   return std::visit(Overloaded{[](const PathMotion& m) { return m.timing.sample_count; },
                                [](const JointMovePlan& m) { return m.sample_count; },
                                [](const LinearMovePlan& m) { return m.sample_count; }},
+                    step);
+}
+
+double duration(const StepMotion& step) {
+  return std::visit(Overloaded{[](const PathMotion& m) { return m.timing.duration_s; },
+                               [](const JointMovePlan& m) { return m.duration_s; },
+                               [](const LinearMovePlan& m) { return m.duration_s; }},
+                    step);
+}
+
+std::size_t sample_count(const Trajectory& trajectory) {
+  return std::visit(Overloaded{[](const PathMotion& m) { return m.timing.sample_count; },
+                               [](const JointMovePlan& m) { return m.sample_count; },
+                               [](const LinearMovePlan& m) { return m.sample_count; },
+                               [](const SequenceMotion& m) { return m.sample_count; }},
                     trajectory);
 }
 
 double duration(const Trajectory& trajectory) {
   return std::visit(Overloaded{[](const PathMotion& m) { return m.timing.duration_s; },
                                [](const JointMovePlan& m) { return m.duration_s; },
-                               [](const LinearMovePlan& m) { return m.duration_s; }},
+                               [](const LinearMovePlan& m) { return m.duration_s; },
+                               [](const SequenceMotion& m) { return m.duration_s; }},
                     trajectory);
 }
 
-TrajectorySampler::TrajectorySampler(const Trajectory& trajectory, const RobotModel* robot, const JointVector& seed,
-                                     const IkOptions& options)
-    : trajectory_(&trajectory) {
-  std::visit(Overloaded{[&](const PathMotion& m) { path_sampler_.emplace(m.path, m.timing); },
-                        [&](const JointMovePlan& m) { joint_sampler_.emplace(m); },
-                        [&](const LinearMovePlan& m) { linear_sampler_.emplace(m); }},
-             trajectory);
+SequenceMotion make_sequence(std::vector<StepMotion> steps, double rate_hz) {
+  SequenceMotion out;
+  out.steps = std::move(steps);
+  std::size_t first = 0;
+  for (std::size_t k = 0; k < out.steps.size(); ++k) {
+    out.first_samples.push_back(first);
+    out.start_times.push_back(static_cast<double>(first) / rate_hz);
+    const std::size_t n = sample_count(out.steps[k]);
+    if (k + 1 < out.steps.size()) {
+      first += n - 1;  // its last sample (the rest at its end) is the next step's first
+    } else {
+      out.sample_count = first + n;
+      out.duration_s = out.start_times.back() + duration(out.steps[k]);
+    }
+  }
+  return out;
+}
+
+StepSampler::StepSampler(StepRef step, const RobotModel* robot, const JointVector& seed, const IkOptions& options)
+    : step_(step) {
+  std::visit(Overloaded{[&](const PathMotion* m) { path_sampler_.emplace(m->path, m->timing); },
+                        [&](const JointMovePlan* m) { joint_sampler_.emplace(*m); },
+                        [&](const LinearMovePlan* m) { linear_sampler_.emplace(*m); }},
+             step);
   // Joint moves carry their joints; the others need the IK at every sample.
   if (robot != nullptr && !joint_sampler_) tracker_.emplace(*robot, seed, options);
 }
 
-bool TrajectorySampler::next(TrajectorySample& out) {
+bool StepSampler::next(TrajectorySample& out) {
   CartesianState& x = out.tool;
   if (path_sampler_) {
-    const auto& m = std::get<PathMotion>(*trajectory_);
+    const PathMotion& m = *std::get<const PathMotion*>(step_);
     if (!path_sampler_->next(motion_sample_)) return false;
     const MotionSample& ms = motion_sample_;
     x = cartesian_state(m.path, m.orientation, ms);
@@ -69,10 +102,6 @@ bool TrajectorySampler::next(TrajectorySample& out) {
     x.alpha_WT = ms.alpha_W;
     out.q_WT = ms.q_WT;
   }
-  // q and -q are one rotation: keep successive samples in one hemisphere.
-  if (out.q_WT.coeffs().dot(previous_q_.coeffs()) < 0.0) out.q_WT.coeffs() *= -1.0;
-  previous_q_ = out.q_WT;
-
   out.has_joints = false;
   if (joint_sampler_ && move_sample_.has_joints) {
     out.has_joints = true;
@@ -90,6 +119,55 @@ bool TrajectorySampler::next(TrajectorySample& out) {
     out.has_joints = true;
     tracker_->track(x, out.joints);
   }
+  ++k_;
+  return true;
+}
+
+TrajectorySampler::TrajectorySampler(const Trajectory& trajectory, const RobotModel* robot, const JointVector& seed,
+                                     const IkOptions& options)
+    : trajectory_(&trajectory), robot_(robot), options_(options) {
+  start_step(seed);
+}
+
+std::size_t TrajectorySampler::step_count() const {
+  const auto* sequence = std::get_if<SequenceMotion>(trajectory_);
+  return sequence ? sequence->steps.size() : 1;
+}
+
+StepRef TrajectorySampler::step(std::size_t i) const {
+  const auto ref = [](const StepMotion& m) {
+    return std::visit([](const auto& motion) { return StepRef(&motion); }, m);
+  };
+  return std::visit(Overloaded{[&](const SequenceMotion& m) { return ref(m.steps[i]); },
+                               [](const auto& motion) { return StepRef(&motion); }},
+                    *trajectory_);
+}
+
+void TrajectorySampler::start_step(const JointVector& seed) {
+  sampler_.reset();  // its tracker's workspace first
+  sampler_.emplace(step(step_), robot_, seed, options_);
+}
+
+bool TrajectorySampler::next(TrajectorySample& out) {
+  const auto* sequence = std::get_if<SequenceMotion>(trajectory_);
+  if (sequence != nullptr) {
+    // Each step but the last ends with the rest that the next step's first sample repeats:
+    // sampled (its joints seed the next step's IK) and not streamed.
+    while (step_ + 1 < sequence->steps.size() &&
+           sampler_->index() + 1 >= sample_count(sequence->steps[step_])) {
+      const bool has_last = sampler_->next(scratch_);
+      ++step_;
+      start_step(has_last && scratch_.has_joints ? scratch_.joints.q : JointVector());
+    }
+  }
+  if (!sampler_->next(out)) return false;
+  if (sequence != nullptr) {
+    out.t += sequence->start_times[step_];
+    out.step = step_;
+  }
+  // q and -q are one rotation: keep successive samples in one hemisphere.
+  if (out.q_WT.coeffs().dot(previous_q_.coeffs()) < 0.0) out.q_WT.coeffs() *= -1.0;
+  previous_q_ = out.q_WT;
   ++k_;
   return true;
 }

@@ -27,13 +27,36 @@ struct PathMotion {
   OrientationPlan orientation;
 };
 
+/// One rest-to-rest motion: along a path, a joint move or a straight-line move.
+using StepMotion = std::variant<PathMotion, JointMovePlan, LinearMovePlan>;
+
+/// Motions executed one after the other, the robot at rest at each junction (a sequence).
+/// Sample times stay on one grid of the cycle rate: step k starts at the first grid time at
+/// or after the end of step k - 1 (it rests for the part of a period between), and each
+/// step but the last streams its samples without its final one (the rest at its end, which
+/// is where the next step's first sample stands, at rest). So the sequence has
+/// sum over k < K of (n_k - 1) + n_K samples, n_k those of step k alone, at t = k / rate,
+/// the last at exactly the end. All steps have the same cycle rate.
+struct SequenceMotion {
+  std::vector<StepMotion> steps;   ///< at least one
+  std::vector<double> start_times;  ///< of each step [s], on the grid
+  std::vector<std::size_t> first_samples;  ///< index of each step's first sample
+  std::size_t sample_count = 0;
+  double duration_s = 0.0;
+};
+
+/// Lays out `steps` (at least one, of one cycle rate `rate_hz`) as a sequence.
+SequenceMotion make_sequence(std::vector<StepMotion> steps, double rate_hz);
+
 /// Any planned trajectory.
-using Trajectory = std::variant<PathMotion, JointMovePlan, LinearMovePlan>;
+using Trajectory = std::variant<PathMotion, JointMovePlan, LinearMovePlan, SequenceMotion>;
 
 /// Number of samples of a trajectory (exact; t_k = k / rate, the last at the duration).
 std::size_t sample_count(const Trajectory& trajectory);
+std::size_t sample_count(const StepMotion& step);
 /// Duration of a trajectory [s].
 double duration(const Trajectory& trajectory);
+double duration(const StepMotion& step);
 
 /// One sample: the tool's state in W and, with a robot, the joints.
 struct TrajectorySample {
@@ -41,6 +64,8 @@ struct TrajectorySample {
   double u = 0.0;            ///< path parameter (paths), progress in [0, 1] (moves)
   double s = 0.0;            ///< arc length from the start [m] (paths, linear moves; 0 for joint moves)
   std::size_t segment = 0;   ///< path segment (0 for moves)
+  /// Sequence step (0 otherwise); u, s and segment are then the step's own.
+  std::size_t step = 0;
   CartesianState tool;       ///< pose X_WT, v, omega, a, alpha in W
   Eigen::Quaterniond q_WT = Eigen::Quaterniond::Identity();  ///< tool orientation (= tool.X_WT's), continuous
   double speed = 0.0;        ///< |v_WT| [m/s]
@@ -48,9 +73,33 @@ struct TrajectorySample {
   JointSample joints;        ///< with a robot: joints and the IK certificates
 };
 
-/// Samples a trajectory in time order (no heap allocation per sample). With `robot`, path
-/// motions and linear moves go through the JointTracker (IK at every sample, seeded by
-/// `seed`); joint moves carry their joints and need no IK. Successive orientation
+/// A view of one step motion, wherever it is held.
+using StepRef = std::variant<const PathMotion*, const JointMovePlan*, const LinearMovePlan*>;
+
+/// Samples one step motion (see TrajectorySampler); a sequence runs one per step.
+class StepSampler {
+ public:
+  StepSampler(StepRef step, const RobotModel* robot, const JointVector& seed, const IkOptions& options);
+  /// Writes the next sample (t from the step's start, q_WT as the step gives it); false
+  /// after the last one.
+  bool next(TrajectorySample& out);
+  std::size_t index() const { return k_; }
+
+ private:
+  StepRef step_;
+  std::optional<MotionSampler> path_sampler_;
+  std::optional<JointMoveSampler> joint_sampler_;
+  std::optional<LinearMoveSampler> linear_sampler_;
+  std::optional<JointTracker> tracker_;
+  MotionSample motion_sample_;
+  MoveSample move_sample_;
+  std::size_t k_ = 0;
+};
+
+/// Samples a trajectory in time order (no heap allocation per sample; a sequence allocates
+/// once per step). With `robot`, path motions and linear moves go through the JointTracker
+/// (IK at every sample, seeded by `seed`, and in a sequence by the joints at the end of the
+/// previous step); joint moves carry their joints and need no IK. Successive orientation
 /// quaternions are kept in one hemisphere (q and -q are one rotation), so the stream of
 /// quaternions is continuous. `trajectory` and `robot` must outlive the sampler.
 class TrajectorySampler {
@@ -63,13 +112,16 @@ class TrajectorySampler {
   std::size_t index() const { return k_; }
 
  private:
+  StepRef step(std::size_t i) const;
+  std::size_t step_count() const;
+  void start_step(const JointVector& seed);
+
   const Trajectory* trajectory_;
-  std::optional<MotionSampler> path_sampler_;
-  std::optional<JointMoveSampler> joint_sampler_;
-  std::optional<LinearMoveSampler> linear_sampler_;
-  std::optional<JointTracker> tracker_;
-  MotionSample motion_sample_;
-  MoveSample move_sample_;
+  const RobotModel* robot_;
+  IkOptions options_;
+  std::optional<StepSampler> sampler_;
+  std::size_t step_ = 0;
+  TrajectorySample scratch_;
   Eigen::Quaterniond previous_q_ = Eigen::Quaterniond::Identity();
   std::size_t k_ = 0;
 };

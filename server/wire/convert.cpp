@@ -793,6 +793,7 @@ void to_proto(const core::TrajectorySample& sample, v1::Sample& out) {
   out.set_u(sample.u);
   out.set_s(sample.s);
   out.set_segment(static_cast<std::uint32_t>(sample.segment));
+  out.set_step(static_cast<std::uint32_t>(sample.step));
   set(out.mutable_position(), sample.tool.X_WT.translation());
   set(out.mutable_velocity(), sample.tool.v_WT);
   set(out.mutable_acceleration(), sample.tool.a_WT);
@@ -967,10 +968,107 @@ core::Expected<planner::Request> path_request(const v1::PlanRequest& request, co
   return out;
 }
 
+constexpr int kMaxSequenceSteps = 64;
+
+// A violation of a step's own request, named from the root: the step's fields under
+// `sequence[i].` (its motion only when it gives one), the request's as they are.
+core::FieldViolation in_step(core::FieldViolation v, int i, const v1::SequenceStep& step) {
+  const auto starts = [&v](const char* prefix) { return v.field.rfind(prefix, 0) == 0; };
+  if (starts("path") || starts("jointMove") || starts("linearMove") || (starts("motion") && step.has_motion())) {
+    v.field = "sequence[" + std::to_string(i) + "]." + v.field;
+  }
+  return v;
+}
+
+}  // namespace
+
+core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
+                                                     const ServiceLimits& limits, RequestUse use);
+
+namespace {
+
+// PlanRequest.sequence: each step converted as a request of its own (the request's robot,
+// motion unless the step gives one, optimize for paths), every violation named from the root.
+core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
+                                                     const ServiceLimits& limits, RequestUse use) {
+  core::Violations violations;
+  if (use == RequestUse::kAnalyze) {
+    return tl::unexpected(core::Violations{
+        {"sequence", "AnalyzePath analyses one `path`: send each path of the sequence on its own"}});
+  }
+  if (request.has_path() || request.has_joint_move() || request.has_linear_move()) {
+    violations.push_back({"sequence", "give a sequence, or one `path`, `jointMove` or `linearMove`, not both"});
+  }
+  if (request.sequence_size() > kMaxSequenceSteps) {
+    violations.push_back({"sequence", "has " + std::to_string(request.sequence_size()) + " steps; at most " +
+                                          std::to_string(kMaxSequenceSteps) + " are planned in one request"});
+  }
+  if (!violations.empty()) return tl::unexpected(std::move(violations));
+  planner::Request out;
+  bool any_path = false;
+  for (int i = 0; i < request.sequence_size(); ++i) {
+    const auto& step = request.sequence(i);
+    const std::string field = "sequence[" + std::to_string(i) + "]";
+    if (!step.has_motion() && !request.has_motion()) {
+      violations.push_back({field + ".motion", "is required: a sequence step's timing, or the request's `motion`"});
+      continue;
+    }
+    v1::PlanRequest sub;
+    if (request.has_robot()) *sub.mutable_robot() = request.robot();
+    *sub.mutable_motion() = step.has_motion() ? step.motion() : request.motion();
+    sub.set_pacing(request.pacing());
+    if (request.has_samples_per_batch()) sub.set_samples_per_batch(request.samples_per_batch());
+    bool start_given = false;
+    if (step.has_path()) {
+      *sub.mutable_path() = step.path();
+      if (request.has_optimize()) *sub.mutable_optimize() = request.optimize();
+      any_path = true;
+    }
+    if (step.has_joint_move()) {
+      *sub.mutable_joint_move() = step.joint_move();
+      start_given = step.joint_move().start_size() > 0;
+    }
+    if (step.has_linear_move()) {
+      *sub.mutable_linear_move() = step.linear_move();
+      start_given = step.linear_move().has_start();
+      // After the first step an absent start is where the previous step ends, known when
+      // the planner gets there: a placeholder the planner replaces.
+      if (!start_given && i > 0) sub.mutable_linear_move()->mutable_start()->mutable_orientation()->set_w(1.0);
+    }
+    const int kinds = int(step.has_path()) + int(step.has_joint_move()) + int(step.has_linear_move());
+    if (kinds != 1) {
+      violations.push_back({field, kinds == 0 ? "is empty: give a `path`, a `jointMove` or a `linearMove`"
+                                              : "give exactly one of `path`, `jointMove` and `linearMove`"});
+      continue;
+    }
+    auto converted = request_from_proto(sub, catalog, limits, use);
+    if (!converted) {
+      for (auto& v : converted.error()) {
+        auto named = in_step(std::move(v), i, step);
+        const bool seen = std::any_of(violations.begin(), violations.end(), [&named](const core::FieldViolation& w) {
+          return w.field == named.field && w.description == named.description;
+        });
+        if (!seen) violations.push_back(std::move(named));
+      }
+      continue;
+    }
+    if (!out.robot) out.robot = converted->robot;
+    if (!out.optimize) out.optimize = converted->optimize;
+    if (!out.motion) out.motion = converted->motion;
+    out.sequence.push_back(planner::Step{std::move(converted->geometry), *converted->motion, step.has_motion(), start_given});
+  }
+  if (request.has_optimize() && !any_path) {
+    violations.push_back({"optimize", "applies to the paths of a sequence, and this one has none"});
+  }
+  if (!violations.empty()) return tl::unexpected(std::move(violations));
+  return out;
+}
+
 }  // namespace
 
 core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
                                                      const ServiceLimits& limits, RequestUse use) {
+  if (request.sequence_size() > 0) return sequence_from_proto(request, catalog, limits, use);
   planner::Request out;
   const bool moves = request.has_joint_move() || request.has_linear_move();
   if (!request.has_motion()) {
@@ -1063,10 +1161,42 @@ void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanRespons
   summary.set_peak_speed(tool.speed);
   summary.set_peak_acceleration(tool.acceleration);
   summary.set_peak_angular_speed(tool.angular_speed);
-  if (const auto* path = std::get_if<core::PathMotion>(&trajectory)) {
-    summary.set_peak_tangential_acceleration(path->timing.peak_acceleration);
-  } else if (const auto* linear = std::get_if<core::LinearMovePlan>(&trajectory)) {
-    summary.set_peak_tangential_acceleration(linear->peak_acceleration);
+  const auto tangential = [](const auto& motion) {
+    if (const auto* path = std::get_if<core::PathMotion>(&motion)) return path->timing.peak_acceleration;
+    if (const auto* linear = std::get_if<core::LinearMovePlan>(&motion)) return linear->peak_acceleration;
+    return 0.0;
+  };
+  if (const auto* sequence = std::get_if<core::SequenceMotion>(&trajectory)) {
+    double peak = 0.0;
+    for (const auto& step : sequence->steps) peak = std::max(peak, tangential(step));
+    summary.set_peak_tangential_acceleration(peak);
+    for (std::size_t i = 0; i < plan.steps.size(); ++i) {
+      const auto& s = plan.steps[i];
+      auto& out = *response.add_steps();
+      out.set_index(static_cast<std::uint32_t>(i));
+      out.set_kind(s.kind);
+      out.set_start_time_s(s.start_time_s);
+      out.set_duration_s(s.duration_s);
+      out.set_first_sample(s.first_sample);
+      out.set_sample_count(s.sample_count);
+      out.set_arc_length(s.arc_length);
+      if (s.path) {
+        const auto* path = std::get_if<core::PathMotion>(&sequence->steps[i]);
+        if (path != nullptr) {
+          v1::PlanResponse one;
+          to_proto(path->path, s.path->achieved, s.path->closed_loop, s.path->geometry, one);
+          *out.mutable_segments() = std::move(*one.mutable_segments());
+          *out.mutable_frames() = std::move(*one.mutable_frames());
+          *out.mutable_closed_loop() = std::move(*one.mutable_closed_loop());
+          *out.mutable_warnings() = std::move(*one.mutable_warnings());
+        }
+      }
+      if (with_optimization && (s.optimizers.tangent_scales || s.optimizers.breakpoints || s.optimizers.timing)) {
+        to_proto(s.optimizers, *out.mutable_optimization());
+      }
+    }
+  } else {
+    summary.set_peak_tangential_acceleration(tangential(trajectory));
   }
 }
 

@@ -122,6 +122,11 @@ class Concurrency : public ::testing::Test {
         }
         break;
       }
+      case 13: {  // a sequence of moves streamed on the UR5 (IK seeded step by step)
+        std::size_t samples = 0;
+        status = read_stream(stub, example<v1::PlanRequest>("sequence_ur5.json"), samples, *ctx);
+        break;
+      }
       default: {  // a health watch, read until cancelled or its deadline
         auto health_stub = grpc::health::v1::Health::NewStub(channel_for(stub));
         grpc::health::v1::HealthCheckRequest request;
@@ -148,7 +153,7 @@ class Concurrency : public ::testing::Test {
   server::RunningServer running_;
 };
 
-constexpr int kKinds = 14;
+constexpr int kKinds = 15;
 
 TEST_F(Concurrency, EveryRpcManyAtOnceSomeCancelledMidway) {
   constexpr int kClients = 6;

@@ -32,30 +32,8 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// The unmet preconditions of a FAILED_PRECONDITION status (google.rpc.PreconditionFailure).
-std::vector<google::rpc::PreconditionFailure::Violation> precondition_violations(const grpc::Status& status) {
-  std::vector<google::rpc::PreconditionFailure::Violation> out;
-  google::rpc::Status details;
-  EXPECT_TRUE(details.ParseFromString(status.error_details())) << "no google.rpc.Status in the details";
-  EXPECT_EQ(details.code(), static_cast<int>(grpc::StatusCode::FAILED_PRECONDITION));
-  for (const auto& any : details.details()) {
-    google::rpc::PreconditionFailure failure;
-    if (!any.UnpackTo(&failure)) continue;
-    out.insert(out.end(), failure.violations().begin(), failure.violations().end());
-  }
-  return out;
-}
-
 class OptimizeTest : public ServerTest {
  protected:
-  // PlanTrajectory that must succeed.
-  v1::PlanResponse plan_ok(const v1::PlanRequest& request) {
-    v1::PlanResponse response;
-    const auto status = plan(request, response);
-    EXPECT_TRUE(status.ok()) << status.error_message();
-    return response;
-  }
-
   v1::PathProfile analyze_ok(const v1::PlanRequest& request) {
     v1::PathProfile profile;
     const auto status = analyze(request, profile);

@@ -32,22 +32,6 @@ namespace {
 
 using ::testing::HasSubstr;
 
-// The unmet preconditions of a FAILED_PRECONDITION status: its google.rpc.Status detail
-// (grpc-status-details-bin) with one google.rpc.PreconditionFailure.
-std::vector<google::rpc::PreconditionFailure::Violation> precondition_violations(const grpc::Status& status) {
-  std::vector<google::rpc::PreconditionFailure::Violation> out;
-  google::rpc::Status details;
-  EXPECT_TRUE(details.ParseFromString(status.error_details())) << "no google.rpc.Status in the details";
-  EXPECT_EQ(details.code(), static_cast<int>(grpc::StatusCode::FAILED_PRECONDITION));
-  EXPECT_EQ(details.message(), status.error_message());
-  for (const auto& any : details.details()) {
-    google::rpc::PreconditionFailure failure;
-    if (!any.UnpackTo(&failure)) continue;
-    out.insert(out.end(), failure.violations().begin(), failure.violations().end());
-  }
-  return out;
-}
-
 void set_pose(v1::Pose& out, const Eigen::Isometry3d& X) {
   const Eigen::Quaterniond q(X.linear());
   out.mutable_position()->set_x(X.translation().x());

@@ -76,6 +76,13 @@ class ServerTest : public ::testing::Test {
   grpc::Status plan(const v1::PlanRequest& request, v1::PlanResponse& response) {
     return stub_->PlanTrajectory(context().get(), request, &response);
   }
+  /// PlanTrajectory that must succeed.
+  v1::PlanResponse plan_ok(const v1::PlanRequest& request) {
+    v1::PlanResponse response;
+    const auto status = plan(request, response);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    return response;
+  }
   grpc::Status analyze(const v1::PlanRequest& request, v1::PathProfile& profile) {
     return stub_->AnalyzePath(context().get(), request, &profile);
   }
@@ -144,6 +151,22 @@ inline std::vector<Violation> bad_request_violations(const grpc::Status& status)
     google::rpc::BadRequest bad_request;
     if (!any.UnpackTo(&bad_request)) continue;
     for (const auto& v : bad_request.field_violations()) out.push_back({v.field(), v.description()});
+  }
+  return out;
+}
+
+/// The unmet preconditions of a FAILED_PRECONDITION status: its google.rpc.Status detail
+/// (grpc-status-details-bin) with google.rpc.PreconditionFailure violations.
+inline std::vector<google::rpc::PreconditionFailure::Violation> precondition_violations(const grpc::Status& status) {
+  std::vector<google::rpc::PreconditionFailure::Violation> out;
+  google::rpc::Status details;
+  EXPECT_TRUE(details.ParseFromString(status.error_details())) << "no google.rpc.Status in the details";
+  EXPECT_EQ(details.code(), static_cast<int>(grpc::StatusCode::FAILED_PRECONDITION));
+  EXPECT_EQ(details.message(), status.error_message());
+  for (const auto& any : details.details()) {
+    google::rpc::PreconditionFailure failure;
+    if (!any.UnpackTo(&failure)) continue;
+    out.insert(out.end(), failure.violations().begin(), failure.violations().end());
   }
   return out;
 }

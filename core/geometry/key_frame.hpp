@@ -74,6 +74,9 @@ struct KeyFrame {
   bool stop = false;        ///< the motion rests here (used by motion planning)
   OrientationMode orientation_mode = OrientationMode::kFixed;  ///< for the leaving segment
   std::optional<Eigen::Quaterniond> orientation;  ///< R_WT target for kCustom (unit)
+  /// kFrameBased, kCustom: the leaving segment's SLERP eased (quintic in the arc-length
+  /// fraction; zero angular velocity and acceleration at both ends). See orientation.hpp.
+  bool ease_orientation = false;
 };
 
 /// Trapezoid breakpoints of one segment (thesis App. B, Eqs. B.10, B.11, B.13), in the

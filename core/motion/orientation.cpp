@@ -251,6 +251,8 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
     const std::size_t next = (i + 1) % n;
     const std::string mode_field = frame_field(i, "orientationMode");
     so.mode = f.orientation_mode;
+    so.eased = f.ease_orientation &&
+               (so.mode == OrientationMode::kCustom || so.mode == OrientationMode::kFrameBased);
     if (f.cusp) ++cusps;  // the leaving side of frame i runs against its tangent
     so.flipped = cusps % 2 == 1;
 
@@ -422,13 +424,16 @@ OrientationSample orientation_at(const OrientationPlan& plan, const Path& path, 
       const double sigma =
           length > 0.0 ? std::clamp((s - path.cumulative_lengths[segment]) / length, 0.0, 1.0) : u;  // [0, 1]
       // SLERP (6.18, with the erratum of 6.2) as a rotation about the fixed axis a (W):
-      // q(sigma) = exp(sigma theta a / 2) q_start; exactly q_end at sigma = 1.
+      // q = exp(h theta a / 2) q_start, h = sigma or its quintic ease; exactly q_end at sigma = 1.
+      const double h = so.eased ? sigma * sigma * sigma * (10.0 + sigma * (-15.0 + 6.0 * sigma)) : sigma;
+      const double h_1 = so.eased ? 30.0 * sigma * sigma * (1.0 - sigma) * (1.0 - sigma) : 1.0;  // dh/dsigma
+      const double h_2 = so.eased ? 60.0 * sigma * (1.0 - sigma) * (1.0 - 2.0 * sigma) : 0.0;   // d2h/dsigma2
       out.q_WT = sigma >= 1.0 ? so.q_end
-                              : Quaterniond(Eigen::AngleAxisd(sigma * so.theta, so.axis_W) * so.q_start).normalized();
+                              : Quaterniond(Eigen::AngleAxisd(h * so.theta, so.axis_W) * so.q_start).normalized();
       const double sigma_dot = length > 0.0 ? s_dot / length : 0.0;     // [1/s]
       const double sigma_ddot = length > 0.0 ? s_ddot / length : 0.0;   // [1/s^2]
-      out.omega_W = so.axis_W * (so.theta * sigma_dot);                   // [rad/s]
-      out.alpha_W = so.axis_W * (so.theta * sigma_ddot);                  // [rad/s^2], fixed axis
+      out.omega_W = so.axis_W * (so.theta * h_1 * sigma_dot);             // [rad/s]
+      out.alpha_W = so.axis_W * (so.theta * (h_2 * sigma_dot * sigma_dot + h_1 * sigma_ddot));  // [rad/s^2], fixed axis
       return out;
     }
 

@@ -35,6 +35,12 @@
 // theta in [0, pi] of q_end q_start^-1 (the shorter way round), and
 // omega_W = a theta sigma_dot, sigma_dot = s_dot / L_i; the axis is fixed, so
 // alpha_W = a theta sigma_ddot, sigma_ddot = s_ddot / L_i.
+// Eased SLERP (KeyFrame::ease_orientation): the progress is h(sigma) = 10 sigma^3 -
+// 15 sigma^4 + 6 sigma^5 (h' = 30 sigma^2 (1 - sigma)^2, h'' = 60 sigma (1 - sigma)(1 - 2 sigma)),
+// q = exp(h theta a / 2) q_start, omega_W = a theta h' sigma_dot,
+// alpha_W = a theta (h'' sigma_dot^2 + h' sigma_ddot): zero at both ends of the segment, so
+// eased and fixed segments join with continuous omega and alpha (plain SLERP segments do not:
+// omega changes at the frame while the path moves).
 //
 // Angular acceleration alpha_W = d omega_W / dt [rad/s^2] (needed for joint accelerations,
 // joint_motion.hpp), analytic in every mode, with s_dot = ds/dt and s_ddot = d2s/dt2 of the
@@ -102,6 +108,7 @@ struct SegmentOrientation {
   /// SLERP modes: q_end q_start^-1 = exp(theta a / 2), a in W (unit, or zero when theta = 0).
   Eigen::Vector3d axis_W = Eigen::Vector3d::Zero();
   double theta = 0.0;  ///< [rad], in [0, pi]
+  bool eased = false;  ///< SLERP modes: progress h(sigma), the quintic ease (above)
   /// kFrenet, kParallelTransport: an odd number of cusps precedes, the tool z is -T.
   bool flipped = false;
   /// kParallelTransport (and kFrenet, as a fallback): R_WT, the point p [m] and the unit

@@ -84,6 +84,13 @@ void check_frame(WireCheck& check, const v1::KeyFrame& frame, std::size_t i) {
     check.add(at + ".orientation", "is only used with orientationMode ORIENTATION_MODE_CUSTOM; orientationMode is " +
                                        v1::OrientationMode_Name(frame.orientation_mode()));
   }
+  if (frame.ease_orientation() && frame.orientation_mode() != v1::ORIENTATION_MODE_CUSTOM &&
+      frame.orientation_mode() != v1::ORIENTATION_MODE_FRAME_BASED &&
+      v1::OrientationMode_IsValid(frame.orientation_mode())) {
+    check.add(at + ".easeOrientation", "eases a SLERP: it needs orientationMode ORIENTATION_MODE_CUSTOM or "
+                                       "ORIENTATION_MODE_FRAME_BASED; orientationMode is " +
+                                           v1::OrientationMode_Name(frame.orientation_mode()));
+  }
   if (frame.has_orientation()) {
     const auto& q = frame.orientation();
     const double norm = std::sqrt(q.w() * q.w() + q.x() * q.x() + q.y() * q.y() + q.z() * q.z());
@@ -117,6 +124,7 @@ core::KeyFrame to_core(const v1::KeyFrame& f) {
   if (f.has_torsion_derivative()) k.tau_d = f.torsion_derivative();
   if (f.has_tangent_scale()) k.tangent_scale = f.tangent_scale();
   if (f.has_leave_tangent_scale()) k.leave_tangent_scale = f.leave_tangent_scale();
+  k.ease_orientation = f.ease_orientation();
   k.cusp = f.cusp();
   k.inflection = f.inflection();
   k.stop = f.stop();

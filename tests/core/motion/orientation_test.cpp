@@ -565,5 +565,66 @@ TEST(Orientation, NoHeapAllocationPerSample) {
   }
 }
 
+// Eased SLERP (KeyFrame::ease_orientation): omega by differences of q and alpha by
+// differences of omega as for the plain modes, omega and alpha zero at every frame, and so
+// continuous through the frames where plain SLERP's omega jumps while the path moves.
+TEST(Orientation, EasedSlerpJoinsWithContinuousAngularVelocityAndAcceleration) {
+  for (const auto mode : {OrientationMode::kCustom, OrientationMode::kFrameBased}) {
+    const std::string what = std::string("helix/eased ") + name(mode);
+    core::PathSpec spec = with_mode(helix_spec(), mode);
+    for (auto& f : spec.frames) f.ease_orientation = true;
+    const Path path = build_or_fail(spec);
+    const auto plan = core::plan_orientation(path);
+    ASSERT_TRUE(plan) << what;
+    check_common(path, *plan, what);
+    check_angular_velocity(path, *plan, what);
+    for (std::size_t i = 0; i < path.segment_count(); ++i) {
+      for (const double u : {0.0, 1.0}) {
+        const double s = path.cumulative_lengths[i] + (u == 1.0 ? path.segment_lengths[i] : 0.0);
+        const auto o = core::orientation_at(*plan, path, i, u, s, 0.8, 0.3);
+        EXPECT_LT(o.omega_W.norm(), 1e-12) << what << " segment " << i << " u " << u;
+        EXPECT_LT(o.alpha_W.norm(), 1e-12) << what << " segment " << i << " u " << u;
+      }
+    }
+    // Along a timed motion at 1 kHz: omega changes by at most |alpha| dt (+ its rate of
+    // change) between samples, through the frames too; plain SLERP jumps there.
+    core::MotionSpec motion;
+    motion.duration_s = 10.0;
+    motion.cycle_rate_hz = 1000.0;
+    const auto timing = core::plan_motion(path, motion);
+    ASSERT_TRUE(timing);
+    const auto plain_spec = with_mode(helix_spec(), mode);
+    const Path plain = build_or_fail(plain_spec);
+    const auto plain_plan = core::plan_orientation(plain);
+    ASSERT_TRUE(plain_plan);
+    double worst_eased = 0.0, worst_plain = 0.0;
+    for (const auto* which : {&path, &plain}) {
+      const auto& p = which == &path ? *plan : *plain_plan;
+      core::MotionSampler sampler(*which, *timing);
+      core::MotionSample m;
+      OrientationSample previous;
+      bool first = true;
+      while (sampler.next(m)) {
+        const auto o = core::orientation_at(p, *which, m.segment, m.u - static_cast<double>(m.segment), m.s, m.speed,
+                                            m.s_ddot);
+        if (!first) {
+          const double jump = (o.omega_W - previous.omega_W).norm() /
+                              (std::max(o.alpha_W.norm(), previous.alpha_W.norm()) * 1e-3 + 1e-6);
+          (which == &path ? worst_eased : worst_plain) = std::max(which == &path ? worst_eased : worst_plain, jump);
+        }
+        previous = o;
+        first = false;
+      }
+    }
+    std::printf("%s: largest change of omega between 1 kHz samples / (|alpha| dt): eased %.3g, plain %.3g\n",
+                what.c_str(), worst_eased, worst_plain);
+    EXPECT_LT(worst_eased, 1.5) << what;
+    // (The helix's frame-based targets turn at one rate about one axis: no jump to show.)
+    if (mode == OrientationMode::kCustom) {
+      EXPECT_GT(worst_plain, 10.0) << what << ": plain SLERP's omega jumps at the frames";
+    }
+  }
+}
+
 }  // namespace
 }  // namespace geotraj::test

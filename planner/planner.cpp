@@ -478,12 +478,86 @@ core::StepMotion as_step(core::Trajectory&& t) {
   return core::StepMotion(std::move(std::get<core::LinearMovePlan>(t)));
 }
 
+// The steps first..last (joined by blended corners) as one path: each line's start where
+// the previous piece ends (or checked there), a path's first frame checked there, the chain
+// blended by core::blend_chain. `end` is where the step before `first` ended.
+Expected<core::BlendedChain> blended_chain(const Request& request, std::size_t first, std::size_t last,
+                                           const StepEnd& end, const Robot* robot,
+                                           std::optional<Eigen::Quaterniond>& start_orientation) {
+  std::vector<core::BlendPiece> pieces;
+  std::vector<double> tolerances;
+  std::vector<std::string> names;
+  StepEnd at = end;  // where the previous piece ends
+  const auto named = [](std::size_t i) { return "sequence[" + std::to_string(i) + "]"; };
+  for (std::size_t k = first; k <= last; ++k) {
+    const Step& step = request.sequence[k];
+    names.push_back(named(k));
+    if (k < last) tolerances.push_back(step.blend_tolerance);
+    if (k > first && step.own_motion) {
+      return tl::unexpected(invalid(core::Violations{
+          {named(k) + ".motion", "a step blended into the previous one moves on the same timing, " + named(first) +
+                                     "'s: give the motion on " + named(first) + " only"}}));
+    }
+    Geometry g = step.geometry;
+    if (std::holds_alternative<core::JointMoveSpec>(g) || std::holds_alternative<JointMoveToPose>(g)) {
+      return tl::unexpected(invalid(core::Violations{
+          {named(k > first ? k - 1 : k) + ".blendTolerance",
+           "a joint move's corners are not blended (its tool does not follow a path): rest before and after it "
+           "(blendTolerance 0)"}}));
+    }
+    if (k > first || first > 0) {
+      auto started = started_at(step, k, at, robot);
+      if (!started) return tl::unexpected(std::move(started.error()));
+      g = std::move(*started);
+    }
+    if (auto* move = std::get_if<LinearMoveToJoints>(&g)) {
+      auto spec = resolve(*move, *robot);
+      if (!spec) return tl::unexpected(in_step(std::move(spec.error()), k, step));
+      g = std::move(*spec);
+    }
+    if (const auto* line = std::get_if<core::LinearMoveSpec>(&g)) {
+      core::BlendLine piece{line->start.p_WT, line->goal.p_WT, line->start.q_WT.normalized(), line->goal.q_WT.normalized()};
+      if (k == first) start_orientation = piece.q0;
+      pieces.emplace_back(piece);
+      at.pose = line->goal;
+      at.pose.q_WT.normalize();
+      continue;
+    }
+    const auto& path = std::get<core::PathSpec>(g);
+    if (k > first && !path.frames.empty()) {
+      const double dp = (path.frames.front().p_W - at.pose.p_WT).norm();
+      const double tp = robot ? robot->start_position_tolerance : Robot{}.start_position_tolerance;
+      if (!(dp <= tp)) {
+        return tl::unexpected(invalid(core::Violations{
+            {named(k) + ".path.frames[0].position", "is " + core::number(dp, 6) + " m from where " + named(k - 1) +
+                                                        " ends (tolerance " + core::number(tp) +
+                                                        " m): a step starts where the previous one ends"}}));
+      }
+    }
+    // Where the path ends, its orientation included: a line after it starts there.
+    auto built = build(path);
+    if (!built) return tl::unexpected(in_step(std::move(built.error()), k, step));
+    auto orientation = core::plan_orientation(*built, at.pose.q_WT);
+    if (!orientation) {
+      return tl::unexpected(in_step(invalid(core::prefixed(std::move(orientation.error()), "path.")), k, step));
+    }
+    at.pose.p_WT = path.frames.back().p_W;
+    at.pose.q_WT = orientation->segments.back().q_end;
+    pieces.emplace_back(path);
+  }
+  auto chain = core::blend_chain(pieces, tolerances, names);
+  if (!chain) return tl::unexpected(invalid(std::move(chain.error())));
+  return std::move(*chain);
+}
+
 Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose) {
   const auto deadline = optimizer_deadline(request, budget);
   const Robot* robot = request.robot.get();
   Plan result;
   result.robot = request.robot;
   std::vector<core::StepMotion> steps;
+  std::vector<std::size_t> step_index;
+  std::vector<std::vector<std::size_t>> segment_steps;
   std::optional<core::JointReportBuilder> builder;
   if (robot) builder.emplace(robot->model, robot->branch_tolerance);
   ToolPeaks peaks;
@@ -495,8 +569,11 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     end.pose.q_WT = Eigen::Quaterniond(X.linear());
   }
   const double rate = request.sequence.front().motion.cycle_rate_hz;
-  std::size_t first = 0;  // global index of the step's first sample
-  for (std::size_t i = 0; i < request.sequence.size(); ++i) {
+  std::size_t first = 0;  // global index of the unit's first sample
+  for (std::size_t i = 0; i < request.sequence.size();) {
+    // A unit: step i alone, or the steps i..last joined by blended corners.
+    std::size_t last = i;
+    while (last + 1 < request.sequence.size() && request.sequence[last].blend_tolerance > 0.0) ++last;
     const Step& step = request.sequence[i];
     if (step.motion.cycle_rate_hz != rate) {
       return tl::unexpected(invalid(core::Violations{
@@ -505,7 +582,26 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
                core::number(rate) + " Hz (sequence[0]'s)"}}));
     }
     Request sub;
-    if (i == 0) {
+    StepReport report;
+    report.index = i;
+    report.last_index = last;
+    report.kind = last > i ? "blended" : kind_of(step.geometry);
+    std::vector<std::size_t> segments_of_steps;
+    if (last > i) {
+      auto chain = blended_chain(request, i, last, end, robot, sub.start_orientation);
+      if (!chain) return tl::unexpected(std::move(chain.error()));
+      sub.geometry = std::move(chain->spec);
+      report.corners = std::move(chain->corners);
+      for (std::size_t piece : chain->segment_piece) segments_of_steps.push_back(i + piece);
+      if (!sub.start_orientation && i > 0) sub.start_orientation = end.pose.q_WT;
+      if (request.optimize) {  // the timing only: the optimisers of a path's shape would move the blends
+        Optimize timing_only;
+        timing_only.time_optimal = request.optimize->time_optimal;
+        timing_only.jerk_limited = request.optimize->jerk_limited;
+        timing_only.budget_s = request.optimize->budget_s;
+        sub.optimize = timing_only;
+      }
+    } else if (i == 0) {
       sub.geometry = step.geometry;
     } else {
       auto started = started_at(step, i, end, robot);
@@ -520,9 +616,7 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
       sub.robot = std::move(at_end);
     }
     const bool path = std::holds_alternative<core::PathSpec>(sub.geometry);
-    if (path) sub.optimize = request.optimize;
-    StepReport report;
-    report.kind = kind_of(step.geometry);
+    if (path && last == i) sub.optimize = request.optimize;
     auto trajectory = plan_trajectory(sub, budget, deadline, report.optimizers);
     if (!trajectory) return tl::unexpected(in_step(std::move(trajectory.error()), i, step));
     if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
@@ -531,11 +625,11 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     }
     core::StepMotion motion = as_step(std::move(*trajectory));
     const std::size_t n = core::sample_count(motion);
-    const bool last_step = i + 1 == request.sequence.size();
+    const bool last_unit = last + 1 == request.sequence.size();
     report.start_time_s = static_cast<double>(first) / rate;
     report.duration_s = core::duration(motion);
     report.first_sample = first;
-    report.sample_count = last_step ? n : n - 1;
+    report.sample_count = last_unit ? n : n - 1;
     report.arc_length = arc_length_of(motion);
     if (path && purpose == Purpose::kPlan) report.path = report_of(std::get<core::PathMotion>(motion).path);
     if (first + report.sample_count > limits.max_samples) {
@@ -548,8 +642,8 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
                            (limits.max_samples_name.empty() ? "" : " (" + limits.max_samples_name + ")") +
                            ": shorten it or lower cycleRateHz"}}));
     }
-    // The step's samples, as the sequence streams them: the joint report and the tool's
-    // peaks over the whole sequence, and where the step ends.
+    // The unit's samples, as the sequence streams them: the joint report and the tool's
+    // peaks over the whole sequence, and where the unit ends.
     const auto ref = std::visit([](const auto& m) { return core::StepRef(&m); }, motion);
     core::StepSampler sampler(ref, robot ? &robot->model : nullptr, end.q, {});
     core::TrajectorySample sample;
@@ -558,7 +652,7 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
       if (j == 0 && i > 0 && path) {
         if (auto refused = path_starts_at(sample, end, i, robot)) return tl::unexpected(std::move(*refused));
       }
-      if (last_step || j + 1 < n) {
+      if (last_unit || j + 1 < n) {
         const double t = report.start_time_s + sample.t;
         if (builder) builder->add(first + j, t, sample.s, sample.joints);
         add(peaks, sample);
@@ -571,13 +665,22 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     end.pose.q_WT = sample.q_WT;
     if (robot) {
       end.q = sample.joints.q;
-      if (auto refused = ends_at_goal(sub.geometry, end.q)) return tl::unexpected(in_step(std::move(*refused), i, step));
+      const Geometry& goal = last > i ? request.sequence[last].geometry : sub.geometry;
+      if (auto refused = ends_at_goal(goal, end.q)) {
+        return tl::unexpected(in_step(std::move(*refused), last, request.sequence[last]));
+      }
     }
     first += report.sample_count;
     result.steps.push_back(std::move(report));
     steps.push_back(std::move(motion));
+    step_index.push_back(i);
+    segment_steps.push_back(std::move(segments_of_steps));
+    i = last + 1;
   }
-  result.trajectory = core::make_sequence(std::move(steps), rate);
+  core::SequenceMotion sequence = core::make_sequence(std::move(steps), rate);
+  sequence.step_index = std::move(step_index);
+  sequence.segment_steps = std::move(segment_steps);
+  result.trajectory = std::move(sequence);
   if (builder) {
     core::JointMotionReport joints = builder->report();
     const bool only_limits = std::all_of(joints.violations.begin(), joints.violations.end(), [](const auto& e) {

@@ -28,6 +28,7 @@
 #include "core/geometry/path.hpp"
 #include "core/motion/motion.hpp"
 #include "core/planning/joint_motion.hpp"
+#include "core/planning/corner_blend.hpp"
 #include "core/planning/moves.hpp"
 #include "core/planning/time_optimal.hpp"
 #include "core/planning/trajectory.hpp"
@@ -87,6 +88,9 @@ struct Step {
   /// A move's start was given (jointMove.start, linearMove.start): it must be where the
   /// previous step ends. Not given: it is that end (the wire's placeholder is replaced).
   bool start_given = false;
+  /// [m] > 0: the corner to the next step replaced by a blend within this distance of it
+  /// (core::blend_chain); 0: the robot rests there.
+  double blend_tolerance = 0.0;
 };
 
 /// Everything a plan request says, converted once by the wire layer.
@@ -188,13 +192,16 @@ struct PathReport {
 
 /// One step of a planned sequence, where it lies in time and in the samples.
 struct StepReport {
-  std::string kind;           ///< "path", "jointMove" or "linearMove"
+  std::size_t index = 0;       ///< the step's index in the request's sequence
+  std::size_t last_index = 0;  ///< > index: the steps index..last_index blended into one path
+  std::string kind;           ///< "path", "jointMove", "linearMove", or "blended" (a chain)
   double start_time_s = 0.0;  ///< [s]
   double duration_s = 0.0;    ///< [s]
   std::size_t first_sample = 0;
   std::size_t sample_count = 0;  ///< streamed (its last rest is the next step's first sample)
   double arc_length = 0.0;    ///< [m] (paths and linear moves)
-  std::optional<PathReport> path;  ///< a path, kPlan
+  std::optional<PathReport> path;  ///< a path or a blended chain, kPlan
+  std::vector<core::CornerBlend> corners;  ///< a blended chain: its corners
   OptimizerReports optimizers;     ///< a path's optimisers
 };
 

@@ -26,6 +26,8 @@
 #                             about z, in 2 s
 #   sequence_ur5.json         PlanRequest with a sequence: the UR5 down a line to a pick pose, up
 #                             in 1.5 s, a joint move to above the place pose, down a line
+#   sequence_blended_ur5.json PlanRequest with a sequence of three lines whose two corners are
+#                             blended within 2 cm: one motion without a rest at the corners
 #   fk_pa10.json              ForwardKinematicsRequest: the PA-10's tool pose, Jacobian and axes
 #   ik_ur5_all.json           InverseKinematicsRequest: every branch of a UR5 tool pose (eight)
 # Each works with StreamSamples too (the joints in every sample): StreamSamples refuses a
@@ -58,7 +60,7 @@ call AnalyzePath "$here/analyze_demo_path_a.json"
 
 echo "== ListRobots"
 grpcurl -plaintext -d '{}' "$address" geotraj.v1.TrajectoryService/ListRobots
-for request in plan_pa10_path_c joint_move_pa10 linear_move_ur5 sequence_ur5; do
+for request in plan_pa10_path_c joint_move_pa10 linear_move_ur5 sequence_ur5 sequence_blended_ur5; do
   call PlanTrajectory "$here/$request.json"
 done
 call ComputeForwardKinematics "$here/fk_pa10.json"

@@ -62,16 +62,27 @@ namespace {
 
 // A sequence's steps: where each lies in time and in the samples, and each path's closed loop.
 void print_steps(const v1::PlanResponse& response, std::ostream& out) {
-  out << "sequence: " << response.steps_size() << " steps, the robot at rest between them\n"
+  out << "sequence: " << response.steps_size() << " motions, the robot at rest between them\n"
       << " step  kind            start [s]  duration [s]  first sample   samples   length [m]  closed loop\n";
   for (const auto& s : response.steps()) {
     char buf[200];
-    std::snprintf(buf, sizeof buf, "%5u  %-12s %12.4f  %12.4f  %12llu  %8llu  %11.6g", s.index(), s.kind().c_str(),
+    const std::string kind =
+        s.last_index() > s.index() ? s.kind() + " " + std::to_string(s.index()) + "-" + std::to_string(s.last_index())
+                                   : s.kind();
+    std::snprintf(buf, sizeof buf, "%5u  %-12s %12.4f  %12.4f  %12llu  %8llu  %11.6g", s.index(), kind.c_str(),
                   s.start_time_s(), s.duration_s(), static_cast<unsigned long long>(s.first_sample()),
                   static_cast<unsigned long long>(s.sample_count()), s.arc_length());
     out << buf;
     if (s.kind() == "path") out << "  max error" << num(s.closed_loop().max_error(), 1);
     out << '\n';
+    for (const auto& c : s.corners()) {
+      std::snprintf(buf, sizeof buf,
+                    "       corner after step %u: turns %.4g deg, blend (segment %u) within %.4g m of the route "
+                    "(tolerance %.4g m), replacing %.4g m before and %.4g m after\n",
+                    c.after_step(), c.corner() * 180.0 / 3.14159265358979323846, c.segment(), c.deviation(),
+                    c.tolerance(), c.cut_before(), c.cut_after());
+      out << buf;
+    }
     for (const auto& w : s.warnings()) {
       out << "  WARNING " << short_enum(v1::PlanWarningCode_Name(w.code()), "PLAN_WARNING_CODE_") << ": " << w.message()
           << '\n';

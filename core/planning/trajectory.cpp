@@ -47,7 +47,9 @@ SequenceMotion make_sequence(std::vector<StepMotion> steps, double rate_hz) {
   SequenceMotion out;
   out.steps = std::move(steps);
   std::size_t first = 0;
+  out.segment_steps.resize(out.steps.size());
   for (std::size_t k = 0; k < out.steps.size(); ++k) {
+    out.step_index.push_back(k);
     out.first_samples.push_back(first);
     out.start_times.push_back(static_cast<double>(first) / rate_hz);
     const std::size_t n = sample_count(out.steps[k]);
@@ -163,7 +165,8 @@ bool TrajectorySampler::next(TrajectorySample& out) {
   if (!sampler_->next(out)) return false;
   if (sequence != nullptr) {
     out.t += sequence->start_times[step_];
-    out.step = step_;
+    const auto& segments = sequence->segment_steps[step_];
+    out.step = out.segment < segments.size() ? segments[out.segment] : sequence->step_index[step_];
   }
   // q and -q are one rotation: keep successive samples in one hemisphere.
   if (out.q_WT.coeffs().dot(previous_q_.coeffs()) < 0.0) out.q_WT.coeffs() *= -1.0;

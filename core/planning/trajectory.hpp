@@ -43,6 +43,10 @@ struct SequenceMotion {
   std::vector<std::size_t> first_samples;  ///< index of each step's first sample
   std::size_t sample_count = 0;
   double duration_s = 0.0;
+  /// Per step: the index a sample reports (TrajectorySample::step), and, where not empty,
+  /// one per path segment (a step that is a blended chain of several requested steps).
+  std::vector<std::size_t> step_index;
+  std::vector<std::vector<std::size_t>> segment_steps;
 };
 
 /// Lays out `steps` (at least one, of one cycle rate `rate_hz`) as a sequence.

@@ -1043,6 +1043,15 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
       // the planner gets there: a placeholder the planner replaces.
       if (!start_given && i > 0) sub.mutable_linear_move()->mutable_start()->mutable_orientation()->set_w(1.0);
     }
+    double blend = 0.0;
+    if (step.has_blend_tolerance()) {
+      blend = step.blend_tolerance();
+      if (!(std::isfinite(blend) && blend >= 0.0 && blend <= 1e3)) {
+        violations.push_back({field + ".blendTolerance", "must be a distance in [0, 1000] m, got " + core::number(blend)});
+      } else if (blend > 0.0 && i + 1 == request.sequence_size()) {
+        violations.push_back({field + ".blendTolerance", "the last step has no corner after it to blend"});
+      }
+    }
     const int kinds = int(step.has_path()) + int(step.has_joint_move()) + int(step.has_linear_move());
     if (kinds != 1) {
       violations.push_back({field, kinds == 0 ? "is empty: give a `path`, a `jointMove` or a `linearMove`"
@@ -1063,7 +1072,8 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
     if (!out.robot) out.robot = converted->robot;
     if (!out.optimize) out.optimize = converted->optimize;
     if (!out.motion) out.motion = converted->motion;
-    out.sequence.push_back(planner::Step{std::move(converted->geometry), *converted->motion, step.has_motion(), start_given});
+    out.sequence.push_back(
+        planner::Step{std::move(converted->geometry), *converted->motion, step.has_motion(), start_given, blend});
   }
   if (request.has_optimize() && !any_path) {
     violations.push_back({"optimize", "applies to the paths of a sequence, and this one has none"});
@@ -1181,8 +1191,19 @@ void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanRespons
     for (std::size_t i = 0; i < plan.steps.size(); ++i) {
       const auto& s = plan.steps[i];
       auto& out = *response.add_steps();
-      out.set_index(static_cast<std::uint32_t>(i));
+      out.set_index(static_cast<std::uint32_t>(s.index));
+      out.set_last_index(static_cast<std::uint32_t>(s.last_index));
       out.set_kind(s.kind);
+      for (const auto& c : s.corners) {
+        auto& corner = *out.add_corners();
+        corner.set_after_step(static_cast<std::uint32_t>(s.index + c.after));
+        corner.set_segment(static_cast<std::uint32_t>(c.segment));
+        corner.set_tolerance(c.tolerance);
+        corner.set_deviation(c.deviation);
+        corner.set_cut_before(c.cut_before);
+        corner.set_cut_after(c.cut_after);
+        corner.set_corner(c.corner);
+      }
       out.set_start_time_s(s.start_time_s);
       out.set_duration_s(s.duration_s);
       out.set_first_sample(s.first_sample);

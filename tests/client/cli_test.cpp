@@ -171,7 +171,8 @@ TEST(Cli, RobotExamplesPlan) {
   for (const auto& [file, robot] : {std::pair<std::string, std::string>{"plan_pa10_path_c.json", "pa10"},
                                     {"joint_move_pa10.json", "pa10"},
                                     {"linear_move_ur5.json", "ur5"},
-                                    {"sequence_ur5.json", "ur5"}}) {
+                                    {"sequence_ur5.json", "ur5"},
+                                    {"sequence_blended_ur5.json", "ur5"}}) {
     const CliRun run = run_cli("plan " + example_path(file), /*merge_stderr=*/true);
     EXPECT_EQ(run.exit_code, 0) << file << "\n" << run.out;
     EXPECT_THAT(run.out, HasSubstr("robot " + robot + ": ")) << file;

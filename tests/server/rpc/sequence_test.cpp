@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <gmock/gmock.h>
 
 #include "tests/server/support/test_server.hpp"
@@ -236,6 +238,274 @@ TEST_F(SequenceTest, BadSequencesAreNamed) {
     const auto status = analyze(base, profile);
     ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
     EXPECT_THAT(violation_of(bad_request_violations(status), "sequence"), HasSubstr("AnalyzePath"));
+  }
+}
+
+// Distance [m] from p to the segment a-b.
+double distance_to_segment(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const Eigen::Vector3d ab = b - a;
+  const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+  return (a + t * ab - p).norm();
+}
+
+Eigen::Vector3d vec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+// sequence_blended_ur5.json timed by an S-curve of `duration` s (acceleration continuous in
+// time, so any jump of the tool's acceleration comes from the geometry), sampled at 1 kHz.
+v1::PlanRequest blended_s_curve(double duration) {
+  auto request = example<v1::PlanRequest>("sequence_blended_ur5.json");
+  auto& motion = *request.mutable_motion();
+  motion.set_profile(v1::MOTION_PROFILE_S_CURVE);
+  motion.set_duration_s(duration);
+  motion.set_ramp_fraction(0.3);
+  motion.set_cycle_rate_hz(1000);
+  return request;
+}
+
+// sequence_blended_ur5.json: three lines (down, across, up) joined by 2 cm blends. Checked on
+// the streamed samples, independently of the blend's construction: every sample within the
+// tolerance of the unblended route, exactly on the lines away from the corners, no rest at
+// the corners, the tool's acceleration continuous through them (an S-curve timing, whose
+// own acceleration is continuous, so a jump could only come from the geometry: a G1 arc's
+// curvature steps from 0 to 1/r and the centripetal acceleration with it), the curvature 0
+// on both sides of every cut frame, and every joint within its limits by finite differences.
+TEST_F(SequenceTest, BlendedCornersStayWithinTheToleranceAndKeepTheAccelerationContinuous) {
+  auto request = blended_s_curve(4.0);
+  const auto response = plan_ok(request);
+  ASSERT_EQ(response.steps_size(), 2);
+  const auto& chain = response.steps(1);
+  EXPECT_EQ(chain.kind(), "blended");
+  EXPECT_EQ(chain.index(), 1u);
+  EXPECT_EQ(chain.last_index(), 3u);
+  ASSERT_EQ(chain.corners_size(), 2);
+  const double tolerance = 0.02;
+  for (const auto& c : chain.corners()) {
+    EXPECT_LE(c.deviation(), tolerance);
+    EXPECT_GT(c.deviation(), 0.5 * tolerance) << "the blend uses the room it is given";
+    EXPECT_NEAR(c.corner(), M_PI / 2, 1e-12);
+  }
+  // The curvature is 0 on both sides of each frame where a blend meets a line.
+  for (const auto& c : chain.corners()) {
+    for (const unsigned frame : {c.segment(), c.segment() + 1}) {
+      SCOPED_TRACE("frame " + std::to_string(frame));
+      ASSERT_LT(static_cast<int>(frame), chain.frames_size());
+      const auto& f = chain.frames(static_cast<int>(frame));
+      ASSERT_TRUE(f.has_approach() && f.has_leave());
+      EXPECT_LT(f.approach().curvature(), 1e-9);
+      EXPECT_LT(f.leave().curvature(), 1e-9);
+    }
+  }
+
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  const Eigen::Vector3d corners[] = {{-0.3, -0.25, 0.45}, {-0.3, -0.25, 0.3}, {-0.1, -0.45, 0.3}, {-0.1, -0.45, 0.45}};
+  const auto first = chain.first_sample();
+  const auto count = chain.sample_count();
+  ASSERT_EQ(first + count, samples.size());
+  double worst_route = 0.0, worst_line = 0.0, slowest = 1e9, worst_jump = 0.0, peak_a = 0.0;
+  for (std::size_t k = first; k < first + count; ++k) {
+    const auto& s = samples[k];
+    const Eigen::Vector3d p = vec(s.position());
+    double route = 1e9;
+    for (int i = 0; i < 3; ++i) route = std::min(route, distance_to_segment(p, corners[i], corners[i + 1]));
+    worst_route = std::max(worst_route, route);
+    // Beyond the cuts from both corners, on the middle line exactly.
+    const double along = (p - corners[1]).dot((corners[2] - corners[1]).normalized());
+    const double cut = chain.corners(0).cut_after();
+    if (along > cut + 1e-6 && along < (corners[2] - corners[1]).norm() - chain.corners(1).cut_before() - 1e-6) {
+      worst_line = std::max(worst_line, distance_to_segment(p, corners[1], corners[2]));
+    }
+    if (s.segment() == chain.corners(0).segment() || s.segment() == chain.corners(1).segment()) {
+      slowest = std::min(slowest, s.speed());  // on a blend
+    }
+    peak_a = std::max(peak_a, vec(s.acceleration()).norm());
+    if (k > first) worst_jump = std::max(worst_jump, (vec(s.acceleration()) - vec(samples[k - 1].acceleration())).norm());
+    // Each sample names the requested step it is in.
+    EXPECT_GE(s.step(), 1u);
+    EXPECT_LE(s.step(), 3u);
+  }
+  std::printf("[ measured ] blended chain: %zu samples, worst distance from the route %.6g m (tolerance %.3g), "
+              "off the middle line %.3g m, slowest on a blend %.4g m/s, largest acceleration change per 1 ms %.4g of peak %.4g "
+              "m/s^2\n",
+              static_cast<std::size_t>(count), worst_route, tolerance, worst_line, slowest, worst_jump, peak_a);
+  EXPECT_LE(worst_route, tolerance + 1e-9);
+  EXPECT_LT(worst_line, 1e-9);
+  EXPECT_GT(slowest, 0.05) << "no rest at the corners";
+  EXPECT_LT(worst_jump, 0.05 * peak_a) << "the acceleration is continuous through the blends";
+  EXPECT_EQ(samples[first + count / 2].step(), 2u);
+
+  // Every joint within its limits by finite differences, across the whole sequence.
+  v1::ListRobotsResponse all = robots();
+  const v1::RobotModel* ur5 = model(all, "ur5");
+  ASSERT_NE(ur5, nullptr);
+  const double dt = 1e-3;
+  for (std::size_t k = 1; k + 1 < samples.size(); ++k) {
+    for (int j = 0; j < ur5->limits_size(); ++j) {
+      const double v = (samples[k].joints(j) - samples[k - 1].joints(j)) / (samples[k].t() - samples[k - 1].t());
+      ASSERT_LE(std::abs(v), ur5->limits(j).max_velocity()) << "sample " << k << " joint " << j;
+      const double a = (samples[k + 1].joints(j) - 2 * samples[k].joints(j) + samples[k - 1].joints(j)) / (dt * dt);
+      if (samples[k + 1].t() - samples[k].t() > 0.999 * dt) {
+        ASSERT_LE(std::abs(a), ur5->limits(j).max_acceleration() * 1.02) << "sample " << k << " joint " << j;
+      }
+    }
+  }
+
+  // Faster than resting at the corners.
+  auto rested = request;
+  for (auto& step : *rested.mutable_sequence()) step.clear_blend_tolerance();
+  rested.mutable_motion()->set_duration_s(0);
+  rested.mutable_motion()->set_profile(v1::MOTION_PROFILE_TRAPEZOIDAL);
+  auto fastest = request;
+  *fastest.mutable_motion() = example<v1::PlanRequest>("sequence_blended_ur5.json").motion();
+  fastest.mutable_motion()->set_cycle_rate_hz(1000);
+  rested.mutable_motion()->set_max_speed(0.25);
+  rested.mutable_motion()->set_max_acceleration(1.0);
+  const double t_rested = plan_ok(rested).motion().duration_s();
+  const double t_blended = plan_ok(fastest).motion().duration_s();
+  std::printf("[ measured ] fastest: %.4g s resting at the corners, %.4g s blended\n", t_rested, t_blended);
+  EXPECT_LT(t_blended, t_rested - 0.3);
+}
+
+// A line into a path into a line, both corners blended: the path keeps its key frames (the
+// blend meets its end frames with the path's own geometry), the chain moves without a rest
+// and with a continuous acceleration, and ends where the last line does.
+TEST_F(SequenceTest, LinesBlendIntoAndOutOfAPath) {
+  auto request = blended_s_curve(6.0);
+  // Step 1: down 7 cm; step 2: a path bending from down to +x over 10 cm; step 3: a line
+  // along (1, -1, 0) (a 45 degree corner after the path).
+  request.mutable_sequence(1)->mutable_linear_move()->mutable_goal()->mutable_position()->set_z(0.38);
+  request.mutable_sequence(1)->set_blend_tolerance(0.005);
+  auto* step = request.mutable_sequence(2);
+  step->clear_linear_move();
+  step->set_blend_tolerance(0.005);
+  auto* path = step->mutable_path();
+  auto* a = path->add_frames();
+  a->mutable_position()->set_x(-0.3);
+  a->mutable_position()->set_y(-0.25);
+  a->mutable_position()->set_z(0.38);
+  a->mutable_tangent()->set_z(-1.0);
+  auto* c = path->add_frames();
+  c->mutable_position()->set_x(-0.2);
+  c->mutable_position()->set_y(-0.25);
+  c->mutable_position()->set_z(0.3);
+  c->mutable_tangent()->set_x(1.0);
+  auto* goal = request.mutable_sequence(3)->mutable_linear_move()->mutable_goal()->mutable_position();
+  goal->set_x(-0.1);
+  goal->set_y(-0.35);
+  goal->set_z(0.3);
+  const auto response = plan_ok(request);
+  ASSERT_EQ(response.steps_size(), 2);
+  const auto& chain = response.steps(1);
+  ASSERT_EQ(chain.corners_size(), 2);
+  EXPECT_EQ(chain.kind(), "blended");
+  for (const auto& corner : chain.corners()) {
+    EXPECT_LE(corner.deviation(), 0.005);
+    EXPECT_GT(corner.deviation(), 0.0);
+  }
+  EXPECT_GT(chain.corners(0).cut_before(), 0.0);
+  EXPECT_EQ(chain.corners(0).cut_after(), 0.0) << "the path is not cut";
+  EXPECT_EQ(chain.corners(1).cut_before(), 0.0);
+  EXPECT_NEAR(chain.corners(1).corner(), M_PI / 4, 1e-9);
+  EXPECT_LT(chain.closed_loop().max_error(), 1e-6) << chain.closed_loop().worst_field();
+
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  double worst_jump = 0.0, peak_a = 0.0, slowest = 1e9;
+  for (std::size_t k = chain.first_sample() + 1; k < samples.size(); ++k) {
+    peak_a = std::max(peak_a, vec(samples[k].acceleration()).norm());
+    worst_jump = std::max(worst_jump, (vec(samples[k].acceleration()) - vec(samples[k - 1].acceleration())).norm());
+    if (samples[k].segment() == chain.corners(0).segment() || samples[k].segment() == chain.corners(1).segment()) {
+      slowest = std::min(slowest, samples[k].speed());
+    }
+  }
+  std::printf("[ measured ] line-path-line chain: slowest on a blend %.4g m/s, largest acceleration change per 1 ms "
+              "%.4g of peak %.4g m/s^2\n",
+              slowest, worst_jump, peak_a);
+  EXPECT_GT(slowest, 0.02);
+  EXPECT_LT(worst_jump, 0.05 * peak_a);
+  EXPECT_NEAR(samples.back().position().x(), -0.1, 1e-9);
+  EXPECT_NEAR(samples.back().position().y(), -0.35, 1e-9);
+}
+
+// A blended chain whose lines turn the tool: each line turns it on its straight part (an
+// eased SLERP) and the blends hold it, so the angular velocity is continuous through the
+// corners and the chain ends at the last goal's orientation.
+TEST_F(SequenceTest, ABlendedChainTurnsTheToolWithAContinuousAngularVelocity) {
+  auto request = blended_s_curve(8.0);
+  // The goal of step 2 turned 30 degrees about z, and step 3 back.
+  const Eigen::Quaterniond down(0, 0, 1, 0);
+  const Eigen::Quaterniond turned = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 6, Eigen::Vector3d::UnitZ())) * down;
+  auto* q = request.mutable_sequence(2)->mutable_linear_move()->mutable_goal()->mutable_orientation();
+  q->set_w(turned.w());
+  q->set_x(turned.x());
+  q->set_y(turned.y());
+  q->set_z(turned.z());
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  const auto response = plan_ok(request);
+  const auto& chain = response.steps(1);
+  double worst_jump = 0.0, peak_w = 0.0;
+  for (std::size_t k = chain.first_sample() + 1; k < samples.size(); ++k) {
+    const Eigen::Vector3d w = vec(samples[k].angular_velocity()), w0 = vec(samples[k - 1].angular_velocity());
+    peak_w = std::max(peak_w, w.norm());
+    worst_jump = std::max(worst_jump, (w - w0).norm());
+  }
+  std::printf("[ measured ] turning chain: peak |omega| %.4g rad/s, largest change per 1 ms %.4g rad/s\n", peak_w,
+              worst_jump);
+  EXPECT_GT(peak_w, 0.1) << "the tool turns";
+  EXPECT_LT(worst_jump, 0.02 * peak_w);
+  // The corner after step 2: the blend holds the turned orientation.
+  const auto& back = samples.back().orientation();
+  EXPECT_NEAR(std::abs(Eigen::Quaterniond(back.w(), back.x(), back.y(), back.z()).dot(down)), 1.0, 1e-9);
+  for (const auto& s : samples) {
+    if (s.segment() != chain.corners(1).segment()) continue;
+    const auto& o = s.orientation();
+    EXPECT_NEAR(std::abs(Eigen::Quaterniond(o.w(), o.x(), o.y(), o.z()).dot(turned)), 1.0, 1e-9);
+    EXPECT_LT(vec(s.angular_velocity()).norm(), 1e-9);
+  }
+}
+
+TEST_F(SequenceTest, CornersThatCannotBeBlendedAreNamed) {
+  const auto base = example<v1::PlanRequest>("sequence_blended_ur5.json");
+  const auto refused = [&](const v1::PlanRequest& request, const std::string& field, const std::string& words) {
+    v1::PlanResponse response;
+    const auto status = plan(request, response);
+    ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+    const auto violations = bad_request_violations(status);
+    EXPECT_THAT(violation_of(violations, field), HasSubstr(words)) << describe(violations);
+  };
+  {  // into a joint move
+    auto request = base;
+    auto* step = request.mutable_sequence(2);
+    step->clear_linear_move();
+    *step->mutable_joint_move()->mutable_goal_pose() = base.sequence(2).linear_move().goal();
+    refused(request, "sequence[1].blendTolerance", "joint move");
+  }
+  {  // on the last step
+    auto request = base;
+    request.mutable_sequence(3)->set_blend_tolerance(0.01);
+    refused(request, "sequence[3].blendTolerance", "last step");
+  }
+  {  // negative
+    auto request = base;
+    request.mutable_sequence(1)->set_blend_tolerance(-0.01);
+    refused(request, "sequence[1].blendTolerance", "[0, 1000] m");
+  }
+  {  // a line that turns back on itself
+    auto request = base;
+    auto* goal = request.mutable_sequence(2)->mutable_linear_move()->mutable_goal()->mutable_position();
+    goal->set_x(-0.3);
+    goal->set_y(-0.25);
+    goal->set_z(0.4);  // straight back up the line it came down
+    refused(request, "sequence[1].blendTolerance", "180 degrees");
+  }
+  {  // a later step of a chain with a motion of its own
+    auto request = base;
+    request.mutable_sequence(2)->mutable_motion()->set_duration_s(1.0);
+    refused(request, "sequence[2].motion", "same timing");
   }
 }
 

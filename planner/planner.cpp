@@ -202,6 +202,32 @@ Expected<core::LinearMoveSpec> resolve(const LinearMoveToJoints& move, const Rob
   return spec;
 }
 
+// A straight-line move (thesis 6.2.2.2) as a path: two key frames on the line with its
+// tangent and curvature 0 (the engine's segment is the straight segment, every derivative
+// across it zero), the tool turned by SLERP from the start to the goal orientation over the
+// arc length (Eq. 6.2 on the path's progress, ORIENTATION_MODE_CUSTOM).
+struct StraightPath {
+  core::Path path;
+  core::OrientationPlan orientation;
+};
+Expected<StraightPath> straight_path(const core::LinearMoveSpec& move) {
+  const Eigen::Vector3d d = (move.goal.p_WT - move.start.p_WT).normalized();
+  core::KeyFrame a, b;
+  a.p_W = move.start.p_WT;
+  b.p_W = move.goal.p_WT;
+  a.T_W = b.T_W = d;
+  a.kappa = b.kappa = 0.0;
+  a.orientation_mode = core::OrientationMode::kCustom;
+  a.orientation = move.goal.q_WT.normalized();
+  core::PathSpec spec;
+  spec.frames = {a, b};
+  auto path = core::build_path(spec);
+  if (!path) return tl::unexpected(invalid(core::prefixed(std::move(path.error()), "linearMove.")));
+  auto orientation = core::plan_orientation(*path, move.start.q_WT.normalized());
+  if (!orientation) return tl::unexpected(invalid(core::prefixed(std::move(orientation.error()), "linearMove.")));
+  return StraightPath{std::move(*path), std::move(*orientation)};
+}
+
 // The trajectory of a request with a motion.
 Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget& budget, Clock::time_point deadline,
                                            OptimizerReports& reports) {
@@ -212,7 +238,26 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
     if (!plan) return tl::unexpected(invalid(std::move(plan.error())));
     return core::Trajectory(std::in_place_type<core::JointMovePlan>, std::move(*plan));
   };
+  const bool time_optimal = request.optimize && request.optimize->time_optimal;
+  const bool jerk_limited = request.optimize && request.optimize->jerk_limited;
   const auto linear_move = [&](const core::LinearMoveSpec& move) -> Expected<core::Trajectory> {
+    // With a robot and no duration (or optimize.timing): the fastest line within the joint
+    // limits and the Cartesian ones given, on the time-optimal sweep of the straight path.
+    if (robot != nullptr && time_optimally_timed(motion, true, time_optimal, jerk_limited) &&
+        (move.goal.p_WT - move.start.p_WT).norm() > 0.0) {
+      core::MotionSpec nominal = motion;  // the poses' own checks, named on linearMove.*
+      nominal.duration_s = 1.0;
+      if (auto checked = core::plan_linear_move(move, nominal); !checked) {
+        return tl::unexpected(invalid(std::move(checked.error())));
+      }
+      auto line = straight_path(move);
+      if (!line) return tl::unexpected(std::move(line.error()));
+      auto timing = time_optimal_timing(line->path, line->orientation, motion, robot, jerk_limited, budget, deadline,
+                                        reports);
+      if (!timing) return tl::unexpected(std::move(timing.error()));
+      return core::Trajectory(std::in_place_type<core::PathMotion>,
+                              core::PathMotion{std::move(line->path), std::move(*timing), std::move(line->orientation)});
+    }
     auto plan = core::plan_linear_move(move, motion);
     if (!plan) return tl::unexpected(invalid(std::move(plan.error())));
     return core::Trajectory(std::in_place_type<core::LinearMovePlan>, std::move(*plan));
@@ -244,8 +289,7 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
   // As fast as the limits allow: the time-optimal timing, with a robot (joint limits) or
   // without (Cartesian limits; the S-curve keeps its minimum-time double S, whose jerk bound
   // the sweep does not model, unless jerkLimited asks for the NLP).
-  const bool jerk_limited = request.optimize && request.optimize->jerk_limited;
-  if (time_optimally_timed(motion, robot != nullptr, request.optimize && request.optimize->time_optimal, jerk_limited)) {
+  if (time_optimally_timed(motion, robot != nullptr, time_optimal, jerk_limited)) {
     auto timing = time_optimal_timing(*path, *orientation, motion, robot, jerk_limited, budget, deadline, reports);
     if (!timing) return tl::unexpected(std::move(timing.error()));
     return core::Trajectory(std::in_place_type<core::PathMotion>,
@@ -616,7 +660,11 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
       sub.robot = std::move(at_end);
     }
     const bool path = std::holds_alternative<core::PathSpec>(sub.geometry);
-    if (path && last == i) sub.optimize = request.optimize;
+    if ((path || std::holds_alternative<core::LinearMoveSpec>(sub.geometry) ||
+         std::holds_alternative<LinearMoveToJoints>(sub.geometry)) &&
+        last == i) {
+      sub.optimize = request.optimize;  // a line takes its timing flags only
+    }
     auto trajectory = plan_trajectory(sub, budget, deadline, report.optimizers);
     if (!trajectory) return tl::unexpected(in_step(std::move(trajectory.error()), i, step));
     if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));

@@ -1038,6 +1038,10 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
     }
     if (step.has_linear_move()) {
       *sub.mutable_linear_move() = step.linear_move();
+      if (request.has_optimize()) {  // its timing (a line has no shape to optimise)
+        *sub.mutable_optimize()->mutable_timing() = request.optimize().timing();
+        if (request.optimize().has_time_budget_s()) sub.mutable_optimize()->set_time_budget_s(request.optimize().time_budget_s());
+      }
       start_given = step.linear_move().has_start();
       // After the first step an absent start is where the previous step ends, known when
       // the planner gets there: a placeholder the planner replaces.
@@ -1113,8 +1117,25 @@ core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& reque
                                       : "give exactly one of `path`, `jointMove` and `linearMove`"});
     return tl::unexpected(std::move(violations));
   }
-  if (request.has_optimize() && !request.has_path()) {
-    violations.push_back({"optimize", "applies to a `path`: a jointMove or linearMove has nothing to optimise"});
+  if (request.has_optimize() && request.has_joint_move()) {
+    violations.push_back({"optimize", "applies to a `path` or a linearMove's timing: a jointMove is timed by its "
+                                      "slowest joint already"});
+  }
+  if (request.has_optimize() && request.has_linear_move()) {
+    const auto& o = request.optimize();
+    if (o.has_tangent_scales() || o.has_breakpoints()) {
+      violations.push_back({o.has_tangent_scales() ? "optimize.tangentScales" : "optimize.breakpoints",
+                            "shapes a path: a linearMove is straight (optimize.timing applies to it)"});
+    }
+    planner::Optimize optimize;
+    if (auto budget = optimize_budget(request, limits.max_optimize_seconds)) {
+      optimize.budget_s = *budget;
+    } else {
+      violations = joined(std::move(violations), budget.error());
+    }
+    optimize.time_optimal = o.timing().time_optimal();
+    optimize.jerk_limited = o.timing().jerk_limited();
+    out.optimize = optimize;
   }
   if (auto motion = motion_from_request(request)) {
     out.motion = std::move(*motion);

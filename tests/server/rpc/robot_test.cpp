@@ -774,6 +774,68 @@ TEST_F(RobotTest, LinearMoveOnTheUr5) {
   for (int j = 0; j < 6; ++j) EXPECT_NEAR(samples.front().joints(j), ur5.home(j), 1e-9) << "joint " << j;
 }
 
+// linear_move_ur5.json with durationS 0 and no Cartesian limits: the fastest line within the
+// UR5's joint limits (the time-optimal sweep of the straight path), streamed at 100 Hz, 1 kHz
+// and 10 kHz: on the segment, every joint's velocity and acceleration by finite differences
+// within its limits, one of them reached, the goal reached; with a duration of 2 s and
+// optimize.timing.timeOptimal the same.
+TEST_F(RobotTest, FastestLinearMoveWithinTheJointLimits) {
+  const auto ur5 = robot_model("ur5");
+  auto request = example<v1::PlanRequest>("linear_move_ur5.json");
+  request.mutable_motion()->set_duration_s(0.0);
+  const Eigen::Vector3d p0 = forward_kinematics(ur5, ur5.home()).translation();
+  const Eigen::Vector3d p1 = vec(request.linear_move().goal().position());
+  double duration = 0.0;
+  for (const double rate : {100.0, 1000.0, 10000.0}) {
+    SCOPED_TRACE("rate " + std::to_string(rate));
+    request.mutable_motion()->set_cycle_rate_hz(rate);
+    v1::PlanResponse response;
+    const auto status = plan(request, response);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    if (duration == 0.0) duration = response.motion().duration_s();
+    EXPECT_NEAR(response.motion().duration_s(), duration, 0.01 * duration) << "the rate does not change it much";
+    grpc::Status stream_status;
+    const auto samples = stream_all(request, stream_status);
+    ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+    const double dt = 1.0 / rate;
+    double usage = 0.0;
+    for (std::size_t k = 1; k < samples.size(); ++k) {
+      const Eigen::Vector3d p = vec(samples[k].position());
+      const Eigen::Vector3d d = (p1 - p0).normalized();
+      ASSERT_LT((p - p0 - (p - p0).dot(d) * d).norm(), 1e-9) << "off the line at t = " << samples[k].t();
+      const double h = samples[k].t() - samples[k - 1].t();
+      for (int j = 0; j < 6; ++j) {
+        const auto& limits = ur5.limits(j);
+        const double v = (samples[k].joints(j) - samples[k - 1].joints(j)) / h;
+        usage = std::max(usage, std::abs(v) / limits.max_velocity());
+        ASSERT_LE(std::abs(v), limits.max_velocity() * (1 + 1e-6)) << "joint " << j << " t " << samples[k].t();
+        if (k + 1 < samples.size() && std::abs(samples[k + 1].t() - samples[k].t() - dt) < 1e-9 &&
+            std::abs(h - dt) < 1e-9) {
+          const double a = (samples[k + 1].joints(j) - 2 * samples[k].joints(j) + samples[k - 1].joints(j)) / (dt * dt);
+          usage = std::max(usage, std::abs(a) / limits.max_acceleration());
+          ASSERT_LE(std::abs(a), limits.max_acceleration() * (1 + 2e-2)) << "joint " << j << " t " << samples[k].t();
+        }
+      }
+    }
+    EXPECT_GT(usage, 0.95) << "a joint limit binds";
+    EXPECT_LT((vec(samples.back().position()) - p1).norm(), 1e-9);
+  }
+  std::printf("[ measured ] fastest UR5 line of linear_move_ur5.json: %.4f s\n", duration);
+  EXPECT_LT(duration, 2.0) << "faster than the example's 2 s";
+
+  auto timed = example<v1::PlanRequest>("linear_move_ur5.json");
+  timed.mutable_optimize()->mutable_timing()->set_time_optimal(true);
+  v1::PlanResponse response;
+  ASSERT_TRUE(plan(timed, response).ok());
+  EXPECT_NEAR(response.motion().duration_s(), duration, 0.01 * duration);
+  ASSERT_TRUE(response.optimization().has_timing());
+  EXPECT_GT(response.optimization().timing().check_rate_hz(), 0.0);
+
+  timed.mutable_optimize()->mutable_tangent_scales();
+  const auto violations = refused(timed);
+  EXPECT_THAT(violation_of(violations, "optimize.tangentScales"), HasSubstr("straight")) << describe(violations);
+}
+
 // ---------------------------------------------------------------------------------------
 // Robot model files served by geotrajd
 

@@ -413,6 +413,15 @@ constexpr double kSequenceJointTolerance = 1e-6;  // [rad or m]: a given start m
 // `sequence[i].`, the request's motion (when the step has none of its own) and robot as
 // they are, the step said in the message.
 Error in_step(Error error, std::size_t i, const Step& step) {
+  if (step.name) {  // a step the planner added: its own name, or the request's fields as they are
+    if (!step.name->empty()) {
+      for (auto& v : error.violations) {
+        v.description = "the approach move: " + v.field + " " + v.description;
+        v.field = *step.name;
+      }
+    }
+    return error;
+  }
   const std::string prefix = "sequence[" + std::to_string(i) + "].";
   for (auto& v : error.violations) {
     const bool motion = v.field.rfind("motion", 0) == 0;
@@ -745,6 +754,46 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
   return result;
 }
 
+// A path with a robot that starts away from the tool pose of the robot's initial joints,
+// and robot.approach set: the request as a sequence of the approach move (minimum time) and
+// the path. nullopt: plan the request as it is.
+std::optional<Expected<Request>> with_approach(const Request& request) {
+  const Robot* robot = request.robot.get();
+  const auto* path = std::get_if<core::PathSpec>(&request.geometry);
+  if (robot == nullptr || path == nullptr || !request.motion || robot->approach == Approach::kNone) return std::nullopt;
+  auto built = build(*path);
+  if (!built) return tl::unexpected(std::move(built.error()));
+  const Eigen::Isometry3d X = core::forward_kinematics(robot->model, robot->seed);
+  auto orientation = core::plan_orientation(*built, Eigen::Quaterniond(X.linear()));
+  if (!orientation) return tl::unexpected(invalid(core::prefixed(std::move(orientation.error()), "path.")));
+  core::ToolPose start;
+  start.p_WT = path->frames.front().p_W;
+  start.q_WT = orientation->segments.front().q_start;
+  const double dp = (start.p_WT - X.translation()).norm();
+  const double dr = rotation_angle(start.q_WT, Eigen::Quaterniond(X.linear()));
+  if (dp <= robot->start_position_tolerance && dr <= robot->start_orientation_tolerance) return std::nullopt;
+  Request out = request;
+  Step approach;
+  approach.name = "robot.approach";
+  approach.motion = *request.motion;
+  approach.motion.duration_s = 0.0;  // as fast as the joint limits (and a line's Cartesian ones) allow
+  const std::vector<double> q(robot->seed.data(), robot->seed.data() + robot->seed.size());
+  if (robot->approach == Approach::kJoint) {
+    approach.geometry = JointMoveToPose{q, Eigen::Translation3d(start.p_WT) * start.q_WT};
+  } else {
+    core::ToolPose from;
+    from.p_WT = X.translation();
+    from.q_WT = Eigen::Quaterniond(X.linear());
+    approach.geometry = core::LinearMoveSpec{from, start};
+  }
+  Step follow;
+  follow.name = "";
+  follow.geometry = request.geometry;
+  follow.motion = *request.motion;
+  out.sequence = {std::move(approach), std::move(follow)};
+  return out;
+}
+
 }  // namespace
 
 bool time_optimally_timed(const core::MotionSpec& motion, bool robot, bool time_optimal, bool jerk_limited) {
@@ -770,6 +819,10 @@ const core::Path* Plan::followed_path() const {
 Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose) {
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   if (!request.sequence.empty()) return plan_sequence(request, budget, limits, purpose);
+  if (auto approached = with_approach(request)) {
+    if (!*approached) return tl::unexpected(std::move(approached->error()));
+    return plan_sequence(**approached, budget, limits, purpose);
+  }
   const auto deadline = optimizer_deadline(request, budget);
   Plan result;
   result.robot = request.robot;

@@ -39,6 +39,14 @@
 
 namespace geotraj::planner {
 
+/// What a plan does when its path starts away from the tool pose of the robot's initial
+/// joints (RobotSpec.approach).
+enum class Approach {
+  kNone,    ///< refuse: kUnattainable on robot.initialJoints with the distance
+  kJoint,   ///< a joint move first, to the IK solution of the path's first pose nearest the joints
+  kLinear,  ///< a straight-line move first, to the path's first pose
+};
+
 /// The robot of a request, resolved (a catalog name looked up, base and tool applied).
 struct Robot {
   core::RobotModel model;
@@ -49,6 +57,7 @@ struct Robot {
   double start_position_tolerance = 1e-4;
   double start_orientation_tolerance = 1e-3;
   bool inline_model = false;       ///< given as `robot.model` (not by name): where its errors point
+  Approach approach = Approach::kNone;
 };
 
 /// The optimisers a request asks for (OptimizeSpec), converted.
@@ -91,6 +100,9 @@ struct Step {
   /// [m] > 0: the corner to the next step replaced by a blend within this distance of it
   /// (core::blend_chain); 0: the robot rests there.
   double blend_tolerance = 0.0;
+  /// A step the planner added (robot.approach): how its errors are named, "" for the
+  /// request's own fields as they are. Absent: `sequence[i].<field>`.
+  std::optional<std::string> name;
 };
 
 /// Everything a plan request says, converted once by the wire layer.

@@ -99,6 +99,13 @@ bool apply(const OptimizeFlags& flags, v1::PlanRequest& request) {
     if (flags.velocity_scale) request.mutable_robot()->set_velocity_scale(*flags.velocity_scale);
     if (flags.acceleration_scale) request.mutable_robot()->set_acceleration_scale(*flags.acceleration_scale);
   }
+  if (!flags.approach.empty()) {
+    if (!request.has_robot()) {
+      std::cerr << "geotraj: --approach moves a robot to the path's start: the request has no robot\n";
+      return false;
+    }
+    request.mutable_robot()->set_approach(flags.approach == "joint" ? v1::APPROACH_MOVE_JOINT : v1::APPROACH_MOVE_LINEAR);
+  }
   const bool any = !flags.tangent_scales.empty() || !flags.breakpoints.empty() || flags.time_optimal ||
                    flags.jerk_limited || flags.budget_s > 0.0 || flags.length_weight;
   if (!any) return true;  // the request's own `optimize`, if any, stays as it is

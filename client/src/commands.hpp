@@ -22,6 +22,7 @@ struct OptimizeFlags {
   double budget_s = 0.0;       ///< optimize.timeBudgetS when > 0
   std::optional<double> velocity_scale;      ///< robot.velocityScale; absent: the request's
   std::optional<double> acceleration_scale;  ///< robot.accelerationScale; absent: the request's
+  std::string approach;  ///< robot.approach (joint, linear); empty: the request's
 };
 
 /// What `fk` and `ik` flags write into their requests (over a request file's own).

@@ -64,6 +64,10 @@ int main(int argc, char** argv) {
     sub->add_option("--acceleration-scale", options.optimize.acceleration_scale,
                     "fraction of the robot's joint acceleration and jerk limits to use, in (0, 1] "
                     "(robot.accelerationScale)");
+    sub->add_option("--approach", options.optimize.approach,
+                    "a path that starts away from the robot: joint or linear, a minimum-time move there first "
+                    "(robot.approach)")
+        ->check(CLI::IsMember({"joint", "linear"}));
   };
   auto* convert = app.add_subcommand("convert", "ConvertConstraints: key-frame constraints -> parametric derivatives");
   request_arg(convert, "a ConvertRequest");

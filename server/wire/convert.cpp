@@ -597,6 +597,14 @@ core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, con
             "m", resolved.start_position_tolerance);
   tolerance(spec.has_start_orientation_tolerance(), spec.start_orientation_tolerance(),
             "robot.startOrientationTolerance", "rad", resolved.start_orientation_tolerance);
+  switch (spec.approach()) {
+    case v1::APPROACH_MOVE_UNSPECIFIED: resolved.approach = planner::Approach::kNone; break;
+    case v1::APPROACH_MOVE_JOINT: resolved.approach = planner::Approach::kJoint; break;
+    case v1::APPROACH_MOVE_LINEAR: resolved.approach = planner::Approach::kLinear; break;
+    default:
+      out.push_back({"robot.approach", "unknown value " + std::to_string(spec.approach()) +
+                                                  "; use APPROACH_MOVE_JOINT or APPROACH_MOVE_LINEAR"});
+  }
   const auto factor = [&out](bool given, double value, const char* field) {
     if (given && !(std::isfinite(value) && value > 0.0 && value <= 1.0)) {
       out.push_back({field, "must be in (0, 1] (a fraction of the model's limits), got " + core::number(value)});
@@ -1077,7 +1085,7 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
     if (!out.optimize) out.optimize = converted->optimize;
     if (!out.motion) out.motion = converted->motion;
     out.sequence.push_back(
-        planner::Step{std::move(converted->geometry), *converted->motion, step.has_motion(), start_given, blend});
+        planner::Step{std::move(converted->geometry), *converted->motion, step.has_motion(), start_given, blend, {}});
   }
   if (request.has_optimize() && !any_path) {
     violations.push_back({"optimize", "applies to the paths of a sequence, and this one has none"});

@@ -541,6 +541,58 @@ TEST_F(RobotTest, APathMustStartWhereTheRobotIs) {
   EXPECT_TRUE(planned.ok()) << planned.error_message();
 }
 
+// The same path 14 cm away with robot.approach: a minimum-time approach move first (joint or
+// straight), then the path; the plan is a sequence of the two, the robot at rest between
+// them, streamed continuously from the home, every joint within its limits.
+TEST_F(RobotTest, AnApproachMoveBringsTheRobotToThePathsStart) {
+  auto request = pa10_path_a(60.0, false);
+  for (auto& frame : *request.mutable_path()->mutable_frames()) {
+    frame.mutable_position()->set_y(frame.position().y() + 0.14);
+  }
+  const auto pa10 = robot_model("pa10");
+  for (const auto approach : {v1::APPROACH_MOVE_JOINT, v1::APPROACH_MOVE_LINEAR}) {
+    SCOPED_TRACE(v1::ApproachMove_Name(approach));
+    request.mutable_robot()->set_approach(approach);
+    v1::PlanResponse response;
+    const auto status = plan(request, response);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    ASSERT_EQ(response.steps_size(), 2);
+    EXPECT_EQ(response.steps(0).kind(), approach == v1::APPROACH_MOVE_JOINT ? "jointMove" : "linearMove");
+    EXPECT_EQ(response.steps(1).kind(), "path");
+    EXPECT_LT(response.steps(1).closed_loop().max_error(), 1e-6);
+    EXPECT_TRUE(response.robot().feasible());
+    grpc::Status stream_status;
+    const auto samples = stream_all(request, stream_status);
+    ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+    ASSERT_EQ(samples.size(), response.motion().sample_count());
+    for (int j = 0; j < 7; ++j) EXPECT_NEAR(samples.front().joints(j), pa10.home(j), 1e-9);
+    const auto& at_path = samples[response.steps(1).first_sample()];
+    EXPECT_NEAR(at_path.position().y(), request.path().frames(0).position().y(), 1e-9);
+    EXPECT_LT(vec(at_path.velocity()).norm(), 1e-12) << "at rest where the path starts";
+    const double dt = 1.0 / request.motion().cycle_rate_hz();
+    for (std::size_t k = 1; k + 1 < samples.size(); ++k) {
+      for (int j = 0; j < 7; ++j) {
+        const double v = (samples[k].joints(j) - samples[k - 1].joints(j)) / (samples[k].t() - samples[k - 1].t());
+        ASSERT_LE(std::abs(v), pa10.limits(j).max_velocity() * (1 + 1e-6)) << "sample " << k << " joint " << j;
+        if (std::abs(samples[k + 1].t() - samples[k].t() - dt) < 1e-9 && std::abs(samples[k].t() - samples[k - 1].t() - dt) < 1e-9) {
+          const double a = (samples[k + 1].joints(j) - 2 * samples[k].joints(j) + samples[k - 1].joints(j)) / (dt * dt);
+          ASSERT_LE(std::abs(a), pa10.limits(j).max_acceleration() * 1.02) << "sample " << k << " joint " << j;
+        }
+      }
+    }
+  }
+  // Already at the start: no approach, the path alone.
+  auto at_home = pa10_path_a(60.0, false);
+  at_home.mutable_robot()->set_approach(v1::APPROACH_MOVE_JOINT);
+  v1::PlanResponse response;
+  ASSERT_TRUE(plan(at_home, response).ok());
+  EXPECT_EQ(response.steps_size(), 0);
+  EXPECT_GT(response.segments_size(), 0);
+  // An unknown value is named.
+  at_home.mutable_robot()->set_approach(static_cast<v1::ApproachMove>(7));
+  EXPECT_THAT(violation_of(refused(at_home), "robot.approach"), HasSubstr("unknown value 7"));
+}
+
 TEST_F(RobotTest, JointMoveNeedsARobot) {
   auto request = from_json<v1::PlanRequest>(
       R"({"jointMove": {"goal": [0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8]}, "motion": {"durationS": 3}})");

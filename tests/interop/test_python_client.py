@@ -24,6 +24,24 @@ def free_port():
         return s.getsockname()[1]
 
 
+def start_geotrajd(server):
+    """geotrajd on a free loopback port and a ready channel to it: (process, channel).
+    Its log (one line per call) goes nowhere: an unread pipe would fill and block it."""
+    import grpc
+    port = free_port()
+    proc = subprocess.Popen([server, "--address", f"127.0.0.1:{port}"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    channel = grpc.insecure_channel(f"127.0.0.1:{port}")
+    grpc.channel_ready_future(channel).result(timeout=30)
+    return proc, channel
+
+
+def stop_geotrajd(proc, channel):
+    channel.close()
+    proc.terminate()
+    proc.wait(timeout=30)
+
+
 def v3(pb, x, y, z):
     pb.x, pb.y, pb.z = x, y, z
 
@@ -37,19 +55,12 @@ class PythonClient(unittest.TestCase):
         from geotraj.v1 import geotraj_pb2 as pb
         from geotraj.v1 import geotraj_pb2_grpc as rpc
         from google.rpc import error_details_pb2, status_pb2
-        cls.port = free_port()
-        # Its log (one line per call) goes nowhere: an unread pipe would fill and block it.
-        cls.proc = subprocess.Popen([ARGS.server, "--address", f"127.0.0.1:{cls.port}"],
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        cls.channel = grpc.insecure_channel(f"127.0.0.1:{cls.port}")
-        grpc.channel_ready_future(cls.channel).result(timeout=30)
+        cls.proc, cls.channel = start_geotrajd(ARGS.server)
         cls.stub = rpc.TrajectoryServiceStub(cls.channel)
 
     @classmethod
     def tearDownClass(cls):
-        cls.channel.close()
-        cls.proc.terminate()
-        cls.proc.wait(timeout=30)
+        stop_geotrajd(cls.proc, cls.channel)
 
     # The thesis's demonstration (Tables 7.8 with its erratum, 7.18): path A, B or C.
     def demo_path(self, which):

@@ -240,6 +240,25 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
   };
   const bool time_optimal = request.optimize && request.optimize->time_optimal;
   const bool jerk_limited = request.optimize && request.optimize->jerk_limited;
+  // The tool's angular limits are imposed where the motion is as fast as its limits allow:
+  // the time-optimal sweep, a line's minimum time. Elsewhere they would be ignored: refused.
+  const bool angular = motion.max_angular_speed || motion.max_angular_acceleration;
+  const std::string angular_field = motion.max_angular_speed ? "motion.maxAngularSpeed" : "motion.maxAngularAcceleration";
+  const bool path_or_line = !std::holds_alternative<core::JointMoveSpec>(request.geometry) &&
+                            !std::holds_alternative<JointMoveToPose>(request.geometry);
+  if (angular && path_or_line) {
+    const bool line = !std::holds_alternative<core::PathSpec>(request.geometry);
+    std::string why;
+    if (jerk_limited) {
+      why = "is not imposed by optimize.timing.jerkLimited (its NLP has no angular rows): use timeOptimal, or drop it";
+    } else if (!time_optimally_timed(motion, robot != nullptr, time_optimal, false) &&
+               !(line && motion.duration_s == 0.0)) {
+      why = "is imposed where the motion is as fast as its limits allow (durationS 0: the time-optimal timing, a "
+            "line's minimum time); this motion is timed by its " +
+            std::string(motion.duration_s > 0.0 ? "duration" : "S-curve without a robot") + ", which it would not bound";
+    }
+    if (!why.empty()) return tl::unexpected(invalid(core::Violations{{angular_field, why}}));
+  }
   const auto linear_move = [&](const core::LinearMoveSpec& move) -> Expected<core::Trajectory> {
     // With a robot and no duration (or optimize.timing): the fastest line within the joint
     // limits and the Cartesian ones given, on the time-optimal sweep of the straight path.

@@ -149,6 +149,8 @@ Violations validate_motion(const MotionSpec& spec) {
   check_limit("motion.maxSpeed", spec.max_speed, "m/s");
   check_limit("motion.maxAcceleration", spec.max_acceleration, "m/s^2");
   check_limit("motion.maxJerk", spec.max_jerk, "m/s^3");
+  check_limit("motion.maxAngularSpeed", spec.max_angular_speed, "rad/s");
+  check_limit("motion.maxAngularAcceleration", spec.max_angular_acceleration, "rad/s^2");
   if (spec.duration_s == 0.0) {
     if (!spec.max_speed || !spec.max_acceleration)
       v.push_back({"motion.durationS",

@@ -59,6 +59,11 @@ struct MotionSpec {
   std::optional<double> max_speed;         ///< [m/s] (maxSpeed), > 0
   std::optional<double> max_acceleration;  ///< [m/s^2] (maxAcceleration), > 0: tangential and centripetal
   std::optional<double> max_jerk;          ///< [m/s^3] (maxJerk), > 0: tangential
+  /// The tool's angular speed |omega| [rad/s] (maxAngularSpeed) and angular acceleration
+  /// |alpha| [rad/s^2] (maxAngularAcceleration), > 0: imposed by the time-optimal timing
+  /// (time_optimal.hpp) and a straight line's minimum time (moves.hpp).
+  std::optional<double> max_angular_speed;
+  std::optional<double> max_angular_acceleration;
 };
 
 /// Largest cycle rate [Hz] and largest number of samples of one plan (bounds the work).

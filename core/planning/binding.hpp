@@ -15,6 +15,8 @@ enum class BindingKind {
   kCartesianSpeed,           ///< s_dot <= maxSpeed [m/s]
   kTangentialAcceleration,   ///< |s_ddot| <= maxAcceleration [m/s^2]
   kCentripetalAcceleration,  ///< kappa s_dot^2 <= maxAcceleration [m/s^2]
+  kAngularSpeed,             ///< |omega| <= maxAngularSpeed [rad/s]
+  kAngularAcceleration,      ///< |alpha| <= maxAngularAcceleration [rad/s^2]
 };
 
 /// The name of a kind ("joint velocity", ...).
@@ -25,6 +27,8 @@ constexpr const char* name(BindingKind kind) {
     case BindingKind::kCartesianSpeed: return "Cartesian speed";
     case BindingKind::kTangentialAcceleration: return "tangential acceleration";
     case BindingKind::kCentripetalAcceleration: return "centripetal acceleration";
+    case BindingKind::kAngularSpeed: return "angular speed";
+    case BindingKind::kAngularAcceleration: return "angular acceleration";
   }
   return "limit";
 }

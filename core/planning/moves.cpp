@@ -269,7 +269,15 @@ Expected<LinearMovePlan> plan_linear_move(const LinearMoveSpec& spec, const Moti
                                       : "is 0 for a move whose start and goal poses coincide") +
              ": give a duration; maxSpeed, maxAcceleration and maxJerk bound the translation only"}});
   } else {
-    const double v_lim = *motion.max_speed * scale, a_lim = *motion.max_acceleration * scale * scale;
+    double v_lim = *motion.max_speed * scale, a_lim = *motion.max_acceleration * scale * scale;
+    // The tool turns at theta / L per metre (6.2): its angular limits cap the line's speed
+    // and acceleration at omega_max L / theta and alpha_max L / theta.
+    if (plan.theta > 0.0 && motion.max_angular_speed) {
+      v_lim = std::min(v_lim, *motion.max_angular_speed * scale * plan.length / plan.theta);
+    }
+    if (plan.theta > 0.0 && motion.max_angular_acceleration) {
+      a_lim = std::min(a_lim, *motion.max_angular_acceleration * scale * scale * plan.length / plan.theta);
+    }
     profile = motion.profile == ProfileShape::kTrapezoidal
                   ? min_time_trapezoid(plan.length, v_lim, a_lim)
                   : min_time_double_s(plan.length, v_lim, a_lim, *motion.max_jerk * scale * scale * scale);

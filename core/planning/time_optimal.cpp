@@ -18,6 +18,11 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+// Directions of the angular acceleration's support rows over a half turn (two-sided rows
+// cover the other half): 16 over the full turn.
+constexpr int kAngularRows = 8;
+constexpr double kAngularInscribed = 0.98078528040323044913;  // cos(pi / 16)
+
 
 /// Which constraint a bound comes from.
 struct Source {
@@ -34,7 +39,7 @@ struct Line {
 
 /// Scratch of one interval's polygon (fixed capacity: no allocation in the sweep).
 struct Polygon {
-  static constexpr std::size_t kCap = 2 * kMaxJoints + 4;
+  static constexpr std::size_t kCap = 2 * kMaxJoints + 4 + 2 * kAngularRows;
   std::array<Line, kCap> lower, upper;
   std::size_t n_lower = 0, n_upper = 0;
   double x_max = kInf;  ///< bounds on x alone (joint acceleration with no u term)
@@ -84,7 +89,28 @@ PointCap point_cap(const GridPoint& g, const TimeOptimalLimits& lim, double sigm
   if (lim.speed < kInf) take(lim.speed * lim.speed, {BindingKind::kCartesianSpeed, 0});
   if (g.kappa > 0.0 && lim.centripetal < kInf)
     take(lim.centripetal * sigma * sigma / g.kappa, {BindingKind::kCentripetalAcceleration, 0});
+  const double w = g.omega_s.norm();
+  if (w > 0.0 && lim.angular_speed < kInf) {
+    const double v = lim.angular_speed * sigma / w;
+    take(v * v, {BindingKind::kAngularSpeed, 0});
+  }
   return c;
+}
+
+// |A u + C x| <= a for vectors A, C: support rows d . (A u + C x) <= a cos(pi / 16) over
+// kAngularRows directions d of the plane of A and C (two-sided: both half turns).
+void add_norm_rows(const Eigen::Vector3d& A, const Eigen::Vector3d& C, double a, Source src, Polygon& p) {
+  if (!(a < kInf)) return;
+  const double nA = A.norm(), nC = C.norm();
+  if (!(nA > 0.0 || nC > 0.0)) return;
+  const Eigen::Vector3d e1 = nA >= nC ? Eigen::Vector3d(A / nA) : Eigen::Vector3d(C / nC);
+  Eigen::Vector3d e2 = (nA >= nC ? C : A) - e1 * e1.dot(nA >= nC ? C : A);
+  e2 = e2.norm() > 1e-12 * std::max(nA, nC) ? Eigen::Vector3d(e2.normalized()) : Eigen::Vector3d(e1.unitOrthogonal());
+  for (int k = 0; k < kAngularRows; ++k) {
+    const double th = 3.14159265358979323846 * k / kAngularRows;
+    const Eigen::Vector3d d = std::cos(th) * e1 + std::sin(th) * e2;
+    p.add_two_sided(d.dot(A), d.dot(C), a * kAngularInscribed, src);
+  }
 }
 
 /// The polygon of interval i (points g0 = s_i, g1 = s_{i+1}, ds = s_{i+1} - s_i): the joint
@@ -102,6 +128,11 @@ void interval_polygon(const GridPoint& g0, const GridPoint& g1, double ds, const
   if (lim.tangential < kInf) {
     p.add_upper(lim.tangential, 0.0, {BindingKind::kTangentialAcceleration, 0});
     p.add_lower(-lim.tangential, 0.0, {BindingKind::kTangentialAcceleration, 0});
+  }
+  if (lim.angular_acceleration < kInf) {  // alpha at both ends, as the joints' accelerations
+    const Source src{BindingKind::kAngularAcceleration, 0};
+    add_norm_rows(g0.omega_s, g0.omega_ss, lim.angular_acceleration * sig0 * sig0, src, p);
+    add_norm_rows(g1.omega_s + 2.0 * ds * g1.omega_ss, g1.omega_ss, lim.angular_acceleration * sig1 * sig1, src, p);
   }
 }
 
@@ -131,6 +162,10 @@ Usage interval_usage(const GridPoint& g0, const GridPoint& g1, double x0, double
   take({BindingKind::kCartesianSpeed, 0}, std::max(v0, v1), lim.speed);
   take({BindingKind::kTangentialAcceleration, 0}, std::abs(u), lim.tangential);
   take({BindingKind::kCentripetalAcceleration, 0}, std::max(g0.kappa * x0, g1.kappa * x1), lim.centripetal);
+  take({BindingKind::kAngularSpeed, 0}, std::max(g0.omega_s.norm() * v0, g1.omega_s.norm() * v1), lim.angular_speed);
+  take({BindingKind::kAngularAcceleration, 0},
+       std::max((g0.omega_s * u + g0.omega_ss * x0).norm(), (g1.omega_s * u + g1.omega_ss * x1).norm()),
+       lim.angular_acceleration);
   return best;
 }
 
@@ -141,6 +176,8 @@ std::string source_words(const Source& s) {
     case BindingKind::kCartesianSpeed: return "maxSpeed";
     case BindingKind::kTangentialAcceleration: return "maxAcceleration (tangential)";
     case BindingKind::kCentripetalAcceleration: return "maxAcceleration (centripetal)";
+    case BindingKind::kAngularSpeed: return "maxAngularSpeed";
+    case BindingKind::kAngularAcceleration: return "maxAngularAcceleration";
   }
   return "?";
 }
@@ -287,6 +324,8 @@ TimeOptimalLimits time_optimal_limits(const MotionSpec& spec, const RobotModel* 
   }
   if (spec.max_speed) lim.speed = *spec.max_speed * sc;
   if (spec.max_acceleration) lim.tangential = lim.centripetal = *spec.max_acceleration * sc * sc;
+  if (spec.max_angular_speed) lim.angular_speed = *spec.max_angular_speed * sc;
+  if (spec.max_angular_acceleration) lim.angular_acceleration = *spec.max_angular_acceleration * sc * sc;
   return lim;
 }
 
@@ -300,6 +339,9 @@ Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& pat
   if (robot) tracker.emplace(*robot, seed, ik);
   JointSample js;
   Jet jet{};
+  // The tool's angular rates need the orientation planned for this path (a Cartesian-only
+  // caller may pass none: then omega_s = omega_ss = 0 and angular limits bind nothing).
+  const bool oriented = orientation.segments.size() == path.segment_count();
   double t_fake = 0.0;  // the tracker's time: arc length travelled at s_dot = 1 [s]
   for (std::size_t p = 0; p < portions.size(); ++p) {
     const MotionPortion& por = portions[p];
@@ -319,7 +361,7 @@ Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& pat
       const Eigen::Vector3d T = jet[1] / sp;
       const Eigen::Vector3d p_ss = (jet[2] - jet[2].dot(T) * T) / (sp * sp);  // d2p/ds2 = kappa N
       g.kappa = p_ss.norm();
-      if (tracker) {
+      if (oriented || tracker) {
         MotionSample ms;
         ms.t = t_fake;
         ms.u = u;
@@ -332,12 +374,17 @@ Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& pat
         ms.speed = 1.0;
         ms.s_ddot = 0.0;
         const CartesianState x = cartesian_state(path, orientation, ms);
-        if (!tracker->track(x, js))
-          return tl::make_unexpected(Violations{
-              unattainable("motion", "the IK fails at s = " + number(por.s_start + s_loc, 6) + " m (u = " + number(u, 6) +
-                                         ") of the path: position error " + number(js.position_error, 6) + " m")});
-        g.q_s = js.q_dot;    // dq/ds at s_dot = 1
-        g.q_ss = js.q_ddot;  // d2q/ds2 at s_ddot = 0
+        g.omega_s = x.omega_WT;   // at s_dot = 1
+        g.omega_ss = x.alpha_WT;  // at s_ddot = 0
+        if (tracker) {
+          if (!tracker->track(x, js))
+            return tl::make_unexpected(Violations{
+                unattainable("motion", "the IK fails at s = " + number(por.s_start + s_loc, 6) + " m (u = " +
+                                           number(u, 6) + ") of the path: position error " +
+                                           number(js.position_error, 6) + " m")});
+          g.q_s = js.q_dot;    // dq/ds at s_dot = 1
+          g.q_ss = js.q_ddot;  // d2q/ds2 at s_ddot = 0
+        }
       }
       const double next = k < grid_intervals ? por.length / static_cast<double>(grid_intervals) : 1e-9;
       t_fake += next;  // a rest between portions: a tiny step (the tangent may invert)
@@ -386,6 +433,7 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
   const bool joint_jerk = limits.joint_jerk.size() > 0 &&
                           (limits.joint_jerk.array() < kInf).any();
   const bool path_jerk = limits.jerk < kInf;
+  const bool angular = limits.angular_speed < kInf || limits.angular_acceleration < kInf;
   std::optional<JointTracker> tracker;
   if (robot) tracker.emplace(*robot, seed, options.ik);
   MotionSample ms;
@@ -405,7 +453,7 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
           h > 0.0 ? std::min(N - 1, static_cast<std::size_t>(std::max(0.0, (ms.s - por.s_start) / h))) : 0;
       // A ratio r shrinks sigma by 1 / r^2 for a velocity, 1 / r for an acceleration, and the
       // jerk limit by 1 / r^2.
-      auto note = [&](double value, double limit, int order, Eigen::Index joint = -1) {
+      auto note = [&](double value, double limit, int order, Eigen::Index joint = -1, const char* what = nullptr) {
         if (!(limit < kInf)) return;
         const double r = value / limit;
         if (r > out.worst_usage) {
@@ -414,6 +462,7 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
           out.worst_usage = r;
           out.worst = (joint >= 0 ? "joint " + std::to_string(joint) + " " + kKind[order] + " " + number(value, 6) +
                                         " of " + number(limit, 6) + " " + kUnit[order]
+                       : what != nullptr ? std::string(what) + " " + number(value, 6) + " of " + number(limit, 6)
                                   : std::string(order == 2 ? "centripetal acceleration " : "path jerk ") +
                                         number(value, 6) + " of " + number(limit, 6) + (order == 2 ? " m/s^2" : " m/s^3")) +
                       " at t = " + number(ms.t, 6) + " s (s = " + number(ms.s, 6) + " m, " +
@@ -438,6 +487,11 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
         note((ms.a_W - ms.a_W.dot(T) * T).norm(), limits.centripetal, 2);
       }
       if (path_jerk && !first && dt > 0.0) note(std::abs(ms.s_ddot - s_ddot_prev) / dt, limits.jerk, 3);
+      if (angular && orientation.segments.size() == path.segment_count()) {
+        const CartesianState x = cartesian_state(path, orientation, ms);
+        note(x.omega_WT.norm(), limits.angular_speed, 1, -1, "tool angular speed [rad/s]");
+        note(x.alpha_WT.norm(), limits.angular_acceleration, 2, -1, "tool angular acceleration [rad/s^2]");
+      }
       if (tracker) {
         const CartesianState x = cartesian_state(path, orientation, ms);
         if (!tracker->track(x, js))

@@ -50,6 +50,10 @@ struct GridPoint {
   JointVector q_s;     ///< dq/ds [rad/m or m/m]; empty without a robot
   JointVector q_ss;    ///< d2q/ds2 [rad/m^2 or 1/m]; empty without a robot
   double kappa = 0.0;  ///< curvature [1/m]
+  /// The tool's angular velocity per unit path speed, omega = omega_s s_dot [rad/m], and
+  /// its derivative along the path: alpha = omega_s s_ddot + omega_ss s_dot^2 [rad/m^2].
+  Eigen::Vector3d omega_s = Eigen::Vector3d::Zero();
+  Eigen::Vector3d omega_ss = Eigen::Vector3d::Zero();
 };
 
 /// The limits of a time-optimal timing. A limit at +infinity is not imposed.
@@ -59,6 +63,12 @@ struct TimeOptimalLimits {
   double speed = std::numeric_limits<double>::infinity();         ///< Cartesian maxSpeed [m/s]
   double tangential = std::numeric_limits<double>::infinity();    ///< |s_ddot| <= [m/s^2]
   double centripetal = std::numeric_limits<double>::infinity();   ///< kappa s_dot^2 <= [m/s^2]
+  /// |omega| <= [rad/s] and |alpha| <= [rad/s^2] (maxAngularSpeed, maxAngularAcceleration).
+  /// The acceleration's norm is imposed by kAngularDirections support rows in the plane of
+  /// omega_s and omega_ss, each at limit cos(pi / kAngularDirections): sufficient for the norm,
+  /// at most 1 - cos(pi / 16) = 1.9 % below it.
+  double angular_speed = std::numeric_limits<double>::infinity();
+  double angular_acceleration = std::numeric_limits<double>::infinity();
   /// Jerk limits, checked on the samples (check_time_optimal_samples) and imposed by the
   /// jerk-limited timing (optim/timing/time_optimal_jerk.hpp); the sweep has no jerk.
   JointVector joint_jerk;  ///< j_max,j [rad/s^3 or m/s^3] per joint; empty: none

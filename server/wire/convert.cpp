@@ -302,6 +302,8 @@ core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& requ
   if (m.has_max_speed()) spec.max_speed = m.max_speed();
   if (m.has_max_acceleration()) spec.max_acceleration = m.max_acceleration();
   if (m.has_max_jerk()) spec.max_jerk = m.max_jerk();
+  if (m.has_max_angular_speed()) spec.max_angular_speed = m.max_angular_speed();
+  if (m.has_max_angular_acceleration()) spec.max_angular_acceleration = m.max_angular_acceleration();
   // A joint move's minimum time comes from the joint limits: core::plan_joint_move checks
   // the spec without asking for the Cartesian ones.
   if (request.has_joint_move()) return spec;
@@ -655,6 +657,8 @@ void to_proto(const core::BindingStretch& stretch, v1::BindingStretch& out) {
     case core::BindingKind::kCentripetalAcceleration:
       out.set_kind(v1::BINDING_KIND_CARTESIAN_CENTRIPETAL_ACCELERATION);
       break;
+    case core::BindingKind::kAngularSpeed: out.set_kind(v1::BINDING_KIND_ANGULAR_SPEED); break;
+    case core::BindingKind::kAngularAcceleration: out.set_kind(v1::BINDING_KIND_ANGULAR_ACCELERATION); break;
   }
   out.set_joint(static_cast<std::uint32_t>(stretch.joint));
   out.set_t_start(stretch.t_start);

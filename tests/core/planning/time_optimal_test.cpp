@@ -384,6 +384,48 @@ TEST(TimeOptimalPlan, GridDerivativesAreArcLengthDerivatives) {
 }
 
 // A point where the path has a corner (infinite curvature) admits only zero speed.
+// The tool's angular limits on demo path A with a parallel-transport tool (omega = s_dot
+// kappa B): every sample at 1 kHz within maxAngularSpeed and maxAngularAcceleration (the
+// orientation's own analytic omega and alpha), one of them binding somewhere, and the
+// binding stretches naming it; slower than without them.
+TEST(TimeOptimalPlan, ToolAngularLimitsHoldAtEverySample) {
+  core::PathSpec spec = testing::thesis_demo_path('A');
+  for (auto& f : spec.frames) f.orientation_mode = core::OrientationMode::kParallelTransport;
+  const core::Path path = build_or_fail(spec);
+  const auto orientation = core::plan_orientation(path);
+  ASSERT_TRUE(orientation) << orientation.error()[0].description;
+  core::MotionSpec m;
+  m.cycle_rate_hz = 1000.0;
+  m.max_speed = 1.0;
+  m.max_acceleration = 5.0;
+  const auto free = core::plan_time_optimal(path, *orientation, m, nullptr, JointVector());
+  ASSERT_TRUE(free) << free.error()[0].description;
+  m.max_angular_speed = 2.0;
+  m.max_angular_acceleration = 10.0;
+  const auto plan = core::plan_time_optimal(path, *orientation, m, nullptr, JointVector());
+  ASSERT_TRUE(plan) << plan.error()[0].description;
+  core::MotionSampler sampler(path, plan->motion);
+  core::MotionSample ms;
+  double peak_w = 0.0, peak_a = 0.0;
+  while (sampler.next(ms)) {
+    const auto x = core::cartesian_state(path, *orientation, ms);
+    peak_w = std::max(peak_w, x.omega_WT.norm());
+    peak_a = std::max(peak_a, x.alpha_WT.norm());
+  }
+  bool named = false;
+  for (const auto& st : plan->binding) {
+    named = named || st.kind == core::BindingKind::kAngularSpeed || st.kind == core::BindingKind::kAngularAcceleration;
+  }
+  std::printf("demo path A, parallel transport: %.4f s with 2 rad/s and 10 rad/s^2 (%.4f s without), peak |omega| "
+              "%.6f, |alpha| %.6f\n",
+              plan->motion.duration_s, free->motion.duration_s, peak_w, peak_a);
+  EXPECT_LE(peak_w, 2.0 * (1 + 1e-6));
+  EXPECT_LE(peak_a, 10.0 * (1 + 1e-6));
+  EXPECT_GT(std::max(peak_w / 2.0, peak_a / 10.0), 0.95);
+  EXPECT_TRUE(named);
+  EXPECT_GT(plan->motion.duration_s, free->motion.duration_s);
+}
+
 TEST(TimeOptimalErrors, ZeroSpeedPointIsNamed) {
   std::vector<GridPoint> g(21);
   for (std::size_t i = 0; i < g.size(); ++i) g[i].s = 0.05 * static_cast<double>(i);

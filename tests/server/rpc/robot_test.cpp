@@ -888,6 +888,68 @@ TEST_F(RobotTest, FastestLinearMoveWithinTheJointLimits) {
   EXPECT_THAT(violation_of(violations, "optimize.tangentScales"), HasSubstr("straight")) << describe(violations);
 }
 
+// Tool angular limits (motion.maxAngularSpeed, maxAngularAcceleration): the UR5's line of
+// linear_move_ur5.json (a 90 degree turn over 0.27 m) as fast as the joints and 1 rad/s,
+// 2 rad/s^2 allow, streamed at 1 kHz: |omega| within 1 rad/s, |alpha| by differences of the
+// streamed omega within 2 rad/s^2, one of them reached; the same line without a robot in
+// the closed form the angular limits set; refused where they would not be imposed.
+TEST_F(RobotTest, ToolAngularLimitsHoldOnTheFastestLine) {
+  auto request = example<v1::PlanRequest>("linear_move_ur5.json");
+  auto& motion = *request.mutable_motion();
+  motion.set_duration_s(0.0);
+  motion.set_cycle_rate_hz(1000.0);
+  motion.set_max_angular_speed(1.0);
+  motion.set_max_angular_acceleration(2.0);
+  v1::PlanResponse response;
+  auto status = plan(request, response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  grpc::Status stream_status;
+  const auto samples = stream_all(request, stream_status);
+  ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+  double peak_w = 0.0, peak_a = 0.0;
+  for (std::size_t k = 1; k < samples.size(); ++k) {
+    const double h = samples[k].t() - samples[k - 1].t();
+    peak_w = std::max(peak_w, vec(samples[k].angular_velocity()).norm());
+    peak_a = std::max(peak_a, (vec(samples[k].angular_velocity()) - vec(samples[k - 1].angular_velocity())).norm() / h);
+  }
+  std::printf("[ measured ] UR5 line under 1 rad/s, 2 rad/s^2: %.4f s, peak |omega| %.6f rad/s, peak |alpha| %.6f "
+              "rad/s^2 (differences)\n",
+              response.motion().duration_s(), peak_w, peak_a);
+  EXPECT_LE(peak_w, 1.0 * (1 + 1e-6));
+  EXPECT_LE(peak_a, 2.0 * (1 + 1e-3));
+  EXPECT_GT(std::max(peak_w / 1.0, peak_a / 2.0), 0.97) << "an angular limit binds";
+  EXPECT_GT(response.motion().duration_s(), 0.8592) << "slower than the joints alone allow";
+
+  // Without a robot: the trapezoid under maxSpeed, maxAcceleration and the caps
+  // omega_max L / theta, alpha_max L / theta.
+  auto cartesian = request;
+  cartesian.clear_robot();
+  const auto ur5 = robot_model("ur5");
+  const Eigen::Isometry3d X_home = forward_kinematics(ur5, ur5.home());
+  set_pose(*cartesian.mutable_linear_move()->mutable_start(), X_home);
+  cartesian.mutable_motion()->set_max_speed(1.0);
+  cartesian.mutable_motion()->set_max_acceleration(10.0);
+  ASSERT_TRUE(plan(cartesian, response).ok());
+  const double L = (vec(cartesian.linear_move().goal().position()) - X_home.translation()).norm();
+  const double theta = quat(cartesian.linear_move().goal().orientation())
+                           .angularDistance(Eigen::Quaterniond(X_home.linear()));
+  const double v = std::min(1.0, 1.0 * L / theta), a = std::min(10.0, 2.0 * L / theta);
+  const double t_ref = v * v / a < L ? L / v + v / a : 2.0 * std::sqrt(L / a);
+  EXPECT_NEAR(response.motion().duration_s(), t_ref, 1e-9);
+  EXPECT_NEAR(response.motion().peak_angular_speed(), std::min(1.0, v * theta / L), 1e-6);
+
+  // Refused where they would not bound the motion.
+  auto timed = request;
+  timed.mutable_motion()->set_duration_s(2.0);
+  EXPECT_THAT(violation_of(refused(timed), "motion.maxAngularSpeed"), HasSubstr("duration"));
+  auto jerk = request;
+  jerk.mutable_optimize()->mutable_timing()->set_jerk_limited(true);
+  EXPECT_THAT(violation_of(refused(jerk), "motion.maxAngularSpeed"), HasSubstr("jerkLimited"));
+  auto negative = request;
+  negative.mutable_motion()->set_max_angular_acceleration(-1.0);
+  EXPECT_NE(violation_of(refused(negative), "motion.maxAngularAcceleration"), "");
+}
+
 // ---------------------------------------------------------------------------------------
 // Robot model files served by geotrajd
 

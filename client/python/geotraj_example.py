@@ -93,7 +93,16 @@ def print_error(err, status_pb2, error_details_pb2, out=sys.stderr):
 
 
 def print_plan(plan, out=sys.stdout):
-    if not plan.segments:
+    if plan.steps:  # a sequence: one line per motion, the robot at rest between them
+        print(f"plan: a sequence of {len(plan.steps)} motions", file=out)
+        for st in plan.steps:
+            steps = f"steps {st.index}-{st.last_index}" if st.last_index > st.index else f"step {st.index}"
+            print(f"  {steps} ({st.kind}): from t = {st.start_time_s:.6g} s for {st.duration_s:.6g} s, "
+                  f"{st.arc_length:.6f} m", file=out)
+            for c in st.corners:
+                print(f"    corner after step {c.after_step}: blend within {c.deviation:.4g} m "
+                      f"(tolerance {c.tolerance:.4g} m)", file=out)
+    elif not plan.segments:
         print("plan: no path segments (a joint move)", file=out)
     else:
         print(f"plan: {len(plan.segments)} segments, arc length {plan.arc_length:.6f} m, "
@@ -109,8 +118,9 @@ def print_plan(plan, out=sys.stdout):
         print(f"robot: feasible {plan.robot.feasible}, {len(plan.robot.violations)} violations", file=out)
 
 
-def write_samples(batches, out):
-    """Streams the batches into CSV rows as they arrive; returns the sample count."""
+def write_samples(batches, out, sequence=False):
+    """Streams the batches into CSV rows as they arrive; returns the sample count. A
+    sequence's rows end with the step each sample belongs to."""
     w = csv.writer(out)
     header = None
     count = 0
@@ -118,12 +128,13 @@ def write_samples(batches, out):
         for smp in batch.samples:
             if header is None:
                 joints = len(smp.joints)
-                header = CSV_COLUMNS + [f"q{j}" for j in range(joints)]
+                header = CSV_COLUMNS + [f"q{j}" for j in range(joints)] + (["step"] if sequence else [])
                 w.writerow(header)
             p, q, v, a = smp.position, smp.orientation, smp.velocity, smp.acceleration
             w.writerow([repr(x) for x in (smp.t, smp.u, smp.s)] + [smp.segment]
                        + [repr(x) for x in (p.x, p.y, p.z, q.w, q.x, q.y, q.z, v.x, v.y, v.z,
-                                            a.x, a.y, a.z, smp.speed, *smp.joints)])
+                                            a.x, a.y, a.z, smp.speed, *smp.joints)]
+                       + ([smp.step] if sequence else []))
             count += 1
     return count
 
@@ -152,14 +163,14 @@ def main(argv=None):
             call = stub.StreamSamples(request, timeout=args.stream_timeout, metadata=metadata)
             if args.csv == "-":
                 try:
-                    write_samples(call, sys.stdout)
+                    write_samples(call, sys.stdout, len(request.sequence) > 0)
                     sys.stdout.flush()
                 except BrokenPipeError:  # `| head`: the reader has had enough
                     call.cancel()
                     os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             else:
                 with open(args.csv, "w", newline="", encoding="utf-8") as out:
-                    count = write_samples(call, out)
+                    count = write_samples(call, out, len(request.sequence) > 0)
                 print(f"stream: {count} samples written to {args.csv}")
         except grpc.RpcError as err:
             print_error(err, status_pb2, error_details_pb2)

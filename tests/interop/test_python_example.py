@@ -106,6 +106,16 @@ class PythonExample(unittest.TestCase):
             self.assertAlmostEqual(float(q), g, places=9)
         self.assertIn("robot: feasible True", res.stderr)  # the summary goes to stderr with '-'
 
+    def test_blended_sequence(self):
+        res = self.run_example("--request", os.path.join(ARGS.requests, "sequence_blended_ur5.json"), "--csv", "-")
+        self.assertEqual(res.returncode, 0, res.stderr)
+        self.assertIn("plan: a sequence of 2 motions", res.stderr)
+        self.assertIn("steps 1-3 (blended)", res.stderr)
+        self.assertEqual(res.stderr.count("corner after step"), 2)
+        rows = list(csv.reader(res.stdout.splitlines()))
+        self.assertEqual(rows[0][-1], "step")
+        self.assertEqual(sorted({r[-1] for r in rows[1:]}), ["0", "1", "2", "3"])
+
     def test_bad_request_prints_field_violations(self):
         res = self.run_example("--request", os.path.join(ARGS.requests, "bad_request.json"))
         self.assertEqual(res.returncode, 1, res.stdout + res.stderr)

@@ -202,6 +202,17 @@ Expected<core::LinearMoveSpec> resolve(const LinearMoveToJoints& move, const Rob
   return spec;
 }
 
+// The poses of a straight line that is not planned by core::plan_linear_move (a line on
+// the time-optimal sweep, a line of a blended chain): its checks, named on linearMove.*,
+// by planning it with a nominal duration.
+std::optional<Error> pose_errors(const core::LinearMoveSpec& move, const core::MotionSpec& motion) {
+  core::MotionSpec nominal = motion;
+  nominal.duration_s = 1.0;
+  auto checked = core::plan_linear_move(move, nominal);
+  if (checked) return std::nullopt;
+  return invalid(std::move(checked.error()));
+}
+
 // A straight-line move (thesis 6.2.2.2) as a path: two key frames on the line with its
 // tangent and curvature 0 (the engine's segment is the straight segment, every derivative
 // across it zero), the tool turned by SLERP from the start to the goal orientation over the
@@ -264,11 +275,7 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
     // limits and the Cartesian ones given, on the time-optimal sweep of the straight path.
     if (robot != nullptr && time_optimally_timed(motion, true, time_optimal, jerk_limited) &&
         (move.goal.p_WT - move.start.p_WT).norm() > 0.0) {
-      core::MotionSpec nominal = motion;  // the poses' own checks, named on linearMove.*
-      nominal.duration_s = 1.0;
-      if (auto checked = core::plan_linear_move(move, nominal); !checked) {
-        return tl::unexpected(invalid(std::move(checked.error())));
-      }
+      if (auto bad = pose_errors(move, motion)) return tl::unexpected(std::move(*bad));
       auto line = straight_path(move);
       if (!line) return tl::unexpected(std::move(line.error()));
       auto timing = time_optimal_timing(line->path, line->orientation, motion, robot, jerk_limited, budget, deadline,
@@ -588,6 +595,7 @@ Expected<core::BlendedChain> blended_chain(const Request& request, std::size_t f
       g = std::move(*spec);
     }
     if (const auto* line = std::get_if<core::LinearMoveSpec>(&g)) {
+      if (auto bad = pose_errors(*line, step.motion)) return tl::unexpected(in_step(std::move(*bad), k, step));
       core::BlendLine piece{line->start.p_WT, line->goal.p_WT, line->start.q_WT.normalized(), line->goal.q_WT.normalized()};
       if (k == first) start_orientation = piece.q0;
       pieces.emplace_back(piece);

@@ -502,6 +502,12 @@ TEST_F(SequenceTest, CornersThatCannotBeBlendedAreNamed) {
     goal->set_z(0.4);  // straight back up the line it came down
     refused(request, "sequence[1].blendTolerance", "180 degrees");
   }
+  {  // a line of a chain with a pose that is not one, named as for a line on its own
+    auto request = base;
+    request.mutable_sequence(2)->mutable_linear_move()->mutable_goal()->mutable_position()->set_x(
+        std::numeric_limits<double>::quiet_NaN());
+    refused(request, "sequence[2].linearMove.goal.position", "finite");
+  }
   {  // a later step of a chain with a motion of its own
     auto request = base;
     request.mutable_sequence(2)->mutable_motion()->set_duration_s(1.0);

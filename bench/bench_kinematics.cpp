@@ -39,13 +39,18 @@
 #include "core/planning/joint_motion.hpp"
 #include "core/robot/ik.hpp"
 #include "core/robot/kinematics.hpp"
+#include "planner/robots.hpp"
 #include "thesis_paths.hpp"
 
 namespace {
 
 using namespace geotraj;
 
-const core::RobotModel& robot(int which) { return *core::find_builtin_robot(which == 0 ? "pa10" : "ur5"); }
+// 0 PA-10, 1 UR5 (DH tables); 2 Panda, 3 iiwa 14, 4 UR5e (URDF: general chains).
+const core::RobotModel& robot(int which) {
+  static const char* const names[] = {"pa10", "ur5", "panda", "iiwa14", "ur5e"};
+  return *planner::find_builtin_robot(names[which]);
+}
 
 std::vector<core::JointVector> random_configurations(const core::RobotModel& m) {
   std::mt19937_64 rng(20240611);
@@ -72,7 +77,7 @@ void BM_ForwardKinematics(benchmark::State& state) {
   }
   state.SetLabel(m.name);
 }
-BENCHMARK(BM_ForwardKinematics)->Arg(0)->Arg(1);
+BENCHMARK(BM_ForwardKinematics)->DenseRange(0, 4);
 
 void BM_ForwardKinematicsJacobian(benchmark::State& state) {
   const auto& m = robot(static_cast<int>(state.range(0)));
@@ -87,7 +92,7 @@ void BM_ForwardKinematicsJacobian(benchmark::State& state) {
   }
   state.SetLabel(m.name);
 }
-BENCHMARK(BM_ForwardKinematicsJacobian)->Arg(0)->Arg(1);
+BENCHMARK(BM_ForwardKinematicsJacobian)->DenseRange(0, 4);
 
 void BM_JacobianDotQdot(benchmark::State& state) {
   const auto& m = robot(static_cast<int>(state.range(0)));
@@ -102,7 +107,7 @@ void BM_JacobianDotQdot(benchmark::State& state) {
   }
   state.SetLabel(m.name);
 }
-BENCHMARK(BM_JacobianDotQdot)->Arg(0)->Arg(1);
+BENCHMARK(BM_JacobianDotQdot)->DenseRange(0, 4);
 
 // The Cartesian samples of demo path C, 10 s at 100 Hz (the thesis's rate).
 const std::vector<core::CartesianState>& path_c_samples() {
@@ -204,21 +209,33 @@ KDL::Frame to_kdl(const Eigen::Isometry3d& X) {
 }
 
 KDL::Chain kdl_chain(const core::RobotModel& m) {
-  const bool modified = m.convention == core::DhConvention::kModified;
+  if (!m.dh) {  // a general chain: per joint a fixed segment to its frame, then the joint
+    KDL::Chain chain;
+    chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(m.base)));
+    for (const auto& j : m.joints) {
+      chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(j.origin)));
+      chain.addSegment(KDL::Segment(KDL::Joint("", KDL::Vector::Zero(), KDL::Vector(j.axis.x(), j.axis.y(), j.axis.z()),
+                                               KDL::Joint::RotAxis)));
+    }
+    chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(m.flange * m.tool)));
+    return chain;
+  }
+  const bool modified = m.dh->convention == core::DhConvention::kModified;
   auto frame = [&](const core::DhLink& l) {
     return modified ? KDL::Frame::DH_Craig1989(l.a, l.alpha, l.d, l.theta) : KDL::Frame::DH(l.a, l.alpha, l.d, l.theta);
   };
   auto joint = [](const core::DhLink& l) { return KDL::Joint(KDL::Joint::RotZ, 1.0, l.offset); };
   KDL::Chain chain;
   chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(m.base)));
-  const std::size_t n = m.links.size();
+  const auto& links = m.dh->links;
+  const std::size_t n = links.size();
   if (modified) {
-    chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), frame(m.links[0])));
+    chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), frame(links[0])));
     for (std::size_t i = 0; i < n; ++i) {
-      chain.addSegment(KDL::Segment(joint(m.links[i]), i + 1 < n ? frame(m.links[i + 1]) : KDL::Frame::Identity()));
+      chain.addSegment(KDL::Segment(joint(links[i]), i + 1 < n ? frame(links[i + 1]) : KDL::Frame::Identity()));
     }
   } else {
-    for (std::size_t i = 0; i < n; ++i) chain.addSegment(KDL::Segment(joint(m.links[i]), frame(m.links[i])));
+    for (std::size_t i = 0; i < n; ++i) chain.addSegment(KDL::Segment(joint(links[i]), frame(links[i])));
   }
   chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(m.tool)));
   return chain;
@@ -296,7 +313,7 @@ void BM_ColdIk(benchmark::State& state) {
   state.counters["mean_attempts"] = attempts / kPoses;
   state.SetLabel(std::string(m.name) + ", search_ik from home, " + std::to_string(state.range(1)) + " iterations an attempt");
 }
-BENCHMARK(BM_ColdIk)->ArgsProduct({{0, 1}, {10, 20, 30, 50}})->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ColdIk)->ArgsProduct({{0, 1, 2, 3, 4}, {10, 20, 30, 50}})->Iterations(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

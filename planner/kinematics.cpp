@@ -20,7 +20,7 @@ IkSolution solution_of(const core::RobotModel& model, const core::IkResult& r, c
 bool within_limits(const core::RobotModel& model, const core::JointVector& q) {
   for (std::size_t i = 0; i < model.dof(); ++i) {
     const double x = q(static_cast<Eigen::Index>(i));
-    if (!(x >= model.limits[i].min_position && x <= model.limits[i].max_position)) return false;
+    if (!core::within_position_limits(model.joints[i].type, model.limits[i], x)) return false;
   }
   return true;
 }

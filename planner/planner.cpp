@@ -185,7 +185,7 @@ Expected<core::LinearMoveSpec> resolve(const LinearMoveToJoints& move, const Rob
   } else {
     for (std::size_t i = 0; i < n; ++i) {
       const auto& l = robot.model.limits[i];
-      if (!(move.goal[i] >= l.min_position && move.goal[i] <= l.max_position)) {
+      if (!std::isfinite(move.goal[i]) || !core::within_position_limits(robot.model.joints[i].type, l, move.goal[i])) {
         v.push_back({"linearMove.goalJoints[" + std::to_string(i) + "]",
                      core::number(move.goal[i]) + " is outside joint " + std::to_string(i) + "'s position limits [" +
                          core::number(l.min_position) + ", " + core::number(l.max_position) + "]"});
@@ -804,6 +804,11 @@ std::optional<Expected<Request>> with_approach(const Request& request) {
   approach.name = "robot.approach";
   approach.motion = *request.motion;
   approach.motion.duration_s = 0.0;  // as fast as the joint limits (and a line's Cartesian ones) allow
+  // Within the jerks too where the model gives them (a double S; a trapezoid's jerk is unbounded).
+  const auto& limits = robot->model.limits;
+  if (std::any_of(limits.begin(), limits.end(), [](const core::JointLimits& l) { return l.max_jerk.has_value(); })) {
+    approach.motion.profile = core::ProfileShape::kSCurve;
+  }
   const std::vector<double> q(robot->seed.data(), robot->seed.data() + robot->seed.size());
   if (robot->approach == Approach::kJoint) {
     approach.geometry = JointMoveToPose{q, Eigen::Translation3d(start.p_WT) * start.q_WT};

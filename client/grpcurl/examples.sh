@@ -12,7 +12,7 @@
 #   plan_demo_path_{a,b,c}.json  PlanRequest: the thesis demonstration (Tables 7.8, 7.18), paths A, B, C
 #   analyze_demo_path_a.json  PlanRequest with analysisPoints, for AnalyzePath
 #   bad_request.json          a PlanRequest with four mistakes: INVALID_ARGUMENT with a BadRequest
-# and with a robot (ListRobots describes the built-in models "pa10" and "ur5"):
+# and with a robot (ListRobots describes the built-in models "pa10", "ur5", "panda", "iiwa14", "ur5e"):
 #   plan_pa10_path_c.json     PlanRequest: path C followed by the PA-10 in the thesis's 10 s. Too
 #                             fast for the arm's joint accelerations, so it sets robot.reportOnly
 #                             to get the joint report with its violations; without it the plan
@@ -28,6 +28,9 @@
 #                             in 1.5 s, a joint move to above the place pose, down a line
 #   sequence_blended_ur5.json PlanRequest with a sequence of three lines whose two corners are
 #                             blended within 2 cm: one motion without a rest at the corners
+#   plan_panda_path_c.json    PlanRequest: the thesis's path C on the Franka Panda (a URDF model),
+#                             the tool pointing down, as fast as the arm's limits allow at 1 kHz,
+#                             from its home by a joint move to the path's start (robot.approach)
 #   fk_pa10.json              ForwardKinematicsRequest: the PA-10's tool pose, Jacobian and axes
 #   ik_ur5_all.json           InverseKinematicsRequest: every branch of a UR5 tool pose (eight)
 # Each works with StreamSamples too (the joints in every sample): StreamSamples refuses a
@@ -60,9 +63,23 @@ call AnalyzePath "$here/analyze_demo_path_a.json"
 
 echo "== ListRobots"
 grpcurl -plaintext -d '{}' "$address" geotraj.v1.TrajectoryService/ListRobots
-for request in plan_pa10_path_c joint_move_pa10 linear_move_ur5 sequence_ur5 sequence_blended_ur5; do
+for request in plan_pa10_path_c plan_panda_path_c joint_move_pa10 linear_move_ur5 sequence_ur5 sequence_blended_ur5; do
   call PlanTrajectory "$here/$request.json"
 done
+
+# Your own arm: the URDF text inline in robot.urdf (here the Panda's own file, which
+# `geotraj robots --urdf panda` prints), with its base and tip links.
+echo "== PlanTrajectory < plan_panda_path_c.json with the Panda as an inline URDF"
+geotraj_cli="${GEOTRAJ_CLI:-geotraj}"
+if command -v "$geotraj_cli" >/dev/null 2>&1; then
+  python3 -c '
+import json, sys
+request = json.load(open(sys.argv[1]))
+request["robot"].pop("name")
+request["robot"].update(urdf=sys.stdin.read(), baseLink="panda_link0", tipLink="panda_link8")
+print(json.dumps(request))' "$here/plan_panda_path_c.json" < <("$geotraj_cli" robots --urdf panda) |
+    grpcurl -plaintext -d @ "$address" geotraj.v1.TrajectoryService/PlanTrajectory | head -20
+fi
 call ComputeForwardKinematics "$here/fk_pa10.json"
 call ComputeInverseKinematics "$here/ik_ur5_all.json"
 

@@ -9,6 +9,7 @@
 
 #include "commands.hpp"
 #include "connection.hpp"
+#include "planner/robots.hpp"
 
 int main(int argc, char** argv) {
   geotraj::cli::CallOptions options;
@@ -99,12 +100,28 @@ int main(int argc, char** argv) {
   ik->add_flag("--all", kin.all_solutions, "every distinct solution the attempts find, nearest the seed first");
   ik->add_option("--max-solutions", kin.max_solutions, "the most solutions --all returns (default 16)");
   ik->add_option("--request", options.input, "or an InverseKinematicsRequest in the proto JSON mapping (- for stdin)");
-  auto* robots = app.add_subcommand("robots", "ListRobots: the robot models the server knows, with DH tables and limits");
+  auto* robots = app.add_subcommand(
+      "robots", "ListRobots: the robot models the server knows, joints by name and kind (DH tables, or general "
+                "chains read from URDF) with their limits");
+  std::string urdf_of;
+  robots->add_option("--urdf", urdf_of,
+                     "print the URDF document of a built-in model written as URDF (panda, iiwa14, ur5e) and exit: a "
+                     "starting point for your own arm's file");
   auto* health = app.add_subcommand("health", "grpc.health.v1 Check: prints the serving status, exit 0 if SERVING");
   health->add_option("--service", health_service, "service name; empty: the whole server");
   app.footer("Environment only: GEOTRAJ_TOKEN, a bearer token sent on every call (secrets do not belong on a "
              "command line).");
   CLI11_PARSE(app, argc, argv);
+  if (robots->parsed() && robots->count("--urdf") > 0) {  // no call: the document compiled in
+    const std::string_view text = geotraj::planner::builtin_urdf(urdf_of);
+    if (text.empty()) {
+      std::cerr << "geotraj: robots --urdf: no built-in model \"" << urdf_of
+                << "\" written as URDF (panda, iiwa14, ur5e; pa10 and ur5 are DH tables)\n";
+      return 2;
+    }
+    std::cout << text;
+    return 0;
+  }
   // fk and ik read a request file only when --request names one (their flags suffice).
   for (auto* sub : {fk, ik}) {
     if (sub->parsed() && sub->count("--request") == 0) options.input.clear();

@@ -1,7 +1,11 @@
 #include "report.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <string>
+
+#include <Eigen/Geometry>
 
 #include "google/rpc/error_details.pb.h"
 #include "google/rpc/status.pb.h"
@@ -264,21 +268,50 @@ void print_table(const v1::RobotReport& robot, std::ostream& out) {
 }
 
 void print_table(const v1::ListRobotsResponse& robots, std::ostream& out) {
-  for (const auto& m : robots.robots()) {
-    out << m.name() << "  (" << m.links_size() << " joints, "
-        << short_enum(v1::DhConvention_Name(m.dh_convention()), "DH_CONVENTION_") << " DH)\n  " << m.description()
-        << "\n  joint  name           type          a [m]  alpha [rad]       d [m]  theta [rad]     min q     max q  "
-           "max qd  max qdd\n";
-    for (int i = 0; i < m.links_size(); ++i) {
-      const auto& l = m.links(i);
-      const auto& lim = m.limits(i);
-      char buf[300];
-      std::snprintf(buf, sizeof buf, "  %5d  %-14.14s %-9s %9.5f %12.6f %11.5f %12.6f %9.4f %9.4f %7.4f %8.4f\n", i,
-                    l.name().c_str(), short_enum(v1::JointType_Name(l.joint_type()), "JOINT_TYPE_").c_str(), l.a(),
-                    l.alpha(), l.d(),
-                    l.theta() + l.offset(), lim.min_position(), lim.max_position(), lim.max_velocity(),
+  const auto limits = [](const v1::JointLimits& lim, v1::JointType type) {
+    char buf[96];
+    if (type == v1::JOINT_TYPE_CONTINUOUS) {
+      std::snprintf(buf, sizeof buf, "%9s %9s %7.4f %8.4f", "-", "-", lim.max_velocity(), lim.max_acceleration());
+    } else {
+      std::snprintf(buf, sizeof buf, "%9.4f %9.4f %7.4f %8.4f", lim.min_position(), lim.max_position(), lim.max_velocity(),
                     lim.max_acceleration());
-      out << buf;
+    }
+    return std::string(buf);
+  };
+  const auto kind = [](v1::JointType type) { return short_enum(v1::JointType_Name(type), "JOINT_TYPE_"); };
+  for (const auto& m : robots.robots()) {
+    if (m.links_size() > 0) {  // a DH table
+      out << m.name() << "  (" << m.links_size() << " joints, "
+          << short_enum(v1::DhConvention_Name(m.dh_convention()), "DH_CONVENTION_") << " DH)\n  " << m.description()
+          << "\n  joint  name           type          a [m]  alpha [rad]       d [m]  theta [rad]     min q     max q  "
+             "max qd  max qdd\n";
+      for (int i = 0; i < m.links_size(); ++i) {
+        const auto& l = m.links(i);
+        char buf[300];
+        std::snprintf(buf, sizeof buf, "  %5d  %-14.14s %-10s %9.5f %12.6f %11.5f %12.6f ", i, l.name().c_str(),
+                      kind(l.joint_type()).c_str(), l.a(), l.alpha(), l.d(), l.theta() + l.offset());
+        out << buf << (i < m.limits_size() ? limits(m.limits(i), l.joint_type()) : std::string()) << '\n';
+      }
+      continue;
+    }
+    // A general chain (URDF): each joint's origin (position, roll-pitch-yaw) and axis.
+    out << m.name() << "  (" << m.joints_size() << " joints, general chain)\n  " << m.description()
+        << "\n  joint  name              type        origin x     y [m]     z [m]  roll  pitch   yaw [rad]   "
+           "axis x     y     z     min q     max q  max qd  max qdd\n";
+    for (int i = 0; i < m.joints_size(); ++i) {
+      const auto& j = m.joints(i);
+      const auto& o = j.origin().orientation();
+      const Eigen::Matrix3d R = Eigen::Quaterniond(o.w(), o.x(), o.y(), o.z()).normalized().toRotationMatrix();
+      // Fixed-axis roll, pitch, yaw (URDF's rpy): R = Rz(yaw) Ry(pitch) Rx(roll).
+      const auto clean = [](double x) { return std::abs(x) < 5e-13 ? 0.0 : x; };  // no "-0.000"
+      const double pitch = clean(std::asin(std::clamp(-R(2, 0), -1.0, 1.0)));
+      const double roll = clean(std::atan2(R(2, 1), R(2, 2))), yaw = clean(std::atan2(R(1, 0), R(0, 0)));
+      const auto& p = j.origin().position();
+      char buf[300];
+      std::snprintf(buf, sizeof buf, "  %5d  %-17.17s %-10s %9.4f %9.4f %9.4f %6.3f %6.3f %6.3f   %6.3f %5.3f %5.3f ", i,
+                    j.name().c_str(), kind(j.joint_type()).c_str(), p.x(), p.y(), p.z(), roll, pitch, yaw, j.axis().x(),
+                    j.axis().y(), j.axis().z());
+      out << buf << (i < m.limits_size() ? limits(m.limits(i), j.joint_type()) : std::string()) << '\n';
     }
   }
 }

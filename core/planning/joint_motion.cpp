@@ -6,7 +6,7 @@
 #include <cmath>
 
 #include "core/error.hpp"
-#include "core/robot/dh_chain.hpp"
+#include "core/robot/serial_chain.hpp"
 
 namespace geotraj::core {
 
@@ -46,7 +46,7 @@ struct JointTracker::State {
   const RobotModel* model;
   IkOptions options;
   IkOptions polish;  // the polishing step's tolerances (kTrackingPolish)
-  detail::DhChain chain;
+  detail::SerialChain chain;
   detail::JointBounds bounds;
   detail::NewtonWorkspace ws;
   JointVector seed_q;
@@ -253,6 +253,7 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
   if (!s.converged) {
     record(LimitKind::kIk, 0, sample, t, s.position_error, ik_position_tolerance_,
            ik_position_tolerance_ - s.position_error);
+    has_prev_ = false;
     return;  // q, q_dot, q_ddot of a failed sample are not a motion
   }
   ++r.converged_samples;
@@ -275,7 +276,12 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
     const auto i = static_cast<Eigen::Index>(j);
     const JointLimits& lim = model_->limits[j];
     JointUsage& u = r.joints[j];
-    const double q = s.q(i), v = std::abs(s.q_dot(i)), a = std::abs(s.q_ddot(i));
+    const double q = s.q(i), v = std::abs(s.q_dot(i));
+    double a = std::abs(s.q_ddot(i));
+    if (has_prev_ && t > t_prev_) {  // the mean acceleration over the step: a velocity step shows here
+      const double a_step = std::abs(s.q_dot(i) - q_dot_prev_(i)) / (t - t_prev_);
+      if (a_step > lim.max_acceleration * (1.0 + kStepTolerance)) a = std::max(a, a_step);
+    }
     u.min_position = std::min(u.min_position, q);
     u.max_position = std::max(u.max_position, q);
     u.peak_velocity = std::max(u.peak_velocity, v);
@@ -283,7 +289,8 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
     u.velocity_usage = u.peak_velocity / lim.max_velocity;
     u.acceleration_usage = u.peak_acceleration / lim.max_acceleration;
 
-    // Position: distance to the nearer limit (negative outside).
+    // Position: distance to the nearer limit (negative outside); a continuous joint has none.
+    if (model_->joints[j].type != JointType::kContinuous) {
     const bool above = lim.max_position - q < q - lim.min_position;
     const double bound = above ? lim.max_position : lim.min_position;
     const double margin_p = std::min(q - lim.min_position, lim.max_position - q);
@@ -293,6 +300,7 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
     }
     if (margin_p < -kLimitTolerance * std::max(1.0, std::abs(bound))) {
       record(LimitKind::kPosition, j, sample, t, q, bound, margin_p);
+    }
     }
 
     const double margin_v = lim.max_velocity - v;
@@ -311,6 +319,9 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
       record(LimitKind::kAcceleration, j, sample, t, a, lim.max_acceleration, margin_a);
     }
   }
+  q_dot_prev_ = s.q_dot;
+  t_prev_ = t;
+  has_prev_ = true;
   update_binding(sample, t, s_path, s);
 }
 

@@ -168,6 +168,11 @@ inline constexpr double kUsageHysteresis = 1.05;
 /// exactly at its limits.
 inline constexpr double kLimitTolerance = 1e-9;
 
+/// A joint acceleration measured between consecutive samples counts when it passes the limit
+/// by more than this fraction: the differences of two joint velocities, each exact to the
+/// IK's ~1e-12, over 1e-4 s carry ~1e-8 of rounding; a velocity step is far above.
+inline constexpr double kStepTolerance = 1e-3;
+
 /// The joint-space report of a whole motion (what PlanTrajectory returns with a robot).
 struct JointMotionReport {
   std::size_t samples = 0;
@@ -203,6 +208,12 @@ struct JointMotionReport {
 ///    branch flip (a joint turning by a sizeable angle between samples: centimetres).
 ///  - `ik_position_tolerance` [m]: the kIk event's limit (the tracker's
 ///    IkOptions::position_tolerance); kIk is raised by a sample that did not converge.
+///  - the acceleration is also measured between consecutive samples, |q_dot_k - q_dot_k-1| / dt
+///    (the mean of q_ddot over the step, so within the limit whenever q_ddot is): a step of a
+///    joint velocity between samples (the tool's angular velocity jumping at a key frame
+///    whose turns are not eased) is an acceleration beyond any limit as dt shrinks, which the
+///    samples' own q_ddot on either side do not show. Above the limit by more than
+///    kStepTolerance it counts as the joint's acceleration there.
 /// Before the first sample the tightest events have margin +infinity.
 class JointReportBuilder {
  public:
@@ -224,6 +235,9 @@ class JointReportBuilder {
   double branch_tolerance_;
   double ik_position_tolerance_;
   JointMotionReport report_;
+  JointVector q_dot_prev_;     ///< the last converged sample's joint velocities
+  double t_prev_ = 0.0;        ///< and its time [s]
+  bool has_prev_ = false;      ///< the last sample converged
   std::vector<bool> reported_;  ///< (joint, kind) already in violations: joint * kKinds + kind
 };
 

@@ -11,7 +11,7 @@
 
 #include "core/robot/kinematics.hpp"
 
-#include "core/robot/dh_chain.hpp"
+#include "core/robot/serial_chain.hpp"
 #include "core/format.hpp"
 
 namespace geotraj::core {
@@ -94,8 +94,7 @@ Expected<JointMovePlan> plan_joint_move(const RobotModel& model, const JointMove
     for (std::size_t i = 0; i < n; ++i) {
       if (!std::isfinite(q[i])) {
         v.push_back({indexed(field, i), "must be finite, got " + number(q[i])});
-      } else if (i < model.limits.size() &&
-                 (q[i] < model.limits[i].min_position || q[i] > model.limits[i].max_position)) {
+      } else if (i < model.limits.size() && !within_position_limits(model.joints[i].type, model.limits[i], q[i])) {
         v.push_back({indexed(field, i), number(q[i]) + " is outside joint " + std::to_string(i) + "'s position limits [" +
                                             number(model.limits[i].min_position) + ", " +
                                             number(model.limits[i].max_position) + "]"});
@@ -200,7 +199,7 @@ void joint_move_at(const JointMovePlan& plan, double t, ProfileCursor& cursor, M
     out.q_ddot(i) = x.a * dq;
   }
   // One walk of the chain for the pose, the Jacobian and its derivative.
-  const detail::DhChain chain(model);
+  const detail::SerialChain chain(model);
   Eigen::Matrix3d R_WT;
   Eigen::Vector3d p_WT;
   detail::JointAxes z, o;

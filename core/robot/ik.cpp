@@ -1,5 +1,5 @@
 // Inverse kinematics: the DH chain evaluator, the projected Newton iteration and cold solves
-// with restarts. See ik.hpp and dh_chain.hpp.
+// with restarts. See ik.hpp and serial_chain.hpp.
 #include "core/robot/ik.hpp"
 
 #include <algorithm>
@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "core/error.hpp"
-#include "core/robot/dh_chain.hpp"
+#include "core/robot/serial_chain.hpp"
 
 namespace geotraj::core {
 namespace detail {
@@ -36,51 +36,97 @@ inline void rotate_z(Matrix3d& R, double c, double s) {
 
 }  // namespace
 
-DhChain::DhChain(const RobotModel& model)
-    : n_(static_cast<Eigen::Index>(model.dof())),
-      modified_(model.convention == DhConvention::kModified),
-      R_base_(model.base.linear()),
-      R_tool_(model.tool.linear()),
-      p_base_(model.base.translation()),
-      p_tool_(model.tool.translation()),
-      o_base_(model.base.translation()) {
-  GEOTRAJ_CHECK(model.dof() <= kMaxJoints);
-  for (std::size_t i = 0; i < model.dof(); ++i) {
-    const DhLink& l = model.links[i];
-    links_[i] = Link{std::cos(l.alpha), std::sin(l.alpha), l.a, l.d, l.theta, l.offset,
-                     l.type == JointType::kRevolute};
-  }
+namespace {
+
+// A rotation taking z to the unit axis a, exact (entries 0 and +-1) when a is a coordinate
+// axis: columns x' (the coordinate axis least along a, made perpendicular), a x x', a.
+Matrix3d align_z_with(const Vector3d& a) {
+  Eigen::Index k = 0;
+  a.cwiseAbs().minCoeff(&k);
+  Vector3d x = Vector3d::Unit(k) - a(k) * a;
+  x.normalize();
+  Matrix3d R;
+  R.col(0) = x;
+  R.col(1) = a.cross(x);
+  R.col(2) = a;
+  return R;
 }
 
-// The chain link by link from the base: modified (1.3) RotX(alpha) TransX(a) | axis |
-// RotZ(theta*) TransZ(d*); standard | axis | RotZ(theta*) TransZ(d*) TransX(a) RotX(alpha).
-// on_axis(i, R, p) sees the frame at the bar: joint i turns about its z column through its
-// origin. Leaves R, p at the last link's frame.
+}  // namespace
+
+SerialChain::SerialChain(const RobotModel& model)
+    : n_(static_cast<Eigen::Index>(model.dof())),
+      R_base_(model.base.linear()),
+      p_base_(model.base.translation()) {
+  GEOTRAJ_CHECK(model.dof() <= kMaxJoints);
+  // No trigonometry here: solve_ik and forward_kinematics build a chain per call.
+  Matrix3d A_prev = Matrix3d::Identity();
+  bool prev_z = true;  // A_prev is the identity
+  for (std::size_t i = 0; i < model.dof(); ++i) {
+    const Joint& j = model.joints[i];
+    const bool z = j.axis == Vector3d::UnitZ();
+    const Matrix3d A = z ? Matrix3d::Identity() : align_z_with(j.axis.normalized());
+    Link& l = links_[i];
+    l.revolute = turns(j.type);
+    l.p = prev_z ? Vector3d(j.origin.translation()) : Vector3d(A_prev.transpose() * j.origin.translation());
+    l.R = prev_z ? Matrix3d(j.origin.linear()) : Matrix3d(A_prev.transpose() * j.origin.linear());
+    if (!z) l.R = l.R * A;
+    // A rotation whose row 0 ends in 0 is RotX(alpha) RotZ(phi) =
+    //   [c_phi -s_phi 0; c_a s_phi c_a c_phi -s_a; s_a s_phi s_a c_phi c_a].
+    constexpr double kExact = 1e-14;
+    const bool x_then_z = std::abs(l.R(0, 2)) <= kExact;
+    const bool phi_zero = std::abs(l.R(0, 1)) <= kExact && l.R(0, 0) > 0.0;
+    if (x_then_z && (l.revolute || phi_zero)) {
+      l.ca = l.R(2, 2);
+      l.sa = -l.R(1, 2);
+      l.cphi = l.revolute ? l.R(0, 0) : 1.0;
+      l.sphi = l.revolute ? -l.R(0, 1) : 0.0;
+      l.phi = !phi_zero;
+      l.turn = std::abs(l.sa) <= kExact && l.ca > 0.0 ? Turn::kNone : Turn::kX;
+    } else {
+      l.turn = Turn::kGeneral;
+    }
+    A_prev = A;
+    prev_z = z;
+  }
+  const Eigen::Isometry3d end = model.flange * model.tool;
+  R_tool_ = A_prev.transpose() * end.linear();
+  p_tool_ = A_prev.transpose() * end.translation();
+}
+
+// The chain joint by joint from the base: O_i' (translation, then RotX(alpha) or the
+// general rotation) | axis | RotZ(phi + q_i) or TransZ(q_i). on_axis(i, R, p) sees the frame
+// at the bar: joint i turns about (slides along) its z column through its origin. Leaves
+// R, p at the last joint's frame after its motion.
 template <class OnAxis>
-void DhChain::walk(const JointVector& q, Matrix3d& R, Vector3d& p, OnAxis&& on_axis) const {
+void SerialChain::walk(const JointVector& q, Matrix3d& R, Vector3d& p, OnAxis&& on_axis) const {
   GEOTRAJ_CHECK(q.size() == n_);
   R = R_base_;
   p = p_base_;
   for (Eigen::Index i = 0; i < n_; ++i) {
     const Link& l = links_[static_cast<std::size_t>(i)];
-    const double theta = l.theta + (l.revolute ? l.offset + q(i) : 0.0);  // theta_i*
-    const double d = l.d + (l.revolute ? 0.0 : l.offset + q(i));          // d_i*
-    if (modified_) {
-      p.noalias() += l.a * R.col(0);  // (1.3): RotX(alpha_{i-1}) TransX(a_{i-1})
+    p.noalias() += R * l.p;
+    if (l.turn == Turn::kX) {
       rotate_x(R, l.ca, l.sa);
-      on_axis(i, R, p);
-      rotate_z(R, std::cos(theta), std::sin(theta));  // (1.3): RotZ(theta_i) TransZ(d_i)
-      p.noalias() += d * R.col(2);
+    } else if (l.turn == Turn::kGeneral) {
+      R = R * l.R;
+    }
+    on_axis(i, R, p);
+    if (l.revolute) {
+      double c = std::cos(q(i)), s = std::sin(q(i));
+      if (l.phi) {  // RotZ(phi + q)
+        const double c_q = c;
+        c = l.cphi * c_q - l.sphi * s;
+        s = l.sphi * c_q + l.cphi * s;
+      }
+      rotate_z(R, c, s);
     } else {
-      on_axis(i, R, p);
-      rotate_z(R, std::cos(theta), std::sin(theta));
-      p.noalias() += d * R.col(2) + l.a * R.col(0);
-      rotate_x(R, l.ca, l.sa);
+      p.noalias() += q(i) * R.col(2);
     }
   }
 }
 
-void DhChain::pose(const JointVector& q, Matrix3d& R_WT, Vector3d& p_WT) const {
+void SerialChain::pose(const JointVector& q, Matrix3d& R_WT, Vector3d& p_WT) const {
   Matrix3d R;
   Vector3d p;
   walk(q, R, p, [](Eigen::Index, const Matrix3d&, const Vector3d&) {});
@@ -88,7 +134,7 @@ void DhChain::pose(const JointVector& q, Matrix3d& R_WT, Vector3d& p_WT) const {
   R_WT = R * R_tool_;
 }
 
-void DhChain::jacobian(const JointVector& q, Matrix3d& R_WT, Vector3d& p_WT, JointAxes& z, JointAxes& o,
+void SerialChain::jacobian(const JointVector& q, Matrix3d& R_WT, Vector3d& p_WT, JointAxes& z, JointAxes& o,
                        JointJacobian& J) const {
   z.resize(3, n_);
   o.resize(3, n_);
@@ -113,14 +159,14 @@ void DhChain::jacobian(const JointVector& q, Matrix3d& R_WT, Vector3d& p_WT, Joi
   }
 }
 
-void DhChain::jacobian_dot(const Vector3d& p_WT, const JointAxes& z, const JointAxes& o, const JointJacobian& J,
+void SerialChain::jacobian_dot(const Vector3d& p_WT, const JointAxes& z, const JointAxes& o, const JointJacobian& J,
                            const JointVector& q_dot, JointJacobian& J_dot) const {
   GEOTRAJ_CHECK(q_dot.size() == n_ && J.cols() == n_);
   J_dot.resize(6, n_);
   const Vector3d p_dot = J.topRows<3>() * q_dot;  // tool velocity [m/s]
   Vector3d omega = Vector3d::Zero();              // angular velocity of the frame carrying axis i
   Vector3d v_o = Vector3d::Zero();                // velocity of the point o_i
-  Vector3d o_prev = o_base_;
+  Vector3d o_prev = p_base_;
   for (Eigen::Index i = 0; i < n_; ++i) {
     const Vector3d zi = z.col(i);
     const Vector3d oi = o.col(i);
@@ -146,7 +192,13 @@ JointBounds::JointBounds(const RobotModel& model) {
     hi[i] = model.limits[i].max_position;
     mid[i] = 0.5 * (lo[i] + hi[i]);
     range[i] = hi[i] - lo[i];
-    revolute[i] = model.links[i].type == JointType::kRevolute;
+    revolute[i] = turns(model.joints[i].type);
+    if (model.joints[i].type == JointType::kContinuous) {  // every angle: no bound, no centre
+      lo[i] = -std::numeric_limits<double>::infinity();
+      hi[i] = std::numeric_limits<double>::infinity();
+      mid[i] = 0.0;
+      range[i] = std::numeric_limits<double>::infinity();
+    }
   }
 }
 
@@ -184,7 +236,7 @@ double factor(const JointJacobian& J, const std::array<bool, kMaxJoints>* active
   return sqrt_det;
 }
 
-NewtonOutcome newton(const DhChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
+NewtonOutcome newton(const SerialChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
                      const Vector3d& p_target, const IkOptions& options, bool wrap, JointVector& q,
                      NewtonWorkspace& ws) {
   const Eigen::Index n = chain.dof();
@@ -255,11 +307,12 @@ NewtonOutcome newton(const DhChain& chain, const JointBounds& bounds, const Matr
 void random_configuration(const JointBounds& bounds, SplitMix64& random, JointVector& q) {
   for (Eigen::Index i = 0; i < q.size(); ++i) {
     const auto k = static_cast<std::size_t>(i);
-    q(i) = bounds.lo[k] + random.uniform() * bounds.range[k];
+    q(i) = std::isfinite(bounds.range[k]) ? bounds.lo[k] + random.uniform() * bounds.range[k]
+                                          : (2.0 * random.uniform() - 1.0) * std::numbers::pi;  // continuous
   }
 }
 
-NewtonOutcome solve_cold(const DhChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
+NewtonOutcome solve_cold(const SerialChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
                          const Vector3d& p_target, const JointVector& seed, const IkOptions& options, JointVector& q,
                          NewtonWorkspace& ws) {
   const Eigen::Index n = chain.dof();
@@ -324,7 +377,7 @@ void nearest_representative(const JointBounds& bounds, const JointVector& seed, 
 // Levenberg-Marquardt on |e|^2 within the bounds (projected steps, accepted only when they
 // reduce it): the closest pose to an unreachable target that q's basin holds. Steps
 // dq = J^T (J J^T + mu I)^-1 e, mu adapted (x 4 on a rejected step, / 3 on an accepted one).
-NewtonOutcome refine_closest(const DhChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
+NewtonOutcome refine_closest(const SerialChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
                              const Vector3d& p_target, int max_iterations, JointVector& q, NewtonWorkspace& ws) {
   const Eigen::Index n = chain.dof();
   Vector6d e;
@@ -373,7 +426,7 @@ NewtonOutcome refine_closest(const DhChain& chain, const JointBounds& bounds, co
 
 }  // namespace
 
-IkSearchResult search(const DhChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
+IkSearchResult search(const SerialChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
                       const Vector3d& p_target, const JointVector& seed, const IkSearchOptions& options) {
   const Eigen::Index n = chain.dof();
   IkSearchResult result;
@@ -476,7 +529,7 @@ IkSearchResult search_ik(const RobotModel& model, const Eigen::Isometry3d& X_WT_
                          const IkSearchOptions& options) {
   GEOTRAJ_CHECK(seed.size() == static_cast<Eigen::Index>(model.dof()));
   GEOTRAJ_CHECK(options.max_attempts >= 1 && options.max_solutions >= 1);
-  const detail::DhChain chain(model);
+  const detail::SerialChain chain(model);
   const detail::JointBounds bounds(model);
   return detail::search(chain, bounds, X_WT_target.linear(), X_WT_target.translation(), seed, options);
 }
@@ -484,7 +537,7 @@ IkSearchResult search_ik(const RobotModel& model, const Eigen::Isometry3d& X_WT_
 IkResult solve_ik(const RobotModel& model, const Eigen::Isometry3d& X_WT_target, const JointVector& seed,
                   const IkOptions& options) {
   GEOTRAJ_CHECK(seed.size() == static_cast<Eigen::Index>(model.dof()));
-  const detail::DhChain chain(model);
+  const detail::SerialChain chain(model);
   const detail::JointBounds bounds(model);
   const Eigen::Matrix3d R_target = X_WT_target.linear();
   const Eigen::Vector3d p_target = X_WT_target.translation();

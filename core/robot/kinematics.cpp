@@ -5,12 +5,12 @@
 
 #include <Eigen/SVD>
 
-#include "core/robot/dh_chain.hpp"
+#include "core/robot/serial_chain.hpp"
 
 namespace geotraj::core {
 namespace {
 
-// The tool pose and joint axes at q, by the precomputed chain (dh_chain.hpp, shared with
+// The tool pose and joint axes at q, by the precomputed chain (serial_chain.hpp, shared with
 // the IK): z_i unit axis of joint i, o_i a point on it, in W. Modified DH (1.3): joint i
 // turns about the z axis of frame i, reached after RotX(alpha_i) TransX(a_i); standard DH:
 // about the z axis of frame i-1.
@@ -23,7 +23,7 @@ struct Axes {
 
 Axes axes_at(const RobotModel& model, const JointVector& q) {
   GEOTRAJ_CHECK(q.size() == static_cast<Eigen::Index>(model.dof()));
-  const detail::DhChain chain(model);
+  const detail::SerialChain chain(model);
   Axes a;
   chain.jacobian(q, a.R_WT, a.p_WT, a.z, a.o, a.J);
   return a;
@@ -42,7 +42,7 @@ Eigen::Isometry3d forward_kinematics(const RobotModel& model, const JointVector&
   GEOTRAJ_CHECK(q.size() == static_cast<Eigen::Index>(model.dof()));
   Eigen::Matrix3d R;
   Eigen::Vector3d p;
-  detail::DhChain(model).pose(q, R, p);
+  detail::SerialChain(model).pose(q, R, p);
   return isometry(R, p);
 }
 
@@ -67,7 +67,7 @@ Eigen::VectorXd singular_values(const JointJacobian& J) {
 
 Vector6d jacobian_dot_qdot(const RobotModel& model, const JointVector& q, const JointVector& q_dot) {
   GEOTRAJ_CHECK(q_dot.size() == static_cast<Eigen::Index>(model.dof()));
-  const detail::DhChain chain(model);
+  const detail::SerialChain chain(model);
   Axes a;
   chain.jacobian(q, a.R_WT, a.p_WT, a.z, a.o, a.J);
   JointJacobian J_dot;
@@ -83,7 +83,7 @@ std::vector<JointJacobian> influence_hessian(const RobotModel& model, const Join
   const Axes axes = axes_at(model, q);
   const auto n = static_cast<Eigen::Index>(model.dof());
   const Eigen::Vector3d p = axes.p_WT;
-  auto revolute = [&](Eigen::Index i) { return model.links[static_cast<std::size_t>(i)].type == JointType::kRevolute; };
+  auto revolute = [&](Eigen::Index i) { return turns(model.joints[static_cast<std::size_t>(i)].type); };
   std::vector<JointJacobian> H(static_cast<std::size_t>(n), JointJacobian::Zero(6, n));
   for (Eigen::Index j = 0; j < n; ++j) {
     const Eigen::Vector3d zj = axes.z.col(j);

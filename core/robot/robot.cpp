@@ -33,15 +33,25 @@ JointLimits revolute_limits(double range_deg, double speed_deg_s, double accel_d
   return JointLimits{-range_deg * deg, range_deg * deg, speed_deg_s * deg, accel_deg_s2 * deg, std::nullopt};
 }
 
+Eigen::Isometry3d rot_x(double angle) {
+  return Eigen::Isometry3d(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitX()));
+}
+Eigen::Isometry3d rot_z(double angle) {
+  return Eigen::Isometry3d(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()));
+}
+Eigen::Isometry3d trans(double x, double z) {
+  return Eigen::Isometry3d(Eigen::Translation3d(x, 0.0, z));
+}
+
 // Mitsubishi PA-10 (PA10-7C), the thesis's demonstration arm (7.2.2). Modified DH (Craig,
 // Eq. 1.3): alternating +-90 degree twists, shoulder height 0.317 m, upper arm 0.45 m,
 // forearm 0.48 m, wrist to flange 0.07 m (the tool offset). Joint ranges and speeds are the
 // manufacturer's PA10-7C specification (S1 177, S2 94, S3 174, E1 137, E2 255, W1 165,
 // W2 255 degrees; 57 deg/s on S1, S2, 114 deg/s on S3, E1, 360 deg/s on E2, W1, W2).
 // Acceleration limits are not published: 2 x the speed limit per second is assumed.
-void name_joints(RobotModel& m, std::initializer_list<const char*> names) {
+void name_joints(DhTable& t, std::initializer_list<const char*> names) {
   std::size_t i = 0;
-  for (const char* name : names) m.links[i++].name = name;
+  for (const char* name : names) t.links[i++].name = name;
 }
 
 RobotModel pa10() {
@@ -52,10 +62,11 @@ RobotModel pa10() {
       "(Craig, thesis Eq. 1.3): shoulder 0.317 m, upper arm 0.45 m, forearm 0.48 m, flange 0.07 m (tool). "
       "Ranges and speeds: Mitsubishi Heavy Industries PA10-7C specification. Accelerations: not published; "
       "assumed 2 x the speed limit per second.";
-  m.convention = DhConvention::kModified;
+  DhTable t;
+  t.convention = DhConvention::kModified;
   const double h = std::numbers::pi / 2.0;
   //        a    alpha  d      theta
-  m.links = {{0.0, 0.0, 0.317, 0.0},  {0.0, -h, 0.0, 0.0}, {0.0, h, 0.45, 0.0}, {0.0, -h, 0.0, 0.0},
+  t.links = {{0.0, 0.0, 0.317, 0.0},  {0.0, -h, 0.0, 0.0}, {0.0, h, 0.45, 0.0}, {0.0, -h, 0.0, 0.0},
              {0.0, h, 0.48, 0.0},     {0.0, -h, 0.0, 0.0}, {0.0, h, 0.0, 0.0}};
   m.limits = {revolute_limits(177, 57, 114),  revolute_limits(94, 57, 114),   revolute_limits(174, 114, 228),
               revolute_limits(137, 114, 228), revolute_limits(255, 360, 720), revolute_limits(165, 360, 720),
@@ -68,7 +79,8 @@ RobotModel pa10() {
   // (W2 = +180 deg is the same pose, but the demo paths then turn W2 to within 0.02 rad of
   // its +255 deg limit; from -180 deg they keep it 1.3 rad away).
   m.home = {0.0, -0.761313, 0.0, 1.567648, 0.0, 0.764461, -std::numbers::pi};
-  name_joints(m, {"S1", "S2", "S3", "E1", "E2", "W1", "W2"});  // Mitsubishi's names, shoulder to wrist
+  name_joints(t, {"S1", "S2", "S3", "E1", "E2", "W1", "W2"});  // Mitsubishi's names, shoulder to wrist
+  set_dh(m, std::move(t));
   return m;
 }
 
@@ -84,59 +96,122 @@ RobotModel ur5() {
       "Universal Robots UR5 (CB3), 6-DOF. Standard DH from Universal Robots' published DH parameters. Ranges "
       "+-360 deg and speeds 180 deg/s: UR5 technical specification. Accelerations: not published; assumed 2 x "
       "the speed limit per second.";
-  m.convention = DhConvention::kStandard;
+  DhTable t;
+  t.convention = DhConvention::kStandard;
   const double h = std::numbers::pi / 2.0;
   //        a         alpha  d         theta
-  m.links = {{0.0, h, 0.089159, 0.0},  {-0.425, 0.0, 0.0, 0.0}, {-0.39225, 0.0, 0.0, 0.0},
+  t.links = {{0.0, h, 0.089159, 0.0},  {-0.425, 0.0, 0.0, 0.0}, {-0.39225, 0.0, 0.0, 0.0},
              {0.0, h, 0.10915, 0.0},   {0.0, -h, 0.09465, 0.0}, {0.0, 0.0, 0.0823, 0.0}};
   for (int i = 0; i < 6; ++i) m.limits.push_back(revolute_limits(360, 180, 360));
   m.home = {0.0, -h, h, -h, -h, 0.0};
-  name_joints(m, {"shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"});  // Universal Robots' names
+  name_joints(t, {"shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"});  // Universal Robots' names
+  set_dh(m, std::move(t));
   return m;
+}
+
+}  // namespace
+
+void set_dh(RobotModel& model, DhTable table) {
+  const bool modified = table.convention == DhConvention::kModified;
+  const std::size_t n = table.links.size();
+  model.joints.assign(n, Joint{});
+  // The fixed part of link i: theta and d with the offset on the joint's own variable.
+  const auto fixed = [](const DhLink& l, bool modified_form) {
+    const bool revolute = l.type != JointType::kPrismatic;
+    const double theta = l.theta + (revolute ? l.offset : 0.0), d = l.d + (revolute ? 0.0 : l.offset);
+    return modified_form ? rot_x(l.alpha) * trans(l.a, 0.0) * rot_z(theta) * trans(0.0, d)   // (1.3)
+                         : rot_z(theta) * trans(0.0, d) * trans(l.a, 0.0) * rot_x(l.alpha);  // F_i
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    Joint& j = model.joints[i];
+    j.name = table.links[i].name;
+    j.type = table.links[i].type;
+    j.axis = Eigen::Vector3d::UnitZ();
+    if (modified) {
+      j.origin = fixed(table.links[i], true);
+    } else {
+      j.origin = i == 0 ? Eigen::Isometry3d::Identity() : fixed(table.links[i - 1], false);
+    }
+  }
+  model.flange = !modified && n > 0 ? fixed(table.links[n - 1], false) : Eigen::Isometry3d::Identity();
+  model.dh = std::move(table);
+}
+
+namespace {
+
+void check_magnitude(const std::string& field, double v, Violations& out) {
+  if (!std::isfinite(v)) {
+    out.push_back({field, "must be finite, got " + number(v)});
+  } else if (std::abs(v) > kMaxModelMagnitude) {
+    out.push_back({field, "magnitude must be at most " + number(kMaxModelMagnitude) + ", got " + number(v)});
+  }
+}
+
+void check_name(const std::string& field, const std::string& name, Violations& out) {
+  if (name.size() > kMaxJointName) {
+    out.push_back({field, "has " + std::to_string(name.size()) + " bytes; at most " + std::to_string(kMaxJointName)});
+  }
+}
+
+// A fixed transform of the chain: finite, lengths within kMaxModelMagnitude, a rotation.
+void check_transform(const std::string& field, const Eigen::Isometry3d& X, Violations& out) {
+  const Eigen::Matrix3d R = X.linear();
+  const Eigen::Vector3d p = X.translation();
+  if (!R.allFinite() || !p.allFinite()) {
+    out.push_back({field, "must be finite"});
+    return;
+  }
+  if (p.cwiseAbs().maxCoeff() > kMaxModelMagnitude) {
+    out.push_back({field + ".position", "magnitude must be at most " + number(kMaxModelMagnitude)});
+  }
+  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-9 || R.determinant() < 0.0) {
+    out.push_back({field + ".orientation", "is not a rotation (give a unit quaternion)"});
+  }
 }
 
 }  // namespace
 
 Violations validate_robot(const RobotModel& model) {
   Violations out;
-  if (model.links.empty()) out.push_back({"links", "must list at least one joint"});
-  if (model.links.size() > kMaxJoints) {
-    out.push_back({"links", "has " + std::to_string(model.links.size()) + " joints; at most " +
-                                std::to_string(kMaxJoints) + " are supported"});
+  const char* joints_field = model.dh ? "links" : "joints";
+  if (model.joints.empty()) out.push_back({joints_field, "must list at least one joint"});
+  if (model.joints.size() > kMaxJoints) {
+    out.push_back({joints_field, "has " + std::to_string(model.joints.size()) + " joints; at most " +
+                                     std::to_string(kMaxJoints) + " are supported"});
   }
-  if (model.limits.size() != model.links.size()) {
+  if (model.limits.size() != model.joints.size()) {
     out.push_back({"limits", "has " + std::to_string(model.limits.size()) + " entries for " +
-                                 std::to_string(model.links.size()) + " links: give one per joint"});
+                                 std::to_string(model.joints.size()) + " joints: give one per joint"});
   }
-  for (std::size_t i = 0; i < model.links.size(); ++i) {
-    const DhLink& l = model.links[i];
-    const std::pair<const char*, double> values[] = {
-        {"a", l.a}, {"alpha", l.alpha}, {"d", l.d}, {"theta", l.theta}, {"offset", l.offset}};
-    for (const auto& [name, v] : values) {
-      if (!std::isfinite(v)) {
-        out.push_back({idx("links", i, name), "must be finite, got " + number(v)});
-      } else if (std::abs(v) > kMaxModelMagnitude) {
-        out.push_back({idx("links", i, name), "magnitude must be at most " + number(kMaxModelMagnitude) + ", got " +
-                                                  number(v)});
+  if (model.dh) {  // the joints are derived from the table: its rows are what the user wrote
+    for (std::size_t i = 0; i < model.dh->links.size(); ++i) {
+      const DhLink& l = model.dh->links[i];
+      const std::pair<const char*, double> values[] = {
+          {"a", l.a}, {"alpha", l.alpha}, {"d", l.d}, {"theta", l.theta}, {"offset", l.offset}};
+      for (const auto& [name, v] : values) check_magnitude(idx("links", i, name), v, out);
+      check_name(idx("links", i, "name"), l.name, out);
+    }
+  } else {
+    for (std::size_t i = 0; i < model.joints.size(); ++i) {
+      const Joint& j = model.joints[i];
+      check_transform(idx("joints", i, "origin"), j.origin, out);
+      if (!j.axis.allFinite() || std::abs(j.axis.norm() - 1.0) > 1e-9) {
+        out.push_back({idx("joints", i, "axis"), "must be a unit vector, got length " + number(j.axis.norm())});
       }
+      check_name(idx("joints", i, "name"), j.name, out);
     }
-    if (l.name.size() > kMaxJointName) {
-      out.push_back({idx("links", i, "name"), "has " + std::to_string(l.name.size()) + " bytes; at most " +
-                                                   std::to_string(kMaxJointName)});
-    }
+    check_transform("flange", model.flange, out);
   }
   for (std::size_t i = 0; i < model.limits.size(); ++i) {
     const JointLimits& l = model.limits[i];
+    const bool continuous = i < model.joints.size() && model.joints[i].type == JointType::kContinuous;
     for (const auto& [name, v] : {std::pair<const char*, double>{"minPosition", l.min_position},
                                   std::pair<const char*, double>{"maxPosition", l.max_position}}) {
-      if (!std::isfinite(v)) {
-        out.push_back({idx("limits", i, name), "must be finite"});
-      } else if (std::abs(v) > kMaxModelMagnitude) {
-        out.push_back({idx("limits", i, name), "magnitude must be at most " + number(kMaxModelMagnitude) + ", got " +
-                                                   number(v)});
-      }
+      if (continuous) break;  // not read
+      check_magnitude(idx("limits", i, name), v, out);
     }
-    if (std::isfinite(l.min_position) && std::isfinite(l.max_position) && l.min_position > l.max_position) {
+    if (!continuous && std::isfinite(l.min_position) && std::isfinite(l.max_position) &&
+        l.min_position > l.max_position) {
       out.push_back({idx("limits", i, "minPosition"),
                      number(l.min_position) + " is above maxPosition " + number(l.max_position)});
     }
@@ -154,13 +229,14 @@ Violations validate_robot(const RobotModel& model) {
   check_rotation(model.base, "base", out);
   check_rotation(model.tool, "tool", out);
   if (!model.home.empty()) {
-    if (model.home.size() != model.links.size()) {
+    if (model.home.size() != model.joints.size()) {
       out.push_back({"home", "has " + std::to_string(model.home.size()) + " values for " +
-                                 std::to_string(model.links.size()) + " joints"});
-    } else if (model.limits.size() == model.links.size()) {
+                                 std::to_string(model.joints.size()) + " joints"});
+    } else if (model.limits.size() == model.joints.size()) {
       for (std::size_t i = 0; i < model.home.size(); ++i) {
         const double q = model.home[i];
-        if (!std::isfinite(q) || q < model.limits[i].min_position || q > model.limits[i].max_position) {
+        if (!std::isfinite(q) || std::abs(q) > kMaxModelMagnitude ||
+            !within_position_limits(model.joints[i].type, model.limits[i], q)) {
           out.push_back({"home[" + std::to_string(i) + "]", number(q) + " is outside the joint's limits [" +
                                                                   number(model.limits[i].min_position) + ", " +
                                                                   number(model.limits[i].max_position) + "]"});

@@ -1,16 +1,24 @@
-// Serial manipulators described by Denavit-Hartenberg parameters (thesis 1.1.2, Eq. 1.3;
-// Table 6.1's manipulator parameters): the immutable model that kinematics.hpp, ik.hpp and
-// joint_motion.hpp work on. Units: metres and radians (a prismatic joint's value is in
-// metres); limits per joint in [rad] or [m], per second, per second squared.
+// Serial manipulators (thesis 1.1.2; Table 6.1's manipulator parameters): the immutable model
+// that kinematics.hpp, ik.hpp and joint_motion.hpp work on. Units: metres and radians (a
+// prismatic joint's value is in metres); limits per joint in [rad] or [m], per second, per
+// second squared.
 //
-// With joint values q the tool pose in the world frame W is
-//   X_WT = base * A_1(q_1) * ... * A_n(q_n) * tool,
-// where each link transform A_i is
+// A general serial chain (the form of URDF, KDL and Pinocchio): joint i is a fixed transform
+// O_i (its origin, in the frame of the joint before it after that joint's motion; in the
+// robot's base frame for joint 1) followed by a motion M_i(q_i) about (revolute,
+// continuous) or along (prismatic) a fixed unit axis a_i of the frame O_i ends in:
+//   X_WT = base * O_1 M_1(q_1) * O_2 M_2(q_2) * ... * O_n M_n(q_n) * flange * tool,
+//   M_i(q) = Rot(a_i, q) or Trans(q a_i),
+// flange the fixed transform from the last joint's frame to the last link (URDF: the tip
+// link; DH: frame n), tool the tool in that link's frame.
+//
+// Denavit-Hartenberg tables (thesis Eq. 1.3) are one way of writing such a chain (dh_joints):
 //   modified DH (Craig; the thesis's Eq. 1.3): A_i = RotX(alpha_i) TransX(a_i) RotZ(theta_i*) TransZ(d_i*)
 //     (row i holds alpha_{i-1}, a_{i-1} of Eq. 1.3: the twist and length BEFORE joint i),
 //   standard DH:                               A_i = RotZ(theta_i*) TransZ(d_i*) TransX(a_i) RotX(alpha_i),
 // with theta_i* = theta_i + offset_i + q_i and d_i* = d_i for a revolute joint, and
-// theta_i* = theta_i, d_i* = d_i + offset_i + q_i for a prismatic one.
+// theta_i* = theta_i, d_i* = d_i + offset_i + q_i for a prismatic one; the pose is
+// base * A_1(q_1) ... A_n(q_n) * tool.
 #pragma once
 
 #include <cstddef>
@@ -42,7 +50,25 @@ enum class DhConvention {
   kStandard,  ///< the classic (distal) convention
 };
 
-enum class JointType { kRevolute, kPrismatic };
+/// How a joint moves: about its axis within position limits, about it without end (URDF
+/// `continuous`: the position limits are not read, every angle is allowed), or along it.
+enum class JointType { kRevolute, kPrismatic, kContinuous };
+
+/// Whether the joint turns (revolute or continuous) rather than slides.
+constexpr bool turns(JointType type) { return type != JointType::kPrismatic; }
+
+/// One joint of a general chain (see the top of this file). Lengths [m].
+struct Joint {
+  /// The joint's name for people ("panda_joint1"); joints are numbered from 0 at the base
+  /// everywhere, the name says which one that is. At most kMaxJointName bytes.
+  std::string name{};
+  JointType type = JointType::kRevolute;
+  /// O_i: the joint's frame in the frame of the joint before it after that joint's motion
+  /// (in the robot's base frame for joint 0).
+  Eigen::Isometry3d origin = Eigen::Isometry3d::Identity();
+  /// a_i: the unit axis the joint turns about or slides along, in its frame.
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+};
 
 /// One row of the DH table (proto DhLink). Lengths [m], angles [rad].
 struct DhLink {
@@ -74,34 +100,64 @@ struct JointLimits {
   std::optional<double> max_jerk;  ///< [rad/s^3 or m/s^3], > 0; absent: unlimited
 };
 
+/// Whether joint value q is within the joint's position limits (always, for a continuous
+/// joint, whose limits are not read).
+inline bool within_position_limits(JointType type, const JointLimits& l, double q) {
+  return type == JointType::kContinuous || (q >= l.min_position && q <= l.max_position);
+}
+
+/// A DH table (proto RobotModel.links and dhConvention): one row per joint, base outwards.
+struct DhTable {
+  DhConvention convention = DhConvention::kModified;
+  std::vector<DhLink> links;
+};
+
 /// A serial arm. A value: copy it to change it (base and tool of a request replace the
 /// model's own).
 struct RobotModel {
   std::string name;
   std::string description;  ///< manufacturer, source of the parameters
-  DhConvention convention = DhConvention::kModified;
-  std::vector<DhLink> links;        ///< one per joint, base outwards
+  std::vector<Joint> joints;        ///< one per moving joint, base outwards
   std::vector<JointLimits> limits;  ///< one per joint
+  /// X_n,F: the last link's frame in the last joint's frame (after its motion).
+  Eigen::Isometry3d flange = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d base = Eigen::Isometry3d::Identity();  ///< X_W,base: robot base in W
-  Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();  ///< X_n,T: tool in the last link's frame
+  Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();  ///< X_F,T: tool in the last link's frame
   /// The home configuration [rad or m] (the IK seed of a request without initialJoints);
   /// within the limits. Empty means all zeros.
   std::vector<double> home;
+  /// The DH table the joints and flange were written from (set_dh), reported back in that
+  /// form; empty for a chain given otherwise (URDF, general joints).
+  std::optional<DhTable> dh;
 
-  std::size_t dof() const { return links.size(); }
+  std::size_t dof() const { return joints.size(); }
 };
 
+/// The joints and flange of a DH table (see the top of this file), exactly:
+///   modified:  O_i = RotX(alpha_i) TransX(a_i) RotZ(theta_i + offset_i) TransZ(d_i) (revolute;
+///              prismatic: RotZ(theta_i) TransZ(d_i + offset_i)), M_i about or along z,
+///              flange = identity (RotZ(q) and TransZ(q) commute with RotZ and TransZ);
+///   standard:  A_i = M_i(q_i) F_i with F_i = RotZ(theta_i + offset_i) TransZ(d_i) TransX(a_i)
+///              RotX(alpha_i) (revolute; the offset on d for prismatic), regrouped
+///              base * M_1 (F_1 M_2) ... (F_{n-1} M_n) F_n * tool: O_1 = identity,
+///              O_i = F_{i-1}, flange = F_n.
+/// Sets model.joints, model.flange and model.dh (the table kept as given); names from the rows.
+void set_dh(RobotModel& model, DhTable table);
+
 /// Every problem with `model` (field paths relative to the model, proto JSON names):
-/// `links` (none, or more than kMaxJoints), `limits` (not one per link), `links[i].a` ...
-/// not finite, `limits[i].minPosition` > maxPosition, `limits[i].maxVelocity` <= 0 or not
+/// `joints` (none, or more than kMaxJoints; `links` for a DH model), `limits` (not one per
+/// joint), `links[i].a` ... not finite (a DH model), `joints[i].origin` not finite or not a
+/// rigid transform, `joints[i].axis` not a unit vector, `flange`, `limits[i].minPosition` > maxPosition, `limits[i].maxVelocity` <= 0 or not
 /// finite, `limits[i].maxAcceleration`, `limits[i].maxJerk`, `base.orientation` /
 /// `tool.orientation` not a rotation, `home` of the wrong size or outside the limits.
 /// Empty when the model is usable.
 Violations validate_robot(const RobotModel& model);
 
 /// The built-in models, in a fixed order: "pa10" (Mitsubishi PA-10, 7 DOF, the thesis's
-/// demonstration arm, modified DH) and "ur5" (Universal Robots UR5, 6 DOF, standard DH).
-/// Each model's `description` cites where its parameters come from.
+/// demonstration arm, modified DH), "ur5" (Universal Robots UR5, 6 DOF, standard DH) and the
+/// arms written as URDF (core/robot/models/*.urdf: "panda", "iiwa14", "ur5e"; see
+/// builtin_urdf_robots() in urdf.hpp). Each model's `description` cites where its
+/// parameters come from.
 const std::vector<RobotModel>& builtin_robots();
 
 /// The built-in model called `name`, or nullptr.

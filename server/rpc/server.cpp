@@ -21,6 +21,7 @@
 #include "server/ops/runtime.hpp"
 #include "server/ops/socket.hpp"
 #include "server/rpc/health.hpp"
+#include "planner/robots.hpp"
 #include "server/rpc/service.hpp"
 
 namespace geotraj::server {
@@ -141,11 +142,14 @@ tl::expected<TokenTable, std::string> tokens(const ServerOptions& options) {
 }
 
 tl::expected<RobotCatalog, std::string> robot_catalog(const ServerOptions& options) {
-  RobotCatalog robots{core::builtin_robots()};
+  RobotCatalog robots{planner::builtin_robots()};
   for (const auto& file : options.robot_model_files) {
     auto text = read_file(file, "robot model file");
     if (!text) return tl::unexpected(text.error());
-    auto model = robot_model_from_json(*text);
+    // A URDF document (by its extension, or its first character) or a RobotModel in JSON.
+    const auto first = text->find_first_not_of(" \t\r\n");
+    const bool urdf = file.ends_with(".urdf") || (first != std::string::npos && (*text)[first] == '<');
+    auto model = urdf ? planner::robot_from_urdf(*text) : robot_model_from_json(*text);
     if (!model) {
       std::string why;
       for (const auto& v : model.error()) why += (why.empty() ? "" : "; ") + (v.field.empty() ? "" : v.field + ": ") + v.description;

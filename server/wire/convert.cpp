@@ -14,6 +14,7 @@
 
 #include "core/geometry/validate.hpp"
 #include "core/robot/kinematics.hpp"
+#include "planner/robots.hpp"
 #include "core/format.hpp"
 
 #include <google/protobuf/util/json_util.h>
@@ -480,22 +481,68 @@ const core::RobotModel* RobotCatalog::find(std::string_view name) const {
   return nullptr;
 }
 
+namespace {
+
+core::JointType joint_type_from_proto(v1::JointType type) {
+  switch (type) {
+    case v1::JOINT_TYPE_PRISMATIC: return core::JointType::kPrismatic;
+    case v1::JOINT_TYPE_CONTINUOUS: return core::JointType::kContinuous;
+    default: return core::JointType::kRevolute;
+  }
+}
+
+v1::JointType to_proto(core::JointType type) {
+  switch (type) {
+    case core::JointType::kPrismatic: return v1::JOINT_TYPE_PRISMATIC;
+    case core::JointType::kContinuous: return v1::JOINT_TYPE_CONTINUOUS;
+    case core::JointType::kRevolute: break;
+  }
+  return v1::JOINT_TYPE_REVOLUTE;
+}
+
+}  // namespace
+
 core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& model, const std::string& prefix) {
   WireCheck check;
-  check_enum(check, prefix + "dhConvention", model.dh_convention(), v1::DhConvention_descriptor());
   core::RobotModel m;
   m.name = model.name();
   m.description = model.description();
-  m.convention = model.dh_convention() == v1::DH_CONVENTION_MODIFIED ? core::DhConvention::kModified
-                                                                     : core::DhConvention::kStandard;
-  for (int i = 0; i < model.links_size(); ++i) {
-    const auto& l = model.links(i);
-    check_enum(check, prefix + "links[" + std::to_string(i) + "].jointType", l.joint_type(),
-               v1::JointType_descriptor());
-    m.links.push_back({l.a(), l.alpha(), l.d(), l.theta(),
-                       l.joint_type() == v1::JOINT_TYPE_PRISMATIC ? core::JointType::kPrismatic
-                                                                  : core::JointType::kRevolute,
-                       l.offset(), l.name()});
+  core::Violations poses;
+  if (model.links_size() > 0 && model.joints_size() > 0) {
+    check.violations.push_back({prefix + "joints", "and `links` are two ways of writing the chain: give one"});
+  }
+  if (model.joints_size() > 0) {  // a general chain
+    if (model.dh_convention() != v1::DH_CONVENTION_UNSPECIFIED) {
+      check.violations.push_back({prefix + "dhConvention", "is for `links` (a DH table); `joints` have none"});
+    }
+    for (int i = 0; i < model.joints_size(); ++i) {
+      const auto& j = model.joints(i);
+      const std::string at = prefix + "joints[" + std::to_string(i) + "]";
+      check_enum(check, at + ".jointType", j.joint_type(), v1::JointType_descriptor());
+      core::Joint joint;
+      joint.name = j.name();
+      joint.type = joint_type_from_proto(j.joint_type());
+      if (j.has_origin()) joint.origin = pose_from_proto(j.origin(), at + ".origin", poses);
+      if (j.has_axis()) joint.axis = to_core(j.axis());
+      m.joints.push_back(std::move(joint));
+    }
+    if (model.has_flange()) m.flange = pose_from_proto(model.flange(), prefix + "flange", poses);
+  } else {  // a DH table
+    check_enum(check, prefix + "dhConvention", model.dh_convention(), v1::DhConvention_descriptor());
+    if (model.has_flange()) {
+      check.violations.push_back({prefix + "flange", "is for `joints` (a general chain); a DH table ends in frame n"});
+    }
+    core::DhTable table;
+    table.convention = model.dh_convention() == v1::DH_CONVENTION_MODIFIED ? core::DhConvention::kModified
+                                                                           : core::DhConvention::kStandard;
+    for (int i = 0; i < model.links_size(); ++i) {
+      const auto& l = model.links(i);
+      check_enum(check, prefix + "links[" + std::to_string(i) + "].jointType", l.joint_type(),
+                 v1::JointType_descriptor());
+      table.links.push_back(
+          {l.a(), l.alpha(), l.d(), l.theta(), joint_type_from_proto(l.joint_type()), l.offset(), l.name()});
+    }
+    core::set_dh(m, std::move(table));
   }
   for (const auto& l : model.limits()) {
     core::JointLimits limits{l.min_position(), l.max_position(), l.max_velocity(), l.max_acceleration(),
@@ -504,11 +551,12 @@ core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& mo
     m.limits.push_back(limits);
   }
   m.home.assign(model.home().begin(), model.home().end());
-  core::Violations poses;
   if (model.has_base()) m.base = pose_from_proto(model.base(), prefix + "base", poses);
   if (model.has_tool()) m.tool = pose_from_proto(model.tool(), prefix + "tool", poses);
   for (auto& v : poses) check.violations.push_back(std::move(v));
-  for (auto& v : core::prefixed(core::validate_robot(m), prefix)) check.violations.push_back(std::move(v));
+  if (check.violations.empty()) {  // poses already refused would be reported twice
+    for (auto& v : core::prefixed(core::validate_robot(m), prefix)) check.violations.push_back(std::move(v));
+  }
   if (!check.violations.empty()) return tl::unexpected(std::move(check.violations));
   return m;
 }
@@ -526,17 +574,28 @@ core::Expected<core::RobotModel> robot_model_from_json(std::string_view json) {
 void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
   out.set_name(model.name);
   out.set_description(model.description);
-  out.set_dh_convention(model.convention == core::DhConvention::kModified ? v1::DH_CONVENTION_MODIFIED
-                                                                          : v1::DH_CONVENTION_STANDARD);
-  for (const auto& l : model.links) {
-    auto* link = out.add_links();
-    link->set_a(l.a);
-    link->set_alpha(l.alpha);
-    link->set_d(l.d);
-    link->set_theta(l.theta);
-    link->set_joint_type(l.type == core::JointType::kPrismatic ? v1::JOINT_TYPE_PRISMATIC : v1::JOINT_TYPE_REVOLUTE);
-    link->set_offset(l.offset);
-    link->set_name(l.name);
+  if (model.dh) {  // written as a DH table: reported as one
+    out.set_dh_convention(model.dh->convention == core::DhConvention::kModified ? v1::DH_CONVENTION_MODIFIED
+                                                                                : v1::DH_CONVENTION_STANDARD);
+    for (const auto& l : model.dh->links) {
+      auto* link = out.add_links();
+      link->set_a(l.a);
+      link->set_alpha(l.alpha);
+      link->set_d(l.d);
+      link->set_theta(l.theta);
+      link->set_joint_type(to_proto(l.type));
+      link->set_offset(l.offset);
+      link->set_name(l.name);
+    }
+  } else {
+    for (const auto& j : model.joints) {
+      auto* joint = out.add_joints();
+      joint->set_name(j.name);
+      joint->set_joint_type(to_proto(j.type));
+      to_proto(j.origin, *joint->mutable_origin());
+      to_proto(Vector3d(j.axis), *joint->mutable_axis());
+    }
+    to_proto(model.flange, *out.mutable_flange());
   }
   for (const auto& l : model.limits) {
     auto* limits = out.add_limits();
@@ -551,10 +610,31 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
   for (double q : model.home) out.add_home(q);
 }
 
-core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog) {
+core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog,
+                                                  bool motion) {
   core::Violations out;
+  // robot.jointLimits: each named, each value finite and > 0 (applied once the model is known).
+  std::vector<planner::NamedLimits> named;
+  for (int k = 0; k < spec.joint_limits_size(); ++k) {
+    const auto& l = spec.joint_limits(k);
+    const std::string at = "robot.jointLimits[" + std::to_string(k) + "]";
+    if (l.joint().empty()) out.push_back({at + ".joint", "is required: the name of one of the model's joints"});
+    planner::NamedLimits limits{l.joint(), std::nullopt, std::nullopt, std::nullopt};
+    const auto take = [&](bool has, double value, const char* field, std::optional<double>& to) {
+      if (!has) return;
+      if (!(std::isfinite(value) && value > 0.0)) {
+        out.push_back({at + "." + field, "must be finite and > 0, got " + core::number(value)});
+      } else {
+        to = value;
+      }
+    };
+    take(l.has_max_velocity(), l.max_velocity(), "maxVelocity", limits.max_velocity);
+    take(l.has_max_acceleration(), l.max_acceleration(), "maxAcceleration", limits.max_acceleration);
+    take(l.has_max_jerk(), l.max_jerk(), "maxJerk", limits.max_jerk);
+    named.push_back(std::move(limits));
+  }
   planner::Robot resolved;
-  resolved.inline_model = spec.has_model();
+  resolved.inline_model = spec.has_model() || spec.model_source_case() == v1::RobotSpec::kUrdf;
   switch (spec.model_source_case()) {
     case v1::RobotSpec::kName: {
       const auto* model = catalog.find(spec.name());
@@ -576,8 +656,40 @@ core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, con
       }
       break;
     }
+    case v1::RobotSpec::kUrdf: {
+      planner::UrdfOptions options{spec.base_link(), spec.tip_link(), named, motion};
+      auto model = planner::robot_from_urdf(spec.urdf(), options);
+      if (model) {
+        resolved.model = std::move(*model);
+      } else {
+        out = core::prefixed(std::move(model.error()), "robot.");
+      }
+      break;
+    }
     default:
-      out.push_back({"robot", "needs a model: `name` of a built-in model (see ListRobots) or an inline `model`"});
+      out.push_back({"robot", "needs a model: `name` of a built-in model (see ListRobots), an inline `model` or "
+                              "a `urdf` document"});
+  }
+  if (spec.model_source_case() != v1::RobotSpec::kUrdf && (!spec.base_link().empty() || !spec.tip_link().empty())) {
+    out.push_back({spec.base_link().empty() ? "robot.tipLink" : "robot.baseLink", "is read with `urdf` only"});
+  }
+  if (out.empty()) {  // robot.jointLimits over the model's, by name
+    auto& model = resolved.model;
+    for (std::size_t k = 0; k < named.size(); ++k) {
+      const auto it = std::find_if(model.joints.begin(), model.joints.end(),
+                                   [&](const core::Joint& j) { return j.name == named[k].joint; });
+      if (it == model.joints.end()) {
+        std::string names;
+        for (const auto& j : model.joints) names += (names.empty() ? "'" : ", '") + j.name + "'";
+        out.push_back({"robot.jointLimits[" + std::to_string(k) + "].joint",
+                       "names no joint of the model ('" + named[k].joint + "'); its joints: " + names});
+        continue;
+      }
+      core::JointLimits& l = model.limits[static_cast<std::size_t>(it - model.joints.begin())];
+      if (named[k].max_velocity) l.max_velocity = *named[k].max_velocity;
+      if (named[k].max_acceleration) l.max_acceleration = *named[k].max_acceleration;
+      if (named[k].max_jerk) l.max_jerk = named[k].max_jerk;
+    }
   }
   if (spec.has_base()) resolved.model.base = pose_from_proto(spec.base(), "robot.base", out);
   if (spec.has_tool()) resolved.model.tool = pose_from_proto(spec.tool(), "robot.tool", out);
@@ -633,7 +745,10 @@ core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, con
         const auto& l = resolved.model.limits[i];
         if (!std::isfinite(q)) {
           out.push_back({"robot.initialJoints[" + std::to_string(i) + "]", "must be finite, got " + core::number(q, 6)});
-        } else if (q < l.min_position || q > l.max_position) {
+        } else if (std::abs(q) > core::kMaxModelMagnitude) {
+          out.push_back({"robot.initialJoints[" + std::to_string(i) + "]",
+                         "magnitude must be at most " + core::number(core::kMaxModelMagnitude) + ", got " + core::number(q, 6)});
+        } else if (!core::within_position_limits(resolved.model.joints[i].type, l, q)) {
           out.push_back({"robot.initialJoints[" + std::to_string(i) + "]",
                          core::number(q, 6) + " is outside the joint's limits [" + core::number(l.min_position, 6) + ", " +
                              core::number(l.max_position, 6) + "]"});
@@ -723,9 +838,11 @@ void to_proto(const std::string& robot_name, const core::JointMotionReport& repo
     r->set_peak_acceleration(u.peak_acceleration);
     r->set_velocity_usage(u.velocity_usage);
     r->set_acceleration_usage(u.acceleration_usage);
-    r->set_position_margin(u.position_margin);
+    if (std::isfinite(u.position_margin)) r->set_position_margin(u.position_margin);  // none: continuous
   }
-  to_proto(report.tightest_position, *out.mutable_tightest_position());
+  if (std::isfinite(report.tightest_position.margin)) {  // every joint continuous: none
+    to_proto(report.tightest_position, *out.mutable_tightest_position());
+  }
   to_proto(report.tightest_velocity, *out.mutable_tightest_velocity());
   to_proto(report.tightest_acceleration, *out.mutable_tightest_acceleration());
   out.set_max_midpoint_deviation(report.max_midpoint_deviation);
@@ -1173,7 +1290,11 @@ core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& reque
   }
   // Following a Cartesian pose (a path or a straight line) takes six joints at least.
   if (out.robot && out.robot->model.dof() < 6) {
-    violations.push_back({out.robot->inline_model ? "robot.model.links" : "robot",
+    const auto& spec = request.robot();
+    violations.push_back({spec.model_source_case() == v1::RobotSpec::kUrdf ? "robot.urdf"
+                          : !spec.has_model()                            ? "robot"
+                          : spec.model().joints_size() > 0               ? "robot.model.joints"
+                                                                         : "robot.model.links",
                           "the robot has " + std::to_string(out.robot->model.dof()) +
                               " joints; following a tool pose (position and orientation) needs at least 6"});
   }

@@ -115,8 +115,11 @@ inline constexpr double kDefaultBranchTolerance = 1e-3;
 /// A request's `robot` resolved against `catalog` (the model with the request's base and tool
 /// applied, the seed from initialJoints or the home), or every violation (`robot.name` unknown,
 /// `robot.model...`, `robot.base.orientation`, `robot.initialJoints` size or limits,
-/// `robot.branchTolerance`); the field is `robot` in every request that has one.
-core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog);
+/// `robot.branchTolerance`, `robot.urdf`, `robot.jointLimits[k]...`); the field is `robot` in
+/// every request that has one. `motion`: false for the kinematics calls, which read no
+/// acceleration limit (a URDF without them is accepted there).
+core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog,
+                                                  bool motion = true);
 
 /// PlanTrajectory's joint-space report.
 void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out);

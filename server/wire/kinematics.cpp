@@ -16,10 +16,11 @@ namespace {
 std::shared_ptr<const planner::Robot> robot_of(bool has_robot, const v1::RobotSpec& spec, const RobotCatalog& catalog,
                                                core::Violations& out) {
   if (!has_robot) {
-    out.push_back({"robot", "is required: `name` of a built-in model (see ListRobots) or an inline `model`"});
+    out.push_back({"robot", "is required: `name` of a built-in model (see ListRobots), an inline `model` or a `urdf` "
+                            "document"});
     return nullptr;
   }
-  auto robot = robot_from_request(spec, catalog);
+  auto robot = robot_from_request(spec, catalog, /*motion=*/false);
   if (!robot) {
     out.insert(out.end(), robot.error().begin(), robot.error().end());
     return nullptr;

@@ -103,8 +103,19 @@ TEST(Cli, RobotsListsTheBuiltInModels) {
   const CliRun json = run_cli("--json robots");
   ASSERT_EQ(json.exit_code, 0) << json.out;
   const auto robots = from_json<v1::ListRobotsResponse>(json.out);
-  ASSERT_EQ(robots.robots_size(), 2);
+  ASSERT_EQ(robots.robots_size(), 5);
   EXPECT_EQ(robots.robots(0).links_size() + robots.robots(1).links_size(), 13);
+  EXPECT_EQ(robots.robots(2).joints_size(), 7);  // the Panda, from its URDF
+  EXPECT_THAT(run.out, HasSubstr("panda  (7 joints, general chain)"));
+  EXPECT_THAT(run.out, HasSubstr("      3  panda_joint4      REVOLUTE      0.0825    0.0000    0.0000  1.571  0.000  0.000"));
+
+  // The URDF of a built-in arm, to start one's own from; a DH model has none.
+  const CliRun urdf = run_cli("robots --urdf ur5e");
+  ASSERT_EQ(urdf.exit_code, 0) << urdf.out;
+  EXPECT_THAT(urdf.out, HasSubstr("<robot name=\"ur5e\">"));
+  const CliRun none = run_cli("robots --urdf pa10", /*merge_stderr=*/true);
+  EXPECT_EQ(none.exit_code, 2);
+  EXPECT_THAT(none.out, HasSubstr("DH tables"));
 }
 
 // The fields of one CSV line.

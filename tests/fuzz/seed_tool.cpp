@@ -10,9 +10,17 @@
 //   OUT_DIR/seeds/fuzz_kinematics/         every example that is a Forward- or
 //                                          InverseKinematicsRequest, binary after its
 //                                          selector byte (0 forward, 1 inverse)
+//   OUT_DIR/seeds/fuzz_urdf/               the hand-written URDF documents as they are (the
+//                                          default options), and variants of each after a
+//                                          selector byte (fuzz_urdf.cpp): its first link as
+//                                          baseLink and its last as tipLink, a link in the
+//                                          middle as tipLink alone, accelerations not
+//                                          required, and jointLimits for its first joint
 //   OUT_DIR/<target>.dict                  for the JSON targets: every field name (JSON and
 //                                          proto spelling) and enum value of the messages,
-//                                          and the JSON tokens of proto3's special numbers
+//                                          and the JSON tokens of proto3's special numbers;
+//                                          for fuzz_http_head and fuzz_urdf, the words of
+//                                          their languages
 //
 // EXTRA_DIR/<target>/ holds hand-written seeds (tests/fuzz/corpus): added as they are to the
 // JSON targets; for the binary targets a *.json file is converted, any other file is copied.
@@ -95,6 +103,40 @@ void collect_tokens(const pb::Descriptor* descriptor, std::set<const pb::Descrip
   }
 }
 
+// A libFuzzer dictionary entry: `token` quoted, with '"', '\\' and bytes outside printable
+// ASCII escaped.
+std::string dictionary_entry(const std::string& token) {
+  std::string out = "\"";
+  for (const char c : token) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (u < 0x20 || u >= 0x7f) {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02X", u);
+      out += hex;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"\n";
+}
+
+// The names of a URDF document's <link name=".."> (or <joint name="..">, `tag` "joint")
+// elements, in document order (a plain scan, enough for the seeds: no XML parser here).
+std::vector<std::string> urdf_names(const std::string& text, const std::string& tag) {
+  std::vector<std::string> names;
+  const std::string open = "<" + tag + " name=\"";
+  for (std::size_t at = text.find(open); at != std::string::npos; at = text.find(open, at + 1)) {
+    const std::size_t begin = at + open.size();
+    const std::size_t end = text.find('"', begin);
+    if (end == std::string::npos) break;
+    names.push_back(text.substr(begin, end - begin));
+  }
+  return names;
+}
+
 void write_dictionary(const fs::path& file, const pb::Descriptor* root) {
   std::set<const pb::Descriptor*> seen;
   std::set<std::string> tokens{"\"NaN\"",  "\"Infinity\"", "\"-Infinity\"", "1e308", "-1e308", "4.9e-324", "1e-300",
@@ -124,7 +166,7 @@ int main(int argc, char** argv) {
   const fs::path examples = argv[2];
   const fs::path extra = argv[3];
   const fs::path seeds = out / "seeds";
-  int counts[6] = {0, 0, 0, 0, 0, 0};
+  int counts[7] = {0, 0, 0, 0, 0, 0, 0};
 
   // The documented example requests.
   for (const auto& file : files_in(examples, true)) {
@@ -208,10 +250,49 @@ int main(int argc, char** argv) {
     http_words += "\"" + std::string(word) + "\"\n";
   }
   write(out / "fuzz_http_head.dict", http_words);
+  // fuzz_urdf: the hand-written documents as they are, and with options after a selector
+  // byte (fuzz_urdf.cpp: bit 2 an options byte, bit 0 a baseLink, bit 1 a tipLink, each up
+  // to '\n'; options bit 0 accelerations not required, bits 1-2 how many jointLimits follow).
+  for (const auto& file : files_in(extra / "fuzz_urdf", false)) {
+    const std::string text = read(file);
+    const std::string stem = file.stem().string();
+    const auto variant = [&](const std::string& suffix, const std::string& prefix) {
+      write(seeds / "fuzz_urdf" / (stem + suffix + ".bin"), prefix + text);
+      counts[6]++;
+    };
+    write(seeds / "fuzz_urdf" / file.filename(), text);
+    counts[6]++;
+    variant("_kinematics", std::string("\4\1", 2));
+    const std::vector<std::string> joints = urdf_names(text, "joint");
+    if (!joints.empty()) variant("_joint_limits", std::string("\4\2", 2) + joints.front() + "\n\x08\x10\x20");
+    const std::vector<std::string> links = urdf_names(text, "link");
+    if (links.size() < 2) continue;
+    variant("_base_tip", std::string(1, '\3') + links.front() + "\n" + links.back() + "\n");
+    variant("_mid_tip", std::string(1, '\2') + links[links.size() / 2] + "\n");
+  }
+  // The words of URDF (the elements and attributes urdfdom reads), of the <geotraj> block
+  // (planner/robots.hpp), of XML, and numbers at the edges of what the reader accepts.
+  std::string urdf_words;
+  for (const char* word :
+       {"<?xml version=\"1.0\"?>", "<?xml version=\"1.0\" encoding=\"UTF-8\"?>", "<robot name=\"", "</robot>",
+        "<link name=\"", "</link>", "<joint name=\"", "</joint>", "\" type=\"", "revolute", "continuous", "prismatic",
+        "fixed", "floating", "planar", "<parent link=\"", "<child link=\"", "<origin xyz=\"", "\" rpy=\"",
+        "<origin rpy=\"", "<axis xyz=\"", "<limit lower=\"", "\" upper=\"", "\" effort=\"", "\" velocity=\"",
+        "<mimic joint=\"", "\" multiplier=\"", "\" offset=\"", "<dynamics damping=\"", "\" friction=\"",
+        "<calibration rising=\"", "<safety_controller soft_lower_limit=\"", "<inertial>", "<mass value=\"",
+        "<inertia ixx=\"", "<visual>", "<collision>", "<geometry>", "<box size=\"", "<material name=\"",
+        "<color rgba=\"", "<gazebo>", "<transmission name=\"", "<geotraj", "</geotraj>", " description=\"",
+        " base_link=\"", " tip_link=\"", "\" max_acceleration=\"", "\" max_jerk=\"", "\" home=\"", "\"/>", "/>", ">",
+        "<!--", "-->", "<![CDATA[", "]]>", "&amp;", "&lt;", "&quot;", "&#x41;", "&#65;", "1e308", "-1e308", "1e309",
+        "4.9e-324", "1e6", "1000001", "-1e6", "nan", "inf", "-inf", "0x1p3", "3.14159265358979", " 0 0 1",
+        "\n"}) {
+    urdf_words += dictionary_entry(word);
+  }
+  write(out / "fuzz_urdf.dict", urdf_words);
   write_dictionary(out / "fuzz_plan_request_json.dict", geotraj::v1::PlanRequest::descriptor());
   write_dictionary(out / "fuzz_robot_model_json.dict", geotraj::v1::RobotModel::descriptor());
   std::printf("fuzz_seed_tool: seeds: %d fuzz_plan_request, %d fuzz_plan_request_json, %d fuzz_convert, "
-              "%d fuzz_robot_model_json, %d fuzz_http_head, %d fuzz_kinematics\n",
-              counts[0], counts[1], counts[2], counts[3], counts[4], counts[5]);
+              "%d fuzz_robot_model_json, %d fuzz_http_head, %d fuzz_kinematics, %d fuzz_urdf\n",
+              counts[0], counts[1], counts[2], counts[3], counts[4], counts[5], counts[6]);
   return 0;
 }

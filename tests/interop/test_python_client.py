@@ -376,11 +376,17 @@ class PythonClient(unittest.TestCase):
 
     def test_list_robots(self):
         models = self.robot_models()
-        self.assertEqual(set(models), {"pa10", "ur5"})
-        for name, dof, convention in (("pa10", 7, pb.DH_CONVENTION_MODIFIED), ("ur5", 6, pb.DH_CONVENTION_STANDARD)):
+        self.assertEqual(set(models), {"pa10", "ur5", "panda", "iiwa14", "ur5e"})
+        for name, dof, convention in (("pa10", 7, pb.DH_CONVENTION_MODIFIED), ("ur5", 6, pb.DH_CONVENTION_STANDARD),
+                                      ("panda", 7, None), ("iiwa14", 7, None), ("ur5e", 6, None)):
             m = models[name]
-            self.assertEqual(m.dh_convention, convention)
-            self.assertEqual((len(m.links), len(m.limits), len(m.home)), (dof, dof, dof))
+            if convention is None:  # read from URDF: a general chain, joints by name and kind
+                self.assertEqual((len(m.links), len(m.joints)), (0, dof))
+                self.assertTrue(all(j.name and j.joint_type == pb.JOINT_TYPE_REVOLUTE for j in m.joints))
+            else:
+                self.assertEqual(m.dh_convention, convention)
+                self.assertEqual(len(m.links), dof)
+            self.assertEqual((len(m.limits), len(m.home)), (dof, dof))
             self.assertTrue(m.description)
             for lim, q in zip(m.limits, m.home):
                 self.assertLess(lim.min_position, lim.max_position)
@@ -437,7 +443,7 @@ class PythonClient(unittest.TestCase):
         import random
         rng = random.Random(20261203)
         models = self.robot_models()
-        for name in ("pa10", "ur5"):
+        for name in ("pa10", "ur5", "panda", "iiwa14", "ur5e"):
             m = models[name]
             for _ in range(20):
                 q = [rng.uniform(lim.min_position, lim.max_position) for lim in m.limits]
@@ -574,8 +580,29 @@ def pose_matrix(pose):
     return m
 
 
+def rot_axis(axis, angle):
+    # Rodrigues: R = I + sin(a) K + (1 - cos(a)) K^2, K the cross-product matrix of the unit axis.
+    n = math.sqrt(sum(c * c for c in axis))
+    x, y, z = (c / n for c in axis)
+    c, s, v = math.cos(angle), math.sin(angle), 1.0 - math.cos(angle)
+    return [[c + x * x * v, x * y * v - z * s, x * z * v + y * s, 0.0],
+            [y * x * v + z * s, c + y * y * v, y * z * v - x * s, 0.0],
+            [z * x * v - y * s, z * y * v + x * s, c + z * z * v, 0.0],
+            [0.0, 0.0, 0.0, 1.0]]
+
+
 def forward_kinematics(model, q):
     x = pose_matrix(model.base)
+    if model.joints:  # a general chain: base * origin_1 M_1(q_1) ... origin_n M_n(q_n) * flange * tool
+        for joint, qi in zip(model.joints, q):
+            axis = (joint.axis.x, joint.axis.y, joint.axis.z) if joint.HasField("axis") else (0.0, 0.0, 1.0)
+            x = matmul(x, pose_matrix(joint.origin))
+            if joint.joint_type == pb.JOINT_TYPE_PRISMATIC:
+                n = math.sqrt(sum(c * c for c in axis))
+                x = matmul(x, trans(*(qi * c / n for c in axis)))
+            else:
+                x = matmul(x, rot_axis(axis, qi))
+        return matmul(matmul(x, pose_matrix(model.flange)), pose_matrix(model.tool))
     for link, qi in zip(model.links, q):
         prismatic = link.joint_type == pb.JOINT_TYPE_PRISMATIC
         theta = link.theta + (0.0 if prismatic else link.offset + qi)

@@ -205,6 +205,14 @@ class Moves(unittest.TestCase):
         request.robot.model.CopyFrom(model)
         self.run_kind("path C, jerk-limited (PA-10, max jerk 4 a_max)", request, model, min_usage=0.9)
 
+    def test_path_c_on_a_urdf_arm(self):
+        # The Franka Panda, read from URDF (its jerk limits published): path C jerk-limited,
+        # after a joint approach from the home; every joint's velocity, acceleration and jerk
+        # by differences within the limits ListRobots states.
+        request = self.example("plan_panda_path_c.json")
+        request.optimize.timing.jerk_limited = True
+        self.run_kind("path C, jerk-limited (Panda, URDF)", request, self.models["panda"], min_usage=0.9)
+
     def test_sequences(self):
         self.run_kind("sequence (UR5)", self.example("sequence_ur5.json"), self.models["ur5"], min_usage=0.5)
         self.run_kind("blended sequence (UR5)", self.example("sequence_blended_ur5.json"), self.models["ur5"],

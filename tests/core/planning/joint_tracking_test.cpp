@@ -359,11 +359,16 @@ TEST(JointTracker, JumpShowsAsMidpointDeviation) {
   EXPECT_GT(s.midpoint_deviation, 1e-3);
   report.add(300, jump.t, s);
   const auto& r = report.report();
-  ASSERT_EQ(r.violations.size(), 1u);
-  EXPECT_EQ(r.violations[0].kind, LimitKind::kBranch);
-  EXPECT_EQ(r.violations[0].sample, 300u);
-  EXPECT_DOUBLE_EQ(r.violations[0].t, jump.t);
-  EXPECT_DOUBLE_EQ(r.violations[0].value, s.midpoint_deviation);
+  // The branch event, and the joint velocities' step as accelerations: all at the jump.
+  const auto branch = std::find_if(r.violations.begin(), r.violations.end(),
+                                   [](const core::LimitEvent& e) { return e.kind == LimitKind::kBranch; });
+  ASSERT_NE(branch, r.violations.end());
+  for (const auto& e : r.violations) {
+    EXPECT_EQ(e.sample, 300u);
+    EXPECT_TRUE(e.kind == LimitKind::kBranch || e.kind == LimitKind::kAcceleration);
+  }
+  EXPECT_DOUBLE_EQ(branch->t, jump.t);
+  EXPECT_DOUBLE_EQ(branch->value, s.midpoint_deviation);
   EXPECT_DOUBLE_EQ(r.max_midpoint_deviation, s.midpoint_deviation);
   EXPECT_DOUBLE_EQ(r.max_midpoint_deviation_t, jump.t);
 }
@@ -469,6 +474,49 @@ TEST(JointReport, FailedSampleRaisesIk) {
   EXPECT_DOUBLE_EQ(r.max_position_error, 0.02);
   EXPECT_EQ(r.samples, 3u);
   EXPECT_LT(r.joints[0].max_position, 1.0);
+}
+
+// A joint velocity that steps between samples (each sample's own q_ddot within the limit)
+// is an acceleration of the step over the sample time: reported; a change the limit allows
+// is not; nor is a step across a failed sample.
+TEST(JointReport, AVelocityStepBetweenSamplesIsAnAcceleration) {
+  const RobotModel& m = pa10();
+  const double a_max = m.limits[0].max_acceleration, dt = 0.001;
+  const auto sample = [&](double v0) {
+    JointSample s;
+    s.q = core::home_configuration(m);
+    s.q_dot = JointVector::Zero(7);
+    s.q_dot(0) = v0;
+    s.q_ddot = JointVector::Zero(7);
+    s.converged = true;
+    s.manipulability = 0.1;
+    return s;
+  };
+  core::JointReportBuilder smooth(m);
+  smooth.add(0, 0.0, sample(0.0));
+  smooth.add(1, dt, sample(0.999 * a_max * dt));  // within the limit over the step
+  EXPECT_TRUE(smooth.report().feasible());
+  EXPECT_DOUBLE_EQ(smooth.report().joints[0].peak_acceleration, 0.0);  // the samples' own q_ddot
+
+  core::JointReportBuilder step(m);
+  step.add(0, 0.0, sample(0.0));
+  step.add(1, dt, sample(0.3));  // 0.3 rad/s in 1 ms: 300 rad/s^2
+  const auto& r = step.report();
+  ASSERT_EQ(r.violations.size(), 1u);
+  EXPECT_EQ(r.violations[0].kind, LimitKind::kAcceleration);
+  EXPECT_EQ(r.violations[0].joint, 0u);
+  EXPECT_EQ(r.violations[0].sample, 1u);
+  EXPECT_NEAR(r.violations[0].value, 300.0, 1e-9);
+  EXPECT_NEAR(r.joints[0].peak_acceleration, 300.0, 1e-9);
+
+  core::JointReportBuilder gap(m);
+  gap.add(0, 0.0, sample(0.0));
+  JointSample failed = sample(0.0);
+  failed.converged = false;
+  failed.position_error = 1e-3;
+  gap.add(1, dt, failed);
+  gap.add(2, 2 * dt, sample(0.3));
+  for (const auto& v : gap.report().violations) EXPECT_NE(v.kind, LimitKind::kAcceleration);
 }
 
 TEST(JointTracker, NoHeapAllocationPerSample) {

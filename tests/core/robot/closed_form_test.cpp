@@ -34,8 +34,7 @@ JointVector joints(double a, double b) {
 // Planar 2R in the x-y plane, links l1, l2: standard DH rows (a = l_i, alpha = 0).
 RobotModel planar_2r_standard(double l1, double l2) {
   RobotModel m;
-  m.convention = DhConvention::kStandard;
-  m.links = {{l1, 0.0, 0.0, 0.0}, {l2, 0.0, 0.0, 0.0}};
+  core::set_dh(m, {DhConvention::kStandard, {{l1, 0.0, 0.0, 0.0}, {l2, 0.0, 0.0, 0.0}}});
   m.limits = {wide(), wide()};
   return m;
 }
@@ -44,8 +43,7 @@ RobotModel planar_2r_standard(double l1, double l2) {
 // second link's length is the tool's offset along x.
 RobotModel planar_2r_modified(double l1, double l2) {
   RobotModel m;
-  m.convention = DhConvention::kModified;
-  m.links = {{0.0, 0.0, 0.0, 0.0}, {l1, 0.0, 0.0, 0.0}};
+  core::set_dh(m, {DhConvention::kModified, {{0.0, 0.0, 0.0, 0.0}, {l1, 0.0, 0.0, 0.0}}});
   m.limits = {wide(), wide()};
   m.tool.translation() = Vector3d(l2, 0.0, 0.0);
   return m;
@@ -88,10 +86,9 @@ TEST(KinematicsClosedForm, Planar2RModifiedDh) { check_planar_2r(planar_2r_modif
 TEST(KinematicsClosedForm, PolarArmWithAPrismaticJoint) {
   const double r0 = 0.3, o = 0.05;
   RobotModel m;
-  m.convention = DhConvention::kStandard;
   core::DhLink rev{0.0, std::numbers::pi / 2, 0.0, 0.0};
   core::DhLink pri{0.0, 0.0, r0, 0.0, JointType::kPrismatic, o};
-  m.links = {rev, pri};
+  core::set_dh(m, {DhConvention::kStandard, {rev, pri}});
   m.limits = {wide(), wide()};
   ASSERT_TRUE(core::validate_robot(m).empty());
   for (const auto& [q1, q2, w1, w2] : {std::array<double, 4>{0.4, 0.2, 1.3, -0.6}, {-2.2, -0.1, -0.5, 0.9}}) {

@@ -146,7 +146,9 @@ TEST(SolveIk, RestartsAreDeterministic) {
 // converged" at the seed (no iteration), not a crash; the tracker says the same.
 TEST(SolveIk, FewerThanSixJointsIsNotConverged) {
   RobotModel m = pa10();
-  m.links.resize(5);
+  core::DhTable t = *m.dh;
+  t.links.resize(5);
+  core::set_dh(m, std::move(t));
   m.limits.resize(5);
   m.home.resize(5);
   ASSERT_TRUE(core::validate_robot(m).empty());

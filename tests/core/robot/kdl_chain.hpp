@@ -1,7 +1,8 @@
 // A RobotModel (core/robot/robot.hpp) as an Orocos KDL chain, the independent implementation the
-// kinematics tests compare with. Test code only: geotraj_core never links KDL.
+// kinematics tests compare with. Test code only: geotraj_core never links KDL. A model written
+// as a DH table is built from the table with KDL's DH frames; a general chain joint by joint.
 //
-// KDL puts a segment's joint at the segment's START: pose(q) = joint(q) * f_tip. The chain:
+// DH: KDL puts a segment's joint at the segment's START: pose(q) = joint(q) * f_tip. The chain:
 //   standard DH:  [fixed: base] [joint 1: DH(link 1)] ... [joint n: DH(link n)] [fixed: tool]
 //     RotZ(q_i) (or TransZ(q_i)) then RotZ(theta_i) TransZ(d_i) TransX(a_i) RotX(alpha_i);
 //   modified DH:  [fixed: base] [fixed: DH_Craig1989(link 1)] [joint 1: DH_Craig1989(link 2)]
@@ -51,32 +52,54 @@ inline KDL::JntArray to_kdl(const core::JointVector& q) {
   return out;
 }
 
-inline KDL::Chain to_kdl_chain(const core::RobotModel& m) {
-  const bool modified = m.convention == core::DhConvention::kModified;
+// A DH model from its table, with KDL's own DH frames (independent of core::set_dh).
+inline KDL::Chain dh_to_kdl_chain(const core::RobotModel& m) {
+  const core::DhTable& table = *m.dh;
+  const bool modified = table.convention == core::DhConvention::kModified;
   // The link's transform at q = 0, offset included.
   const auto link_frame = [&](const core::DhLink& l) {
-    const bool revolute = l.type == core::JointType::kRevolute;
+    const bool revolute = l.type != core::JointType::kPrismatic;
     const double theta = l.theta + (revolute ? l.offset : 0.0), d = l.d + (revolute ? 0.0 : l.offset);
     return modified ? KDL::Frame::DH_Craig1989(l.a, l.alpha, d, theta) : KDL::Frame::DH(l.a, l.alpha, d, theta);
   };
   const auto joint = [](const core::DhLink& l) {
-    return KDL::Joint(l.type == core::JointType::kRevolute ? KDL::Joint::RotZ : KDL::Joint::TransZ);
+    return KDL::Joint(l.type != core::JointType::kPrismatic ? KDL::Joint::RotZ : KDL::Joint::TransZ);
   };
   KDL::Chain chain;
   chain.addSegment(KDL::Segment("base", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.base)));
-  const std::size_t n = m.links.size();
+  const std::size_t n = table.links.size();
   if (modified) {
-    chain.addSegment(KDL::Segment("link1", KDL::Joint(KDL::Joint::Fixed), link_frame(m.links[0])));
+    chain.addSegment(KDL::Segment("link1", KDL::Joint(KDL::Joint::Fixed), link_frame(table.links[0])));
     for (std::size_t i = 0; i < n; ++i) {
-      const KDL::Frame next = i + 1 < n ? link_frame(m.links[i + 1]) : KDL::Frame::Identity();
-      chain.addSegment(KDL::Segment("joint" + std::to_string(i + 1), joint(m.links[i]), next));
+      const KDL::Frame next = i + 1 < n ? link_frame(table.links[i + 1]) : KDL::Frame::Identity();
+      chain.addSegment(KDL::Segment("joint" + std::to_string(i + 1), joint(table.links[i]), next));
     }
   } else {
     for (std::size_t i = 0; i < n; ++i)
-      chain.addSegment(KDL::Segment("joint" + std::to_string(i + 1), joint(m.links[i]), link_frame(m.links[i])));
+      chain.addSegment(KDL::Segment("joint" + std::to_string(i + 1), joint(table.links[i]), link_frame(table.links[i])));
   }
   chain.addSegment(KDL::Segment("tool", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.tool)));
   return chain;
 }
+
+// A general chain as KDL builds one from URDF: per joint a fixed segment to the joint's
+// frame, then a segment whose joint turns about (slides along) the axis through its origin;
+// the flange and the tool as fixed segments.
+inline KDL::Chain general_to_kdl_chain(const core::RobotModel& m) {
+  KDL::Chain chain;
+  chain.addSegment(KDL::Segment("base", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.base)));
+  for (std::size_t i = 0; i < m.joints.size(); ++i) {
+    const core::Joint& j = m.joints[i];
+    chain.addSegment(KDL::Segment("origin" + std::to_string(i), KDL::Joint(KDL::Joint::Fixed), to_kdl(j.origin)));
+    const KDL::Joint moving("joint" + std::to_string(i), KDL::Vector::Zero(), KDL::Vector(j.axis.x(), j.axis.y(), j.axis.z()),
+                            j.type == core::JointType::kPrismatic ? KDL::Joint::TransAxis : KDL::Joint::RotAxis);
+    chain.addSegment(KDL::Segment("link" + std::to_string(i), moving, KDL::Frame::Identity()));
+  }
+  chain.addSegment(KDL::Segment("flange", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.flange)));
+  chain.addSegment(KDL::Segment("tool", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.tool)));
+  return chain;
+}
+
+inline KDL::Chain to_kdl_chain(const core::RobotModel& m) { return m.dh ? dh_to_kdl_chain(m) : general_to_kdl_chain(m); }
 
 }  // namespace geotraj::test

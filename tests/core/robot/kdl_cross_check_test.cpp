@@ -122,8 +122,8 @@ TEST(KdlCrossCheck, RandomRobotsAtRandomConfigurations) {
   for (int k = 0; k < cases; ++k) {
     RobotModel m = random_robot(rng);
     ASSERT_TRUE(core::validate_robot(m).empty());
-    modified += m.convention == core::DhConvention::kModified;
-    for (const auto& l : m.links) prismatic += l.type == core::JointType::kPrismatic;
+    modified += m.dh->convention == core::DhConvention::kModified;
+    for (const auto& l : m.dh->links) prismatic += l.type == core::JointType::kPrismatic;
     check_against_kdl(m, random_joints(m, rng), random_rates(m, rng));
     if (HasFailure()) break;  // one replayable case is enough
   }
@@ -133,6 +133,47 @@ TEST(KdlCrossCheck, RandomRobotsAtRandomConfigurations) {
   EXPECT_LT(modified, cases);
 }
 
+// General chains (URDF-like: rotated origins, arbitrary unit axes, continuous and prismatic
+// joints, a flange) against KDL built joint by joint.
+TEST(KdlCrossCheck, RandomGeneralChainsAtRandomConfigurations) {
+  std::mt19937_64 rng(kPropertySeed + 4);
+  const int cases = property_case_count(500);
+  int prismatic = 0, continuous = 0, oblique = 0;
+  for (int k = 0; k < cases; ++k) {
+    RobotModel m = random_general_robot(rng);
+    ASSERT_TRUE(core::validate_robot(m).empty());
+    for (const auto& j : m.joints) {
+      prismatic += j.type == core::JointType::kPrismatic;
+      continuous += j.type == core::JointType::kContinuous;
+      oblique += j.axis.cwiseAbs().maxCoeff() < 0.99;
+    }
+    check_against_kdl(m, random_joints(m, rng), random_rates(m, rng));
+    if (HasFailure()) break;
+  }
+  EXPECT_GT(prismatic, 0);
+  EXPECT_GT(continuous, 0);
+  EXPECT_GT(oblique, 0);
+}
+
+// A DH model and the same chain with its table dropped (the general form core::set_dh wrote)
+// are one arm: the DH table reaches KDL through KDL's own DH frames, the general chain
+// through its joints.
+TEST(KdlCrossCheck, DhTablesWrittenAsGeneralChainsAgreeWithKdlsDhFrames) {
+  std::mt19937_64 rng(kPropertySeed + 5);
+  for (int k = 0; k < property_case_count(200); ++k) {
+    RobotModel m = random_robot(rng);
+    const JointVector q = random_joints(m, rng), q_dot = random_rates(m, rng);
+    RobotModel general = m;
+    general.dh.reset();
+    SCOPED_TRACE(describe_robot(m, q, q_dot));
+    const KdlResult dh = kdl_kinematics(m, q, q_dot);
+    const KdlResult joints = kdl_kinematics(general, q, q_dot);
+    EXPECT_TRUE(Close(joints.X_WT.matrix(), dh.X_WT.matrix()));
+    check_against_kdl(general, q, q_dot);
+    if (HasFailure()) break;
+  }
+}
+
 TEST(KdlCrossCheck, InfluenceCoefficientsMatchCentralDifferencesOfTheJacobian) {
   // H[j] against (J(q + h e_j) - J(q - h e_j)) / 2h with h = 1e-6: truncation h^2 |J'''| / 6
   // ~ 1e-12 and rounding ~ 1e-16 / h = 1e-10 on links of ~1 m, so 1e-8 relative.
@@ -140,6 +181,7 @@ TEST(KdlCrossCheck, InfluenceCoefficientsMatchCentralDifferencesOfTheJacobian) {
   constexpr double h = 1e-6;
   std::vector<RobotModel> models(core::builtin_robots().begin(), core::builtin_robots().end());
   for (int k = 0; k < 100; ++k) models.push_back(random_robot(rng));
+  for (int k = 0; k < 100; ++k) models.push_back(random_general_robot(rng));
   for (const auto& m : models) {
     const JointVector q = random_joints(m, rng);
     SCOPED_TRACE(describe_robot(m, q, q));
@@ -164,8 +206,8 @@ TEST(KdlCrossCheck, JacobianMatchesCentralDifferencesOfTheToolPose) {
   // v = dp/dq_j and omega from dR/dq_j R^T (its axial vector).
   std::mt19937_64 rng(kPropertySeed + 3);
   constexpr double h = 1e-6;
-  for (int k = 0; k < 100; ++k) {
-    const RobotModel m = random_robot(rng);
+  for (int k = 0; k < 200; ++k) {
+    const RobotModel m = k % 2 ? random_general_robot(rng) : random_robot(rng);
     const JointVector q = random_joints(m, rng);
     SCOPED_TRACE(describe_robot(m, q, q));
     Eigen::Isometry3d X;

@@ -17,6 +17,21 @@ using core::Violations;
 
 RobotModel valid_model() { return *core::find_builtin_robot("ur5"); }
 
+// The model with its DH table edited and the chain written again from it.
+template <class Edit>
+void edit_dh(RobotModel& m, Edit edit) {
+  core::DhTable t = *m.dh;
+  edit(t);
+  core::set_dh(m, std::move(t));
+}
+
+// The UR5 as a general chain (no DH table kept): what a URDF or `joints` model is.
+RobotModel general_model() {
+  RobotModel m = valid_model();
+  m.dh.reset();
+  return m;
+}
+
 bool names(const Violations& v, const std::string& field) {
   return std::any_of(v.begin(), v.end(), [&](const auto& x) { return x.field == field; });
 }
@@ -70,20 +85,25 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 INSTANTIATE_TEST_SUITE_P(
     Robot, RobotValidation,
     ::testing::Values(
-        BadCase{"NoLinks", "links", [](RobotModel& m) { m.links.clear(); m.limits.clear(); m.home.clear(); }},
+        BadCase{"NoLinks", "links",
+                [](RobotModel& m) {
+                  edit_dh(m, [](core::DhTable& table) { table.links.clear(); });
+                  m.limits.clear();
+                  m.home.clear();
+                }},
         BadCase{"TooManyJoints", "links",
                 [](RobotModel& m) {
-                  m.links.resize(core::kMaxJoints + 1);
+                  edit_dh(m, [](core::DhTable& table) { table.links.resize(core::kMaxJoints + 1); });
                   m.limits.resize(core::kMaxJoints + 1, m.limits.front());
                   m.home.clear();
                 }},
         BadCase{"FewerLimitsThanLinks", "limits", [](RobotModel& m) { m.limits.pop_back(); }},
         BadCase{"MoreLimitsThanLinks", "limits", [](RobotModel& m) { m.limits.push_back(m.limits.front()); }},
-        BadCase{"NaNLinkLength", "links[1].a", [](RobotModel& m) { m.links[1].a = kNaN; }},
-        BadCase{"NaNTwist", "links[3].alpha", [](RobotModel& m) { m.links[3].alpha = kNaN; }},
-        BadCase{"InfiniteOffsetD", "links[0].d", [](RobotModel& m) { m.links[0].d = kInf; }},
-        BadCase{"NaNTheta", "links[5].theta", [](RobotModel& m) { m.links[5].theta = kNaN; }},
-        BadCase{"NaNOffset", "links[2].offset", [](RobotModel& m) { m.links[2].offset = kNaN; }},
+        BadCase{"NaNLinkLength", "links[1].a", [](RobotModel& m) { edit_dh(m, [](core::DhTable& table) { table.links[1].a = kNaN; }); }},
+        BadCase{"NaNTwist", "links[3].alpha", [](RobotModel& m) { edit_dh(m, [](core::DhTable& table) { table.links[3].alpha = kNaN; }); }},
+        BadCase{"InfiniteOffsetD", "links[0].d", [](RobotModel& m) { edit_dh(m, [](core::DhTable& table) { table.links[0].d = kInf; }); }},
+        BadCase{"NaNTheta", "links[5].theta", [](RobotModel& m) { edit_dh(m, [](core::DhTable& table) { table.links[5].theta = kNaN; }); }},
+        BadCase{"NaNOffset", "links[2].offset", [](RobotModel& m) { edit_dh(m, [](core::DhTable& table) { table.links[2].offset = kNaN; }); }},
         BadCase{"MinAboveMax", "limits[2].minPosition",
                 [](RobotModel& m) {
                   m.limits[2].min_position = 1.0;
@@ -102,12 +122,54 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"HomeWrongSize", "home", [](RobotModel& m) { m.home.pop_back(); }},
         BadCase{"BaseNotARotation", "base.orientation", [](RobotModel& m) { m.base.linear()(0, 0) = 2.0; }},
         BadCase{"ToolMirrored", "tool.orientation", [](RobotModel& m) { m.tool.linear()(2, 2) = -1.0; }},
-        BadCase{"ToolNotFinite", "tool", [](RobotModel& m) { m.tool.translation().x() = kNaN; }}),
+        BadCase{"ToolNotFinite", "tool", [](RobotModel& m) { m.tool.translation().x() = kNaN; }},
+        BadCase{"NoJoints", "joints",
+                [](RobotModel& m) {
+                  m = general_model();
+                  m.joints.clear();
+                  m.limits.clear();
+                  m.home.clear();
+                }},
+        BadCase{"ZeroAxis", "joints[2].axis",
+                [](RobotModel& m) {
+                  m = general_model();
+                  m.joints[2].axis.setZero();
+                }},
+        BadCase{"AxisNotUnit", "joints[0].axis",
+                [](RobotModel& m) {
+                  m = general_model();
+                  m.joints[0].axis = Eigen::Vector3d(0.0, 0.0, 2.0);
+                }},
+        BadCase{"OriginNaN", "joints[3].origin",
+                [](RobotModel& m) {
+                  m = general_model();
+                  m.joints[3].origin.translation().y() = kNaN;
+                }},
+        BadCase{"OriginMirrored", "joints[1].origin.orientation",
+                [](RobotModel& m) {
+                  m = general_model();
+                  m.joints[1].origin.linear()(0, 0) = -m.joints[1].origin.linear()(0, 0);
+                }},
+        BadCase{"OriginFar", "joints[4].origin.position",
+                [](RobotModel& m) {
+                  m = general_model();
+                  m.joints[4].origin.translation().x() = 2e6;
+                }},
+        BadCase{"FlangeNotFinite", "flange",
+                [](RobotModel& m) {
+                  m = general_model();
+                  m.flange.translation().z() = kInf;
+                }},
+        BadCase{"JointNameTooLong", "joints[5].name",
+                [](RobotModel& m) {
+                  m = general_model();
+                  m.joints[5].name.assign(65, 'j');
+                }}),
     [](const ::testing::TestParamInfo<BadCase>& p) { return std::string(p.param.name); });
 
 TEST(Robot, EveryProblemIsReportedAtOnce) {
   RobotModel m = valid_model();
-  m.links[1].alpha = kNaN;
+  edit_dh(m, [](core::DhTable& table) { table.links[1].alpha = kNaN; });
   m.limits[2].max_velocity = 0.0;
   m.home[3] = 100.0;
   const Violations v = core::validate_robot(m);
@@ -115,6 +177,21 @@ TEST(Robot, EveryProblemIsReportedAtOnce) {
   EXPECT_TRUE(names(v, "limits[2].maxVelocity")) << listed(v);
   EXPECT_TRUE(names(v, "home[3]")) << listed(v);
   EXPECT_EQ(v.size(), 3u) << listed(v);
+}
+
+// A continuous joint's position limits are not read: any finite value is within them, NaN
+// limits are not an error, and a home far outside [min, max] is fine.
+TEST(Robot, ContinuousJointsHaveNoPositionLimits) {
+  RobotModel m = general_model();
+  m.joints[5].type = core::JointType::kContinuous;
+  m.limits[5].min_position = kNaN;
+  m.limits[5].max_position = kNaN;
+  m.home[5] = 40.0;
+  EXPECT_TRUE(core::validate_robot(m).empty()) << listed(core::validate_robot(m));
+  EXPECT_TRUE(core::within_position_limits(core::JointType::kContinuous, m.limits[5], -1e5));
+  EXPECT_FALSE(core::within_position_limits(core::JointType::kRevolute, m.limits[4], 100.0));
+  m.home[5] = kInf;
+  EXPECT_TRUE(names(core::validate_robot(m), "home[5]"));
 }
 
 TEST(Robot, DescriptionsNameTheValue) {

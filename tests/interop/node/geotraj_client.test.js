@@ -178,10 +178,13 @@ describe('geotrajd from @grpc/grpc-js', () => {
   it('lists the built-in robots', async () => {
     const resp = await unary(client, 'ListRobots', {});
     const byName = Object.fromEntries(resp.robots.map((m) => [m.name, m]));
-    assert.deepEqual(Object.keys(byName).sort(), ['pa10', 'ur5']);
-    for (const [name, dof] of [['pa10', 7], ['ur5', 6]]) {
+    assert.deepEqual(Object.keys(byName).sort(), ['iiwa14', 'pa10', 'panda', 'ur5', 'ur5e']);
+    for (const [name, dof] of [['pa10', 7], ['ur5', 6], ['panda', 7], ['iiwa14', 7], ['ur5e', 6]]) {
       const m = byName[name];
-      assert.deepEqual([m.links.length, m.limits.length, m.home.length], [dof, dof, dof], name);
+      // DH tables as links, URDF arms as joints (names and kinds).
+      const chain = m.links.length > 0 ? m.links : m.joints;
+      assert.deepEqual([chain.length, m.limits.length, m.home.length], [dof, dof, dof], name);
+      if (m.joints.length > 0) chain.forEach((j) => assert.ok(j.name.length > 0, `${name} joint without a name`));
       assert.ok(m.description.length > 0, `${name} has no description`);
       m.limits.forEach((lim, j) => {
         assert.ok(lim.minPosition < lim.maxPosition, `${name} joint ${j}`);

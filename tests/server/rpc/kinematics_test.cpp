@@ -73,7 +73,7 @@ v1::RobotModel with_base_and_tool(v1::RobotModel m) {
   return m;
 }
 
-TEST_F(KinematicsTest, ForwardKinematicsMatchesAnIndependentDhChain) {
+TEST_F(KinematicsTest, ForwardKinematicsMatchesAnIndependentSerialChain) {
   std::mt19937_64 rng(20261203);
   for (const char* name : {"pa10", "ur5"}) {
     SCOPED_TRACE(name);

@@ -23,6 +23,7 @@
 #include <Eigen/Geometry>
 #include <gmock/gmock.h>
 
+#include "planner/robots.hpp"
 #include "tests/server/support/daemon.hpp"
 #include "tests/server/support/dh_reference.hpp"
 #include "tests/server/support/test_server.hpp"
@@ -82,7 +83,7 @@ TEST_F(RobotTest, ListRobotsReturnsTheBuiltInModelsInFull) {
   const auto robots = list_robots();
   std::set<std::string> names;
   for (const auto& m : robots.robots()) names.insert(m.name());
-  EXPECT_EQ(names, (std::set<std::string>{"pa10", "ur5"}));
+  EXPECT_EQ(names, (std::set<std::string>{"pa10", "ur5", "panda", "iiwa14", "ur5e"}));
 
   struct Expected {
     std::string name;
@@ -124,6 +125,88 @@ TEST_F(RobotTest, ListRobotsReturnsTheBuiltInModelsInFull) {
   const auto pa10 = robot_model("pa10");
   const Eigen::Vector3d p_home = forward_kinematics(pa10, pa10.home()).translation();
   EXPECT_LT((p_home - Eigen::Vector3d(0.106, 0.0, 0.975)).norm(), 1e-6) << p_home.transpose();
+}
+
+// The arms written as URDF are listed as general chains: joints by name and kind, origins,
+// axes, the flange; the served pose is the one the listing describes (an independent product
+// of the listed transforms), and the listing given back inline is the same arm.
+TEST_F(RobotTest, ListRobotsDescribesUrdfArmsAsGeneralChains) {
+  const std::pair<const char*, std::vector<std::string>> expected[] = {
+      {"panda", {"panda_joint1", "panda_joint2", "panda_joint3", "panda_joint4", "panda_joint5", "panda_joint6", "panda_joint7"}},
+      {"iiwa14", {"joint_a1", "joint_a2", "joint_a3", "joint_a4", "joint_a5", "joint_a6", "joint_a7"}},
+      {"ur5e", {"shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"}}};
+  for (const auto& [name, joint_names] : expected) {
+    SCOPED_TRACE(name);
+    const auto m = robot_model(name);
+    EXPECT_EQ(m.links_size(), 0);
+    ASSERT_EQ(m.joints_size(), static_cast<int>(joint_names.size()));
+    ASSERT_EQ(m.limits_size(), m.joints_size());
+    EXPECT_TRUE(m.has_flange());
+    for (int i = 0; i < m.joints_size(); ++i) {
+      EXPECT_EQ(m.joints(i).name(), joint_names[static_cast<std::size_t>(i)]);
+      EXPECT_EQ(m.joints(i).joint_type(), v1::JOINT_TYPE_REVOLUTE);
+      EXPECT_NEAR(vec(m.joints(i).axis()).norm(), 1.0, 1e-12);
+    }
+    // Forward kinematics served for the name, for the listing given inline, and computed here.
+    std::vector<double> q(m.home().begin(), m.home().end());
+    q[0] += 0.3;
+    q[2] -= 0.2;
+    v1::ForwardKinematicsRequest by_name, inline_model;
+    by_name.mutable_robot()->set_name(name);
+    *inline_model.mutable_robot()->mutable_model() = m;
+    for (double x : q) {
+      by_name.add_joints(x);
+      inline_model.add_joints(x);
+    }
+    v1::ForwardKinematicsResponse a, b;
+    ASSERT_TRUE(stub_->ComputeForwardKinematics(context().get(), by_name, &a).ok());
+    const auto status = stub_->ComputeForwardKinematics(context().get(), inline_model, &b);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    const Eigen::Isometry3d X = forward_kinematics(m, q);
+    EXPECT_LT((vec(a.pose().position()) - X.translation()).norm(), 1e-12);
+    EXPECT_LT(quat(a.pose().orientation()).angularDistance(Eigen::Quaterniond(X.linear())), 1e-12);
+    EXPECT_LT((vec(b.pose().position()) - X.translation()).norm(), 1e-12);
+  }
+}
+
+// robot.urdf: the document inline, checked like any field: INVALID_ARGUMENT naming
+// robot.urdf with the element and line, robot.tipLink with the leaves to choose from.
+TEST_F(RobotTest, InlineUrdfIsCheckedAndNamed) {
+  v1::ForwardKinematicsRequest request;
+  request.mutable_robot()->set_urdf("<robot name=\"r\">\n  <link name=\"a\"/>\n  <link name=\"b\">\n</robot>");
+  request.add_joints(0.0);
+  v1::ForwardKinematicsResponse response;
+  auto status = stub_->ComputeForwardKinematics(context().get(), request, &response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  auto violations = bad_request_violations(status);
+  EXPECT_THAT(violation_of(violations, "robot.urdf"), HasSubstr("line")) << describe(violations);
+
+  const std::string two_leaves = R"(<robot name="forked">
+  <link name="base"/><link name="left"/><link name="right"/>
+  <joint name="jl" type="revolute"><parent link="base"/><child link="left"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="jr" type="revolute"><parent link="base"/><child link="right"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <geotraj><joint name="jl" max_acceleration="2"/><joint name="jr" max_acceleration="2"/></geotraj>
+</robot>)";
+  request.mutable_robot()->set_urdf(two_leaves);
+  status = stub_->ComputeForwardKinematics(context().get(), request, &response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  violations = bad_request_violations(status);
+  EXPECT_THAT(violation_of(violations, "robot.tipLink"), HasSubstr("'left', 'right'")) << describe(violations);
+  // Named, the chain is one joint about x (URDF's default axis).
+  request.mutable_robot()->set_tip_link("right");
+  request.set_joints(0, 0.5);
+  status = stub_->ComputeForwardKinematics(context().get(), request, &response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_NEAR(quat(response.pose().orientation()).angularDistance(
+                  Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitX()))), 0.0, 1e-12);
+  // Base and tip links belong to a URDF only.
+  v1::ForwardKinematicsRequest named;
+  named.mutable_robot()->set_name("ur5");
+  named.mutable_robot()->set_tip_link("tool0");
+  for (int i = 0; i < 6; ++i) named.add_joints(0.0);
+  status = stub_->ComputeForwardKinematics(context().get(), named, &response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(violation_of(bad_request_violations(status), "robot.tipLink"), HasSubstr("urdf"));
 }
 
 // ---------------------------------------------------------------------------------------
@@ -888,6 +971,65 @@ TEST_F(RobotTest, FastestLinearMoveWithinTheJointLimits) {
   EXPECT_THAT(violation_of(violations, "optimize.tangentScales"), HasSubstr("straight")) << describe(violations);
 }
 
+// The thesis's path C on the Franka Panda (plan_panda_path_c.json: a URDF arm, the tool
+// pointing down, time-optimal at 1 kHz after a joint approach from home), streamed: every
+// joint within its position limits, and its velocity, acceleration and jerk by finite
+// differences of the streamed joints within the Panda's limits; the same arm given inline as
+// its URDF text streams the same samples.
+TEST_F(RobotTest, PathCOnThePandaWithinItsLimits) {
+  const auto panda = robot_model("panda");
+  auto request = example<v1::PlanRequest>("plan_panda_path_c.json");
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_GT(samples.size(), 1000u);
+  const double dt = 1.0 / request.motion().cycle_rate_hz();
+  double usage = 0.0;
+  for (std::size_t k = 0; k < samples.size(); ++k) {
+    for (int j = 0; j < 7; ++j) {  // position; velocity and acceleration by (non-uniform) differences
+      const auto& l = panda.limits(j);
+      ASSERT_GE(samples[k].joints(j), l.min_position() - 1e-9) << "joint " << j << " t " << samples[k].t();
+      ASSERT_LE(samples[k].joints(j), l.max_position() + 1e-9) << "joint " << j << " t " << samples[k].t();
+      if (k == 0) continue;
+      // One step is shorter: the approach ends between two ticks, where the arm rests.
+      const double h1 = samples[k].t() - samples[k - 1].t();
+      ASSERT_LE(h1, dt + 1e-9);
+      const double v = (samples[k].joints(j) - samples[k - 1].joints(j)) / h1;
+      usage = std::max(usage, std::abs(v) / l.max_velocity());
+      ASSERT_LE(std::abs(v), l.max_velocity() * (1 + 1e-3)) << "joint " << j << " t " << samples[k].t();
+      if (k + 1 < samples.size()) {
+        const double h2 = samples[k + 1].t() - samples[k].t();
+        const double a = 2.0 * ((samples[k + 1].joints(j) - samples[k].joints(j)) / h2 - v) / (h1 + h2);
+        usage = std::max(usage, std::abs(a) / l.max_acceleration());
+        ASSERT_LE(std::abs(a), l.max_acceleration() * (1 + 2e-2)) << "joint " << j << " t " << samples[k].t();
+      }
+    }
+  }
+  EXPECT_GT(usage, 0.98) << "time-optimal: a limit binds";
+  // The inline URDF is the same arm.
+  auto inline_request = request;
+  inline_request.mutable_robot()->set_urdf(std::string(planner::builtin_urdf("panda")));
+  inline_request.mutable_robot()->set_tip_link("panda_link8");
+  const auto same = stream_all(inline_request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_EQ(same.size(), samples.size());
+  for (std::size_t k = 0; k < samples.size(); k += 97) {
+    for (int j = 0; j < 7; ++j) EXPECT_EQ(same[k].joints(j), samples[k].joints(j));
+  }
+  std::printf("[ measured ] path C on the Panda: %.4f s in all (joint approach, then the path), %zu samples at 1 kHz\n",
+              samples.back().t(), samples.size());
+
+  // Without the ease, the turn of the first segment ends at frame 1 with the tool still
+  // turning at 1.3 rad/s and then holds: the joint velocities step there. The plan says so
+  // (an acceleration between samples far above the limit) instead of streaming it.
+  auto stepping = request;
+  stepping.mutable_path()->mutable_frames(0)->set_ease_orientation(false);
+  v1::PlanResponse response;
+  const auto refused_status = plan(stepping, response);
+  ASSERT_EQ(refused_status.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << refused_status.error_message();
+  EXPECT_THAT(refused_status.error_message(), HasSubstr("acceleration"));
+}
+
 // Tool angular limits (motion.maxAngularSpeed, maxAngularAcceleration): the UR5's line of
 // linear_move_ur5.json (a 90 degree turn over 0.27 m) as fast as the joints and 1 rad/s,
 // 2 rad/s^2 allow, streamed at 1 kHz: |omega| within 1 rad/s, |alpha| by differences of the
@@ -1012,7 +1154,7 @@ TEST_F(RobotTest, GeotrajdServesARobotModelFile) {
     names.push_back(m.name());
     if (m.name() == "my-arm") served = &m;
   }
-  EXPECT_THAT(names, ::testing::UnorderedElementsAre("pa10", "ur5", "my-arm"));
+  EXPECT_THAT(names, ::testing::UnorderedElementsAre("pa10", "ur5", "panda", "iiwa14", "ur5e", "my-arm"));
   ASSERT_NE(served, nullptr);
   EXPECT_EQ(served->links_size(), 7);
   EXPECT_EQ(served->description(), "the PA-10 under another name");
@@ -1032,6 +1174,135 @@ TEST_F(RobotTest, GeotrajdServesARobotModelFile) {
 
   daemon.signal(SIGTERM);
   EXPECT_EQ(daemon.wait(), 0);
+}
+
+// `--robot-model arm.urdf`: a URDF document served by its robot name, its <geotraj> block
+// read; a bad one refused at start-up with the file and the line.
+TEST_F(RobotTest, GeotrajdServesAUrdfFile) {
+  v1::ListRobotsResponse builtin;
+  ASSERT_TRUE(stub_->ListRobots(context().get(), v1::ListRobotsRequest{}, &builtin).ok());
+  std::string text = R"(<?xml version="1.0"?>
+<robot name="two-link">
+  <link name="base"/><link name="upper"/><link name="lower"/><link name="flange"/>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/><origin xyz="0 0 0.3"/>
+    <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="10" velocity="1.5"/></joint>
+  <joint name="elbow" type="continuous"><parent link="upper"/><child link="lower"/><origin xyz="0 0 0.4" rpy="0 0 1.5707963267948966"/>
+    <axis xyz="1 0 0"/><limit effort="10" velocity="2"/></joint>
+  <joint name="tip" type="fixed"><parent link="lower"/><child link="flange"/><origin xyz="0 0 0.25"/></joint>
+  <geotraj description="a two-link test arm"><joint name="shoulder" max_acceleration="3" home="0.1"/>
+    <joint name="elbow" max_acceleration="4" max_jerk="40"/></geotraj>
+</robot>
+)";
+  const TempFile file("two_link.urdf", text);
+  Daemon daemon({"--address", "127.0.0.1:0", "--drain-seconds", "0.2", "--robot-model", file.path()});
+  ASSERT_TRUE(daemon.started());
+  const int port = port_of(daemon.line());
+  ASSERT_GT(port, 0) << daemon.errors();
+  auto stub = v1::TrajectoryService::NewStub(
+      grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials()));
+  v1::ListRobotsResponse robots;
+  ASSERT_TRUE(stub->ListRobots(context().get(), v1::ListRobotsRequest{}, &robots).ok());
+  ASSERT_EQ(robots.robots_size(), builtin.robots_size() + 1);
+  const v1::RobotModel& arm = robots.robots(robots.robots_size() - 1);
+  EXPECT_EQ(arm.name(), "two-link");
+  EXPECT_EQ(arm.description(), "a two-link test arm");
+  ASSERT_EQ(arm.joints_size(), 2);
+  EXPECT_EQ(arm.joints(1).joint_type(), v1::JOINT_TYPE_CONTINUOUS);
+  EXPECT_FALSE(arm.limits(1).has_max_jerk() && arm.limits(0).has_max_jerk());
+  EXPECT_EQ(arm.limits(1).max_jerk(), 40.0);
+  EXPECT_EQ(arm.home(0), 0.1);
+  // Its tool at (q1, q2): the elbow turns about the upper link's y (x turned by 90 degrees about z).
+  v1::ForwardKinematicsRequest fk;
+  fk.mutable_robot()->set_name("two-link");
+  fk.add_joints(0.3);
+  fk.add_joints(12.0);  // a continuous joint: any angle
+  v1::ForwardKinematicsResponse response;
+  const auto status = stub->ComputeForwardKinematics(context().get(), fk, &response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_TRUE(response.within_limits());
+  const Eigen::Isometry3d expected = Eigen::Translation3d(0, 0, 0.3) * Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()) *
+                                     Eigen::Translation3d(0, 0, 0.4) * Eigen::AngleAxisd(1.5707963267948966, Eigen::Vector3d::UnitZ()) *
+                                     Eigen::AngleAxisd(12.0, Eigen::Vector3d::UnitX()) * Eigen::Translation3d(0, 0, 0.25);
+  EXPECT_LT((vec(response.pose().position()) - expected.translation()).norm(), 1e-12);
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(), 0);
+
+  // Broken: the acceleration of the elbow removed; the message names the file, the joint, its line.
+  const std::string entry = "<joint name=\"elbow\" max_acceleration=\"4\" max_jerk=\"40\"/>";
+  const std::string broken = text.replace(text.find(entry), entry.size(), "");
+  const TempFile bad("broken.urdf", broken);
+  const std::string errors = refused_start({"--address", "127.0.0.1:0", "--robot-model", bad.path()});
+  EXPECT_THAT(errors, HasSubstr(bad.path()));
+  EXPECT_THAT(errors, HasSubstr("line 6, joint 'elbow'"));
+  EXPECT_THAT(errors, HasSubstr("acceleration"));
+}
+
+// A URDF as its maker ships it (no <geotraj> block): kinematics calls take it as it is; a
+// motion needs accelerations, refused naming the joints and where to give them, and planned
+// once robot.jointLimits gives them. jointLimits also tighten a built-in model's limits.
+TEST_F(RobotTest, UrdfWithoutAccelerationsServesKinematicsAndTakesJointLimits) {
+  std::string urdf(planner::builtin_urdf("ur5e"));
+  urdf = urdf.substr(0, urdf.find("<geotraj description")) + "</robot>\n";
+  v1::ForwardKinematicsRequest fk;
+  fk.mutable_robot()->set_urdf(urdf);
+  for (int i = 0; i < 6; ++i) fk.add_joints(0.1 * i);
+  v1::ForwardKinematicsResponse pose;
+  auto status = stub_->ComputeForwardKinematics(context().get(), fk, &pose);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  v1::ForwardKinematicsRequest by_name = fk;
+  by_name.mutable_robot()->set_name("ur5e");
+  v1::ForwardKinematicsResponse expected;
+  ASSERT_TRUE(stub_->ComputeForwardKinematics(context().get(), by_name, &expected).ok());
+  EXPECT_LT((vec(pose.pose().position()) - vec(expected.pose().position())).norm(), 1e-15);
+
+  v1::PlanRequest request;  // a joint move of every joint, as fast as the joints allow
+  for (const double q : {0.5, -1.2, 1.2, -1.5, -1.4, 0.3}) request.mutable_joint_move()->add_goal(q);
+  request.mutable_motion()->set_duration_s(0.0);
+  request.mutable_robot()->set_urdf(urdf);
+  const v1::RobotModel ur5e = robot_model("ur5e");
+  for (const double q : ur5e.home()) request.mutable_robot()->add_initial_joints(q);  // no block: no home
+  auto violations = refused(request);
+  const std::string why = violation_of(violations, "robot.urdf");
+  EXPECT_THAT(why, HasSubstr("joint 'shoulder_pan_joint'"));
+  EXPECT_THAT(why, HasSubstr("acceleration"));
+  EXPECT_THAT(why, HasSubstr("robot.jointLimits"));
+  const char* names[] = {"shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+                         "wrist_3_joint"};
+  for (const char* name : names) {
+    auto* l = request.mutable_robot()->add_joint_limits();
+    l->set_joint(name);
+    l->set_max_acceleration(6.283185307179586);  // what the built-in file's block says
+  }
+  v1::PlanResponse inline_plan, named_plan;
+  status = plan(request, inline_plan);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  auto named = request;
+  named.mutable_robot()->set_name("ur5e");
+  named.mutable_robot()->clear_joint_limits();
+  ASSERT_TRUE(plan(named, named_plan).ok());
+  EXPECT_NEAR(inline_plan.motion().duration_s(), named_plan.motion().duration_s(), 1e-6);  // the file rounds 2 pi
+
+  // Tighter: the elbow's acceleration a sixth of the model's, the line takes longer and the
+  // elbow stays within the given limit.
+  const v1::PlanResponse& fastest = named_plan;
+  v1::PlanResponse tighter;
+  auto* elbow = named.mutable_robot()->add_joint_limits();
+  elbow->set_joint("elbow_joint");
+  elbow->set_max_acceleration(1.0);
+  status = plan(named, tighter);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_GT(tighter.motion().duration_s(), fastest.motion().duration_s());
+  EXPECT_LE(tighter.robot().joints(2).peak_acceleration(), 1.0 * (1 + 1e-6));
+  EXPECT_NEAR(tighter.robot().joints(2).acceleration_usage(), 1.0, 1e-6);  // the elbow sets the time now
+
+  // Unknown joints and bad values are named.
+  elbow->set_joint("knee");
+  elbow->set_max_jerk(-3.0);
+  violations = refused(named);
+  EXPECT_THAT(violation_of(violations, "robot.jointLimits[0].maxJerk"), HasSubstr("> 0")) << describe(violations);
+  elbow->clear_max_jerk();
+  violations = refused(named);
+  EXPECT_THAT(violation_of(violations, "robot.jointLimits[0].joint"), HasSubstr("'elbow_joint'")) << describe(violations);
 }
 
 TEST_F(RobotTest, GeotrajdRefusesABadRobotModelFile) {

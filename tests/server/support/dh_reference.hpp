@@ -30,9 +30,25 @@ inline Eigen::Isometry3d pose(const v1::Pose& p) {
 //   standard:         A_i = RotZ(theta) TransZ(d) TransX(a) RotX(alpha),
 // with theta = theta_i + offset_i + q_i (revolute) or d = d_i + offset_i + q_i (prismatic).
 // Units: [m], [rad].
+// A general chain (`joints`, the form of URDF models):
+//   X_WT = base * origin_1 M_1(q_1) * ... * origin_n M_n(q_n) * flange * tool,
+// M_i the turn about (revolute, continuous) or slide along (prismatic) the joint's axis.
 template <class Joints>
 Eigen::Isometry3d forward_kinematics(const v1::RobotModel& model, const Joints& q) {
   Eigen::Isometry3d X_WT = pose(model.base());
+  if (model.joints_size() > 0) {
+    for (int i = 0; i < model.joints_size(); ++i) {
+      const auto& j = model.joints(i);
+      const Eigen::Vector3d axis = j.has_axis() ? vec(j.axis()).normalized() : Eigen::Vector3d::UnitZ();
+      X_WT = X_WT * pose(j.origin());
+      if (j.joint_type() == v1::JOINT_TYPE_PRISMATIC) {
+        X_WT = X_WT * Eigen::Translation3d(q[i] * axis);
+      } else {
+        X_WT = X_WT * Eigen::AngleAxisd(q[i], axis);
+      }
+    }
+    return X_WT * pose(model.flange()) * pose(model.tool());
+  }
   for (int i = 0; i < model.links_size(); ++i) {
     const auto& l = model.links(i);
     const bool prismatic = l.joint_type() == v1::JOINT_TYPE_PRISMATIC;

@@ -1,7 +1,7 @@
-// Private to geotraj_core (ik.cpp, joint_motion.cpp): the DH chain of a RobotModel with its
-// per-link constants precomputed, evaluated with 3 x 3 rotations and 3-vectors (no 4 x 4
-// products), and the projected Newton iteration on the 6-D pose error that solve_ik and
-// JointTracker share. Same conventions as kinematics.hpp (robot.hpp's chain formula, the
+// Private to geotraj_core (ik.cpp, joint_motion.cpp): the serial chain of a RobotModel
+// (robot.hpp) with its per-joint constants precomputed, evaluated with 3 x 3 rotations and
+// 3-vectors (no 4 x 4 products), and the projected Newton iteration on the 6-D pose error
+// that solve_ik and JointTracker share. Same conventions as kinematics.hpp (robot.hpp's chain formula, the
 // geometric Jacobian, rows [v; omega] in W); fixed-size storage only, no heap allocation.
 #pragma once
 
@@ -20,11 +20,17 @@ using Matrix6d = Eigen::Matrix<double, 6, 6>;
 /// One 3-vector per joint (joint axes z_i, points o_i on them), in W.
 using JointAxes = Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, static_cast<int>(kMaxJoints)>;
 
-/// The chain of robot.hpp, X_WT = base * A_1(q_1) ... A_n(q_n) * tool, with cos/sin of the
-/// constant twists precomputed.
-class DhChain {
+/// The chain of robot.hpp, X_WT = base * O_1 M_1(q_1) ... O_n M_n(q_n) * flange * tool,
+/// rewritten so that every joint moves about or along the z axis of its frame: with A_i a
+/// fixed rotation taking z to the axis a_i (A_0 = I), O_i' = A_{i-1}^T O_i A_i and
+/// flange' = A_n^T flange tool give the same poses with M_i about z. A revolute joint whose
+/// O_i' rotation is RotX(alpha) RotZ(phi) (every DH chain, most URDF joints) carries phi
+/// into its angle and turns the frame by RotX alone (4 products instead of a 3 x 3 product).
+/// Built without trigonometry (per call of forward_kinematics and solve_ik).
+class SerialChain {
  public:
-  explicit DhChain(const RobotModel& model);
+  SerialChain() = default;
+  explicit SerialChain(const RobotModel& model);
 
   Eigen::Index dof() const { return n_; }
 
@@ -48,17 +54,20 @@ class DhChain {
   template <class OnAxis>
   void walk(const JointVector& q, Eigen::Matrix3d& R, Eigen::Vector3d& p, OnAxis&& on_axis) const;
 
+  enum class Turn : std::uint8_t { kNone, kX, kGeneral };
   struct Link {
-    double ca = 1.0, sa = 0.0;  ///< cos, sin of the twist alpha
-    double a = 0.0, d = 0.0, theta = 0.0, offset = 0.0;
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();  ///< O_i' rotation (kGeneral)
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();      ///< O_i' translation [m]
+    double ca = 1.0, sa = 0.0;                         ///< cos, sin of alpha (kX)
+    double cphi = 1.0, sphi = 0.0;                     ///< cos, sin of phi, added to q (revolute)
+    bool phi = false;                                  ///< phi is not 0
+    Turn turn = Turn::kNone;
     bool revolute = true;
   };
   std::array<Link, kMaxJoints> links_{};
   Eigen::Index n_ = 0;
-  bool modified_ = true;
-  Eigen::Matrix3d R_base_, R_tool_;
-  Eigen::Vector3d p_base_, p_tool_;
-  Eigen::Vector3d o_base_;
+  Eigen::Matrix3d R_base_ = Eigen::Matrix3d::Identity(), R_tool_ = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d p_base_ = Eigen::Vector3d::Zero(), p_tool_ = Eigen::Vector3d::Zero();
 };
 
 /// Position limits of every joint, and their midpoints and ranges (the null-space cost).
@@ -115,7 +124,7 @@ inline constexpr int kMaxHalvings = 4;
 /// solves only; never while tracking, where it would be a jump). A narrower range is a
 /// wall: the joint is held at it (wrapping across the excluded gap would strand it far
 /// from the solution on the other side).
-NewtonOutcome newton(const DhChain& chain, const JointBounds& bounds, const Eigen::Matrix3d& R_target,
+NewtonOutcome newton(const SerialChain& chain, const JointBounds& bounds, const Eigen::Matrix3d& R_target,
                      const Eigen::Vector3d& p_target, const IkOptions& options, bool wrap, JointVector& q,
                      NewtonWorkspace& ws);
 
@@ -139,13 +148,13 @@ class SplitMix64 {
 void random_configuration(const JointBounds& bounds, SplitMix64& random, JointVector& q);
 
 /// search_ik on a prepared chain (ik.hpp).
-IkSearchResult search(const DhChain& chain, const JointBounds& bounds, const Eigen::Matrix3d& R_target,
+IkSearchResult search(const SerialChain& chain, const JointBounds& bounds, const Eigen::Matrix3d& R_target,
                       const Eigen::Vector3d& p_target, const JointVector& seed, const IkSearchOptions& options);
 
 /// A cold solve: newton() from the seed (clamped into the bounds, wrap on), then, while it
 /// fails, from up to options.restarts configurations uniform within the bounds (fixed
 /// seed). The best attempt (smallest position + orientation error) is returned in q.
-NewtonOutcome solve_cold(const DhChain& chain, const JointBounds& bounds, const Eigen::Matrix3d& R_target,
+NewtonOutcome solve_cold(const SerialChain& chain, const JointBounds& bounds, const Eigen::Matrix3d& R_target,
                          const Eigen::Vector3d& p_target, const JointVector& seed, const IkOptions& options,
                          JointVector& q, NewtonWorkspace& ws);
 

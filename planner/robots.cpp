@@ -1,0 +1,506 @@
+// URDF models and the built-in arms. See robots.hpp.
+#include "planner/robots.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <cstdlib>
+#include <mutex>
+#include <string>
+#include <utility>
+
+#include <console_bridge/console.h>
+#include <tinyxml.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include "core/format.hpp"
+#include "planner/builtin_urdf.hpp"
+
+namespace geotraj::planner {
+namespace {
+
+using core::FieldViolation;
+using core::Violations;
+
+// urdfdom reports what it refuses through console_bridge, a process-wide logger. One handler,
+// installed once, keeps each thread's messages in that thread's buffer (no console output,
+// no interleaving between concurrent parses).
+class Capture final : public console_bridge::OutputHandler {
+ public:
+  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
+    if (level < console_bridge::CONSOLE_BRIDGE_LOG_ERROR) return;  // warnings: not ours to print
+    std::string& b = buffer();
+    if (!b.empty()) b += "; ";
+    b += text;
+  }
+  static std::string& buffer() {
+    thread_local std::string b;
+    return b;
+  }
+};
+
+void install_capture() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    static Capture capture;
+    console_bridge::useOutputHandler(&capture);
+  });
+}
+
+// Where an element sits, for messages: "line 12, joint 'elbow'".
+std::string where(const TiXmlElement* e) {
+  std::string out = "line " + std::to_string(e->Row()) + ", " + e->Value();
+  if (const char* name = e->Attribute("name")) out += std::string(" '") + name + "'";
+  return out;
+}
+
+// The line of the first element of kind `tag` (any depth) named `name`, or nullptr.
+const TiXmlElement* find_named(const TiXmlElement* root, const char* tag, const std::string& name) {
+  for (const TiXmlElement* e = root->FirstChildElement(tag); e != nullptr; e = e->NextSiblingElement(tag)) {
+    if (const char* n = e->Attribute("name"); n != nullptr && name == n) return e;
+  }
+  return nullptr;
+}
+
+// "[name]" in a urdfdom message: the joint or link it is about, to point at its line.
+std::string bracketed_name(const std::string& message) {
+  const auto open = message.find('[');
+  const auto close = open == std::string::npos ? std::string::npos : message.find(']', open);
+  return close == std::string::npos ? std::string{} : message.substr(open + 1, close - open - 1);
+}
+
+// A number attribute of the <geotraj> block: absent (nullopt), or finite, or an error.
+bool read_number(const TiXmlElement* e, const char* attribute, std::optional<double>& out, Violations& v) {
+  const char* text = e->Attribute(attribute);
+  if (text == nullptr) return true;
+  char* end = nullptr;
+  const double x = std::strtod(text, &end);
+  while (end != nullptr && *end == ' ') ++end;
+  if (end == text || end == nullptr || *end != '\0' || !std::isfinite(x)) {
+    v.push_back({"urdf", where(e) + ": " + attribute + "=\"" + text + "\" is not a finite number"});
+    return false;
+  }
+  out = x;
+  return true;
+}
+
+Eigen::Isometry3d isometry(const urdf::Pose& pose) {
+  double x = 0, y = 0, z = 0, w = 1;
+  pose.rotation.getQuaternion(x, y, z, w);
+  Eigen::Isometry3d X = Eigen::Isometry3d::Identity();
+  X.linear() = Eigen::Quaterniond(w, x, y, z).normalized().toRotationMatrix();
+  X.translation() = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
+  return X;
+}
+
+std::string listed(const std::vector<std::string>& names) {
+  constexpr std::size_t kShown = 12;
+  std::string out;
+  for (std::size_t i = 0; i < names.size() && i < kShown; ++i) out += (i ? ", '" : "'") + names[i] + "'";
+  if (names.size() > kShown) out += ", ... (" + std::to_string(names.size()) + " in all)";
+  return out;
+}
+
+std::string joint_kind(int type) {
+  switch (type) {
+    case urdf::Joint::FLOATING: return "floating";
+    case urdf::Joint::PLANAR: return "planar";
+    default: return "unknown";
+  }
+}
+
+// What TinyXML and urdfdom cannot be given safely (both parse recursively, TinyXML reads
+// past a multi-byte character cut off at the end): the document's size, its UTF-8 and its
+// element nesting are checked first. A URDF is 4 or 5 levels deep.
+constexpr std::size_t kMaxUrdfBytes = 16u << 20;
+constexpr int kMaxUrdfDepth = 64;
+
+std::string line_at(std::string_view text, std::size_t offset) {
+  return "line " + std::to_string(1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(offset), '\n'));
+}
+
+// The offset of the first byte that is not part of well-formed UTF-8, or npos.
+std::size_t invalid_utf8(std::string_view text) {
+  std::size_t i = 0;
+  while (i < text.size()) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    const int extra = c < 0x80 ? 0 : (c >> 5) == 0x6 ? 1 : (c >> 4) == 0xE ? 2 : (c >> 3) == 0x1E ? 3 : -1;
+    if (extra < 0 || (extra == 1 && c < 0xC2) || (extra > 0 && i + static_cast<std::size_t>(extra) >= text.size())) {
+      return i;
+    }
+    for (int k = 1; k <= extra; ++k) {
+      if ((static_cast<unsigned char>(text[i + static_cast<std::size_t>(k)]) >> 6) != 0x2) return i;
+    }
+    i += static_cast<std::size_t>(extra) + 1;
+  }
+  return std::string_view::npos;
+}
+
+// The offset where the element nesting first passes kMaxUrdfDepth, or npos. A scan that
+// skips comments, CDATA, declarations and quoted attribute values; it never counts fewer
+// levels than an XML parser would.
+std::size_t too_deep(std::string_view text) {
+  int depth = 0;
+  std::size_t i = 0;
+  const auto skip_past = [&](std::string_view end) {
+    const auto at = text.find(end, i);
+    i = at == std::string_view::npos ? text.size() : at + end.size();
+  };
+  while ((i = text.find('<', i)) != std::string_view::npos) {
+    const std::string_view rest = text.substr(i);
+    if (rest.starts_with("<!--")) {
+      skip_past("-->");
+    } else if (rest.starts_with("<![CDATA[")) {
+      skip_past("]]>");
+    } else if (rest.starts_with("<?") || rest.starts_with("<!")) {
+      skip_past(">");
+    } else if (rest.starts_with("</")) {
+      --depth;
+      skip_past(">");
+    } else {
+      const std::size_t start = i;
+      char quote = 0;
+      for (++i; i < text.size(); ++i) {  // to the tag's end, quoted values skipped
+        if (quote != 0) {
+          if (text[i] == quote) quote = 0;
+        } else if (text[i] == '"' || text[i] == '\'') {
+          quote = text[i];
+        } else if (text[i] == '>') {
+          break;
+        }
+      }
+      if (i >= text.size() || text[i - 1] != '/') ++depth;  // not self-closing
+      if (depth > kMaxUrdfDepth) return start;
+      ++i;
+    }
+  }
+  return std::string_view::npos;
+}
+
+// The link tree, from the document itself before urdfdom builds it (urdfdom accepts a loop
+// of links beside a root, and leaks it): every link the child of one joint at most, no loop.
+void check_link_tree(const TiXmlElement* robot, Violations& v) {
+  std::map<std::string, const TiXmlElement*> parent_joint;  // child link -> its joint
+  for (const TiXmlElement* j = robot->FirstChildElement("joint"); j != nullptr; j = j->NextSiblingElement("joint")) {
+    const TiXmlElement* child = j->FirstChildElement("child");
+    const char* link = child ? child->Attribute("link") : nullptr;
+    if (link == nullptr) continue;  // urdfdom names it
+    const auto [it, fresh] = parent_joint.emplace(link, j);
+    if (!fresh) {
+      v.push_back({"urdf", where(j) + ": link '" + link + "' is already the child of " + where(it->second) +
+                               ": a link has one parent joint"});
+    }
+  }
+  if (!v.empty()) return;
+  // Up from every link, each link visited once in all: meeting the walk's own trail is a loop.
+  std::map<std::string, int> state;  // 1: on the current walk, 2: known to reach the root
+  for (const auto& [link, joint] : parent_joint) {
+    std::vector<std::string> trail;
+    std::string at = link;
+    for (;;) {
+      int& st = state[at];
+      if (st == 2) break;
+      if (st == 1) {
+        v.push_back({"urdf", where(parent_joint.at(at)) + ": the links form a loop through link '" + at +
+                                 "' (a URDF is a tree: every chain of parents ends at the root)"});
+        return;
+      }
+      st = 1;
+      trail.push_back(at);
+      const auto it = parent_joint.find(at);
+      const TiXmlElement* parent = it == parent_joint.end() ? nullptr : it->second->FirstChildElement("parent");
+      const char* up = parent ? parent->Attribute("link") : nullptr;
+      if (up == nullptr) break;
+      at = up;
+    }
+    for (const auto& l : trail) state[l] = 2;
+  }
+}
+
+// The side block: per joint name, its element.
+struct SideBlock {
+  const TiXmlElement* element = nullptr;
+  std::vector<const TiXmlElement*> joints;
+};
+
+}  // namespace
+
+core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const UrdfOptions& options) {
+  Violations v;
+  std::string_view base_link = options.base_link, tip_link = options.tip_link;
+  if (text.size() > kMaxUrdfBytes) {
+    v.push_back({"urdf", "has " + std::to_string(text.size()) + " bytes; at most " + std::to_string(kMaxUrdfBytes)});
+    return tl::unexpected(std::move(v));
+  }
+  if (const std::size_t at = invalid_utf8(text); at != std::string_view::npos) {
+    v.push_back({"urdf", "is not UTF-8: " + line_at(text, at) + ", byte " + std::to_string(at)});
+    return tl::unexpected(std::move(v));
+  }
+  if (const std::size_t at = too_deep(text); at != std::string_view::npos) {
+    v.push_back({"urdf", line_at(text, at) + ": elements nest deeper than " + std::to_string(kMaxUrdfDepth) +
+                             " levels (a URDF has 4 or 5)"});
+    return tl::unexpected(std::move(v));
+  }
+  std::string xml(text);
+  xml.append(4, '\0');  // whatever a parser reads past the end of a character is ours
+  // The document first, for the line of whatever is wrong (urdfdom says what, not where).
+  TiXmlDocument doc;
+  doc.Parse(xml.c_str(), nullptr, TIXML_ENCODING_UTF8);
+  if (doc.Error()) {
+    v.push_back({"urdf", "is not well-formed XML: line " + std::to_string(doc.ErrorRow()) + ", column " +
+                             std::to_string(doc.ErrorCol()) + ": " + doc.ErrorDesc()});
+    return tl::unexpected(std::move(v));
+  }
+  const TiXmlElement* robot = doc.RootElement();
+  if (robot == nullptr || std::string(robot->Value()) != "robot") {
+    v.push_back({"urdf", robot == nullptr ? std::string("has no root element: a URDF document is one <robot>")
+                                          : where(robot) + ": the root element must be <robot>"});
+    return tl::unexpected(std::move(v));
+  }
+
+  check_link_tree(robot, v);
+  if (!v.empty()) return tl::unexpected(std::move(v));
+
+  install_capture();
+  Capture::buffer().clear();
+  const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
+  if (!model) {
+    std::string message = Capture::buffer();
+    if (message.empty()) message = "urdfdom refused the document";
+    const std::string name = bracketed_name(message);
+    const TiXmlElement* at = name.empty() ? nullptr : find_named(robot, "joint", name);
+    if (at == nullptr && !name.empty()) at = find_named(robot, "link", name);
+    v.push_back({"urdf", (at ? where(at) + ": " : std::string()) + message});
+    return tl::unexpected(std::move(v));
+  }
+
+  // The chain: base (default: the <geotraj> block's base_link, else the root) down to the tip
+  // (default: the block's tip_link, else the only leaf below the base).
+  const TiXmlElement* block = robot->FirstChildElement("geotraj");
+  std::string block_base, block_tip;
+  if (block != nullptr) {
+    if (const char* b = block->Attribute("base_link"); b != nullptr && base_link.empty()) block_base = b;
+    if (const char* t = block->Attribute("tip_link"); t != nullptr && tip_link.empty()) block_tip = t;
+  }
+  if (!block_base.empty()) base_link = block_base;
+  if (!block_tip.empty()) tip_link = block_tip;
+  urdf::LinkConstSharedPtr base = base_link.empty() ? model->getRoot() : model->getLink(std::string(base_link));
+  std::vector<std::string> link_names;
+  {
+    std::vector<urdf::LinkSharedPtr> links;
+    model->getLinks(links);
+    for (const auto& l : links) link_names.push_back(l->name);
+  }
+  if (!base) {
+    v.push_back({"baseLink", "names no link of the URDF ('" + std::string(base_link) + "'); its links: " +
+                                 listed(link_names)});
+    return tl::unexpected(std::move(v));
+  }
+  urdf::LinkConstSharedPtr tip;
+  if (tip_link.empty()) {
+    std::vector<std::string> leaves;
+    std::vector<urdf::LinkConstSharedPtr> stack{base};
+    while (!stack.empty()) {  // a tree (check_link_tree): each link once
+      const urdf::LinkConstSharedPtr l = stack.back();
+      stack.pop_back();
+      if (l->child_links.empty()) {
+        leaves.push_back(l->name);
+        tip = l;
+      }
+      for (const auto& c : l->child_links) stack.push_back(c);
+    }
+    if (leaves.size() > 1) {
+      std::sort(leaves.begin(), leaves.end());
+      v.push_back({"tipLink", "is needed: the URDF branches below '" + base->name + "' into " +
+                                  std::to_string(leaves.size()) + " leaf links (" + listed(leaves) +
+                                  "); name the one the tool is on"});
+      return tl::unexpected(std::move(v));
+    }
+  } else {
+    tip = model->getLink(std::string(tip_link));
+    if (!tip) {
+      v.push_back({"tipLink", "names no link of the URDF ('" + std::string(tip_link) + "'); its links: " +
+                                  listed(link_names)});
+      return tl::unexpected(std::move(v));
+    }
+  }
+  std::vector<urdf::JointConstSharedPtr> path;  // tip to base
+  for (urdf::LinkConstSharedPtr l = tip; l != base;) {
+    if (!l->parent_joint || path.size() > link_names.size()) {
+      v.push_back({"tipLink", "'" + tip->name + "' is not below the base link '" + base->name + "'"});
+      return tl::unexpected(std::move(v));
+    }
+    path.push_back(l->parent_joint);
+    l = model->getLink(l->parent_joint->parent_link_name);
+  }
+  std::reverse(path.begin(), path.end());
+
+  core::RobotModel m;
+  m.name = model->getName();
+  Eigen::Isometry3d pending = Eigen::Isometry3d::Identity();  // fixed joints since the last moving one
+  std::vector<const TiXmlElement*> elements;                  // each moving joint's element
+  for (const auto& j : path) {
+    const TiXmlElement* e = find_named(robot, "joint", j->name);
+    const std::string at = e ? where(e) : "joint '" + j->name + "'";
+    const Eigen::Isometry3d origin = isometry(j->parent_to_joint_origin_transform);
+    if (j->type == urdf::Joint::FIXED) {
+      pending = pending * origin;
+      continue;
+    }
+    if (j->type != urdf::Joint::REVOLUTE && j->type != urdf::Joint::CONTINUOUS &&
+        j->type != urdf::Joint::PRISMATIC) {
+      v.push_back({"urdf", at + ": a " + joint_kind(j->type) +
+                               " joint is not a joint of a serial arm (revolute, continuous, prismatic or fixed)"});
+      continue;
+    }
+    if (j->mimic) {
+      v.push_back({"urdf", at + ": mimics joint '" + j->mimic->joint_name +
+                               "'; mimic joints are not supported on the chain (give the chain without it)"});
+      continue;
+    }
+    core::Joint joint;
+    joint.name = j->name;
+    joint.type = j->type == urdf::Joint::PRISMATIC    ? core::JointType::kPrismatic
+                 : j->type == urdf::Joint::CONTINUOUS ? core::JointType::kContinuous
+                                                      : core::JointType::kRevolute;
+    joint.origin = pending * origin;
+    pending = Eigen::Isometry3d::Identity();
+    const Eigen::Vector3d axis(j->axis.x, j->axis.y, j->axis.z);
+    if (!axis.allFinite() || axis.norm() < 1e-9) {
+      v.push_back({"urdf", at + ": <axis xyz> must be a non-zero vector"});
+      continue;
+    }
+    joint.axis = axis.normalized();
+    core::JointLimits limits;
+    if (!j->limits && joint.type != core::JointType::kContinuous) {
+      v.push_back({"urdf", at + ": has no <limit> (lower, upper, velocity)"});
+    } else if (!j->limits || !(std::isfinite(j->limits->velocity) && j->limits->velocity > 0.0)) {
+      v.push_back({"urdf", at + ": <limit velocity> must be given, finite and > 0"});
+    } else {
+      limits.max_velocity = j->limits->velocity;
+      if (joint.type != core::JointType::kContinuous) {
+        limits.min_position = j->limits->lower;
+        limits.max_position = j->limits->upper;
+        if (!(std::isfinite(limits.min_position) && std::isfinite(limits.max_position) &&
+              limits.min_position <= limits.max_position)) {
+          v.push_back({"urdf", at + ": <limit lower=\"" + core::number(limits.min_position) + "\" upper=\"" +
+                                   core::number(limits.max_position) + "\"> must be finite with lower <= upper"});
+        }
+      }
+    }
+    m.joints.push_back(std::move(joint));
+    m.limits.push_back(limits);
+    elements.push_back(e);
+  }
+  m.flange = pending;
+  if (m.joints.empty() && v.empty()) {
+    v.push_back({"urdf", "the chain from '" + base->name + "' to '" + tip->name + "' has no moving joint"});
+  }
+
+  // The <geotraj> block: accelerations, jerks, home, description.
+  SideBlock side;
+  side.element = block;
+  if (side.element != nullptr) {
+    if (const char* d = side.element->Attribute("description")) m.description = d;
+    for (const TiXmlElement* e = side.element->FirstChildElement(); e != nullptr; e = e->NextSiblingElement()) {
+      if (std::string(e->Value()) != "joint" || e->Attribute("name") == nullptr) {
+        v.push_back({"urdf", where(e) + ": the <geotraj> block holds <joint name=\"..\" max_acceleration=\"..\" "
+                                        "max_jerk=\"..\" home=\"..\"/> elements only"});
+        continue;
+      }
+      const std::string name = e->Attribute("name");
+      const auto it = std::find_if(m.joints.begin(), m.joints.end(), [&](const core::Joint& j) { return j.name == name; });
+      if (it == m.joints.end()) {  // a joint off the chain is someone else's; no joint at all is a typo
+        const urdf::JointConstSharedPtr j = model->getJoint(name);
+        if (!j || j->type == urdf::Joint::FIXED) {
+          v.push_back({"urdf", where(e) + ": the URDF has no moving joint '" + name + "'"});
+        }
+        continue;
+      }
+      side.joints.push_back(e);
+    }
+  }
+  if (m.description.empty()) m.description = "URDF robot '" + m.name + "'";
+  m.home.assign(m.joints.size(), 0.0);
+  for (std::size_t i = 0; i < m.joints.size(); ++i) {
+    const std::string& name = m.joints[i].name;
+    const TiXmlElement* entry = nullptr;
+    for (const TiXmlElement* e : side.joints) {
+      if (name == e->Attribute("name")) entry = e;
+    }
+    std::optional<double> acceleration, jerk, home;
+    if (entry != nullptr) {
+      read_number(entry, "max_acceleration", acceleration, v);
+      read_number(entry, "max_jerk", jerk, v);
+      read_number(entry, "home", home, v);
+      if (acceleration && !(*acceleration > 0.0)) v.push_back({"urdf", where(entry) + ": max_acceleration must be > 0"});
+      if (jerk && !(*jerk > 0.0)) v.push_back({"urdf", where(entry) + ": max_jerk must be > 0"});
+    }
+    for (const NamedLimits& l : options.limits) {  // the request's (checked by its caller), over the block
+      if (l.joint != name) continue;
+      if (l.max_acceleration) acceleration = l.max_acceleration;
+      if (l.max_jerk) jerk = l.max_jerk;
+      if (l.max_velocity) m.limits[i].max_velocity = *l.max_velocity;
+    }
+    const std::string at = elements[i] ? where(elements[i]) : "joint '" + name + "'";
+    if (!acceleration && options.require_accelerations) {
+      v.push_back({"urdf", at + ": has no acceleration limit, which every motion needs and URDF cannot say: give it "
+                               "in a <geotraj> block beside the links, <geotraj><joint name=\"" + name +
+                               "\" max_acceleration=\"...\"/></geotraj> [rad/s^2 or m/s^2], or in the request's "
+                               "robot.jointLimits (docs/kinematics.md)"});
+    } else {
+      m.limits[i].max_acceleration = acceleration.value_or(kUnknownAcceleration);  // unknown: kinematics only
+    }
+    m.limits[i].max_jerk = jerk;
+    const core::JointLimits& l = m.limits[i];
+    const bool continuous = m.joints[i].type == core::JointType::kContinuous;
+    if (home) {
+      if (!core::within_position_limits(m.joints[i].type, l, *home) || std::abs(*home) > core::kMaxModelMagnitude) {
+        v.push_back({"urdf", where(entry) + ": home " + core::number(*home) + " is outside the joint's limits [" +
+                                 core::number(l.min_position) + ", " + core::number(l.max_position) + "]"});
+      }
+      m.home[i] = *home;
+    } else if (!continuous && (l.min_position > 0.0 || l.max_position < 0.0)) {
+      m.home[i] = 0.5 * (l.min_position + l.max_position);  // 0 is outside the range: its middle
+    }
+  }
+  if (!v.empty()) return tl::unexpected(std::move(v));
+  if (Violations rest = core::validate_robot(m); !rest.empty()) {  // the model it makes (joints[i] counts moving joints)
+    for (auto& fv : rest) fv = {"urdf", "the chain's " + fv.field + " " + fv.description};
+    return tl::unexpected(std::move(rest));
+  }
+  return m;
+}
+
+const std::vector<core::RobotModel>& builtin_robots() {
+  static const std::vector<core::RobotModel> robots = [] {
+    std::vector<core::RobotModel> out = core::builtin_robots();
+    for (const BuiltinUrdf& b : kBuiltinUrdfs) {
+      auto m = robot_from_urdf(b.text);
+      if (!m) {  // a file of this repository: the tests read every one
+        for (const auto& fv : m.error()) std::fprintf(stderr, "built-in %s: %s: %s\n", b.name, fv.field.c_str(), fv.description.c_str());
+        GEOTRAJ_CHECK(false && "a built-in URDF does not load");
+      }
+      m->name = b.name;
+      out.push_back(std::move(*m));
+    }
+    return out;
+  }();
+  return robots;
+}
+
+const core::RobotModel* find_builtin_robot(std::string_view name) {
+  for (const auto& m : builtin_robots()) {
+    if (m.name == name) return &m;
+  }
+  return nullptr;
+}
+
+std::string_view builtin_urdf(std::string_view name) {
+  for (const BuiltinUrdf& b : kBuiltinUrdfs) {
+    if (name == b.name) return b.text;
+  }
+  return {};
+}
+
+}  // namespace geotraj::planner

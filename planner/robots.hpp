@@ -1,0 +1,71 @@
+// The robots the service knows: the built-in arms (core's DH models and the URDF files in
+// planner/models/, compiled in) and arms described in URDF by the user (RobotSpec.urdf,
+// `geotrajd --robot-model arm.urdf`). docs/kinematics.md, "Bring your own URDF".
+//
+// A URDF document becomes a core::RobotModel (core/robot/robot.hpp) through urdfdom:
+//  - the chain runs from the base link (default: the root) to the tip link (default: the
+//    only leaf below the base; several leaves are an error that lists them); links and
+//    joints off that chain are ignored;
+//  - each revolute, continuous or prismatic joint on it is one joint of the model: its
+//    <origin> (xyz [m], rpy [rad], roll-pitch-yaw about fixed x, y, z) with the fixed joints
+//    since the previous moving joint folded in, and its <axis> (normalised; default x, as
+//    URDF says); fixed joints after the last moving joint make the flange;
+//  - position and velocity limits come from <limit> (a continuous joint's position is
+//    unbounded); floating and planar joints and mimic joints on the chain are refused,
+//    naming the joint;
+//  - URDF has no acceleration or jerk limits and no home pose: a <geotraj> element beside
+//    the links gives them, one <joint name=".." max_acceleration=".." max_jerk=".." home=".."/>
+//    per moving joint (max_acceleration required for motions, or given by the request's
+//    jointLimits; max_jerk optional; home default 0, or the middle of the range when 0 is
+//    outside it), and optional description="..", base_link="..", tip_link="..".
+// Every error names the element and its line ("line 12, joint 'elbow': ...").
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/robot/robot.hpp"
+
+namespace geotraj::planner {
+
+/// Limits given beside a URDF document (a request's RobotSpec.jointLimits), by joint name;
+/// they take precedence over the <geotraj> block.
+struct NamedLimits {
+  std::string joint;
+  std::optional<double> max_velocity, max_acceleration, max_jerk;
+};
+
+struct UrdfOptions {
+  std::string base_link;  ///< empty: the <geotraj> block's base_link, else the root
+  std::string tip_link;   ///< empty: the block's tip_link, else the only leaf below the base
+  std::vector<NamedLimits> limits;
+  /// Whether a joint without an acceleration limit is an error (every motion needs one).
+  /// False for kinematics only (ComputeForwardKinematics, ComputeInverseKinematics): such a
+  /// joint gets kUnknownAcceleration, which no kinematics call reads.
+  bool require_accelerations = true;
+};
+
+/// What a joint without an acceleration limit carries when none is required: finite and
+/// positive (the model validates), never read by the kinematics.
+inline constexpr double kUnknownAcceleration = 1e300;
+
+/// The model of the chain from the base link to the tip link of the URDF document `urdf`.
+/// Violations name `urdf` (the document: the message says the line and element), `baseLink`
+/// or `tipLink`. Thread-safe.
+core::Expected<core::RobotModel> robot_from_urdf(std::string_view urdf, const UrdfOptions& options = {});
+
+/// The built-in models, in a fixed order: core's "pa10" and "ur5" (DH), then "panda"
+/// (Franka Emika Panda), "iiwa14" (KUKA LBR iiwa 14 R820) and "ur5e" (Universal Robots
+/// UR5e), written as URDF by the project (planner/models/*.urdf, sources cited there).
+const std::vector<core::RobotModel>& builtin_robots();
+
+/// The built-in model called `name`, or nullptr.
+const core::RobotModel* find_builtin_robot(std::string_view name);
+
+/// The URDF text of a built-in model written as URDF, or empty (pa10, ur5: DH tables).
+std::string_view builtin_urdf(std::string_view name);
+
+}  // namespace geotraj::planner

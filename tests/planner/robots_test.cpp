@@ -1,0 +1,448 @@
+// URDF models (planner/robots.hpp): the built-in arms load; forward kinematics of every URDF
+// here agrees with an independent reading of the document (TinyXML and 4 x 4 products, the
+// URDF specification's formulas: no urdfdom, no geotraj chain); the Panda and the UR5e agree
+// with their makers' DH tables; continuous and fixed joints, base and tip links; and every
+// kind of bad document is refused with the element and line it is about.
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <numbers>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <tinyxml.h>
+
+#include "core/robot/ik.hpp"
+#include "core/robot/kinematics.hpp"
+#include "planner/robots.hpp"
+
+namespace geotraj::test {
+namespace {
+
+using ::testing::HasSubstr;
+using core::JointVector;
+using core::RobotModel;
+
+std::string fixture(const std::string& name) {
+  std::ifstream in(std::string(GEOTRAJ_URDF_FIXTURES) + "/" + name);
+  EXPECT_TRUE(in) << name;
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::string listed(const core::Violations& v) {
+  std::string out;
+  for (const auto& x : v) out += "  " + x.field + ": " + x.description + "\n";
+  return out;
+}
+
+planner::UrdfOptions chain(std::string base, std::string tip) {
+  planner::UrdfOptions options;
+  options.base_link = std::move(base);
+  options.tip_link = std::move(tip);
+  return options;
+}
+
+RobotModel load(const std::string& text, const std::string& base = {}, const std::string& tip = {}) {
+  auto m = planner::robot_from_urdf(text, chain(base, tip));
+  EXPECT_TRUE(m.has_value()) << (m ? std::string() : listed(m.error()));
+  return m ? *m : RobotModel{};
+}
+
+// --- an independent reading: the URDF specification's formulas, nothing of geotraj's -------
+
+Eigen::Vector3d triple(const TiXmlElement* e, const char* attribute, const Eigen::Vector3d& fallback) {
+  if (e == nullptr || e->Attribute(attribute) == nullptr) return fallback;
+  std::istringstream in(e->Attribute(attribute));
+  Eigen::Vector3d v;
+  in >> v.x() >> v.y() >> v.z();
+  return v;
+}
+
+struct UrdfJoint {
+  std::string name, type, parent;
+  Eigen::Matrix4d origin = Eigen::Matrix4d::Identity();
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitX();  // URDF's default
+};
+
+// T_parent_joint = Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll) (URDF: fixed-axis roll, pitch, yaw).
+Eigen::Matrix4d origin_of(const TiXmlElement* joint) {
+  const TiXmlElement* o = joint->FirstChildElement("origin");
+  const Eigen::Vector3d xyz = triple(o, "xyz", Eigen::Vector3d::Zero()), rpy = triple(o, "rpy", Eigen::Vector3d::Zero());
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  T.topLeftCorner<3, 3>() = (Eigen::AngleAxisd(rpy.z(), Eigen::Vector3d::UnitZ()) *
+                             Eigen::AngleAxisd(rpy.y(), Eigen::Vector3d::UnitY()) *
+                             Eigen::AngleAxisd(rpy.x(), Eigen::Vector3d::UnitX()))
+                                .toRotationMatrix();
+  T.topRightCorner<3, 1>() = xyz;
+  return T;
+}
+
+// The tip link's pose in the base link's frame, q in chain order (moving joints only).
+Eigen::Matrix4d independent_fk(const std::string& text, const std::string& base, const std::string& tip,
+                               const JointVector& q) {
+  TiXmlDocument doc;
+  doc.Parse(text.c_str());
+  std::map<std::string, UrdfJoint> by_child;
+  for (const TiXmlElement* j = doc.RootElement()->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
+    UrdfJoint u;
+    u.name = j->Attribute("name");
+    u.type = j->Attribute("type");
+    u.parent = j->FirstChildElement("parent")->Attribute("link");
+    u.origin = origin_of(j);
+    u.axis = triple(j->FirstChildElement("axis"), "xyz", Eigen::Vector3d::UnitX()).normalized();
+    by_child[j->FirstChildElement("child")->Attribute("link")] = u;
+  }
+  std::vector<UrdfJoint> chain;
+  for (std::string link = tip; link != base; link = by_child.at(link).parent) chain.insert(chain.begin(), by_child.at(link));
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  Eigen::Index k = 0;
+  for (const UrdfJoint& j : chain) {
+    Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
+    if (j.type == "revolute" || j.type == "continuous") {
+      M.topLeftCorner<3, 3>() = Eigen::AngleAxisd(q(k++), j.axis).toRotationMatrix();
+    } else if (j.type == "prismatic") {
+      M.topRightCorner<3, 1>() = q(k++) * j.axis;
+    }
+    T = T * j.origin * M;
+  }
+  EXPECT_EQ(k, q.size());
+  return T;
+}
+
+JointVector random_q(const RobotModel& m, std::mt19937_64& rng) {
+  JointVector q(static_cast<Eigen::Index>(m.dof()));
+  for (std::size_t i = 0; i < m.dof(); ++i) {
+    const bool continuous = m.joints[i].type == core::JointType::kContinuous;
+    std::uniform_real_distribution<double> d(continuous ? -7.0 : m.limits[i].min_position,
+                                             continuous ? 7.0 : m.limits[i].max_position);
+    q(static_cast<Eigen::Index>(i)) = d(rng);
+  }
+  return q;
+}
+
+struct Document {
+  const char* name;
+  std::string text;
+  const char* base;
+  const char* tip;
+};
+
+std::vector<Document> documents() {
+  return {{"panda", std::string(planner::builtin_urdf("panda")), "panda_link0", "panda_link8"},
+          {"iiwa14", std::string(planner::builtin_urdf("iiwa14")), "iiwa_link_0", "iiwa_link_ee"},
+          {"ur5e", std::string(planner::builtin_urdf("ur5e")), "base_link", "tool0"},
+          {"scara_like", fixture("scara_like.urdf"), "base_link", "tool"},
+          {"gen3_like", fixture("gen3_like.urdf"), "base_link", "tool_frame"}};
+}
+
+TEST(Urdf, BuiltinArmsLoad) {
+  const auto& robots = planner::builtin_robots();
+  ASSERT_EQ(robots.size(), 5u);
+  const std::pair<const char*, std::size_t> expected[] = {{"pa10", 7}, {"ur5", 6}, {"panda", 7}, {"iiwa14", 7}, {"ur5e", 6}};
+  for (std::size_t i = 0; i < robots.size(); ++i) {
+    SCOPED_TRACE(expected[i].first);
+    EXPECT_EQ(robots[i].name, expected[i].first);
+    EXPECT_EQ(robots[i].dof(), expected[i].second);
+    EXPECT_TRUE(core::validate_robot(robots[i]).empty()) << listed(core::validate_robot(robots[i]));
+    EXPECT_FALSE(robots[i].description.empty());
+    EXPECT_EQ(robots[i].dh.has_value(), i < 2);  // the thesis's PA-10 and the UR5 stay DH tables
+    EXPECT_EQ(planner::builtin_urdf(robots[i].name).empty(), i < 2);
+    ASSERT_EQ(robots[i].home.size(), robots[i].dof());
+  }
+  const RobotModel& panda = *planner::find_builtin_robot("panda");
+  EXPECT_EQ(panda.joints[0].name, "panda_joint1");
+  EXPECT_DOUBLE_EQ(panda.limits[3].max_position, -0.0698);
+  EXPECT_DOUBLE_EQ(*panda.limits[6].max_jerk, 10000.0);
+  EXPECT_DOUBLE_EQ(panda.home[3], -2.35619449019);
+  EXPECT_EQ(planner::find_builtin_robot("nope"), nullptr);
+}
+
+TEST(Urdf, ForwardKinematicsMatchesAnIndependentReadingOfTheDocument) {
+  std::mt19937_64 rng(20261203);
+  for (const Document& d : documents()) {
+    SCOPED_TRACE(d.name);
+    const RobotModel m = load(d.text);
+    ASSERT_GT(m.dof(), 0u);
+    for (int k = 0; k < 200; ++k) {
+      const JointVector q = k == 0 ? JointVector(JointVector::Zero(static_cast<Eigen::Index>(m.dof()))) : random_q(m, rng);
+      const Eigen::Matrix4d expected = independent_fk(d.text, d.base, d.tip, q);
+      const Eigen::Matrix4d actual = core::forward_kinematics(m, q).matrix();
+      ASSERT_LE((actual - expected).cwiseAbs().maxCoeff(), 1e-12) << "q = " << q.transpose() << "\n" << actual << "\n" << expected;
+    }
+  }
+}
+
+// The Panda's URDF against Franka's published modified-DH table (flange 0.107 m along z 7);
+// the UR5e's against Universal Robots' standard DH table: two writings of one arm.
+TEST(Urdf, PandaAndUr5eMatchTheirMakersDhTables) {
+  const double h = std::numbers::pi / 2;
+  RobotModel panda_dh = *planner::find_builtin_robot("panda");
+  core::set_dh(panda_dh, {core::DhConvention::kModified,
+                          {{0, 0, 0.333, 0}, {0, -h, 0, 0}, {0, h, 0.316, 0}, {0.0825, h, 0, 0},
+                           {-0.0825, -h, 0.384, 0}, {0, h, 0, 0}, {0.088, h, 0, 0}}});
+  panda_dh.tool = Eigen::Isometry3d(Eigen::Translation3d(0, 0, 0.107));
+  RobotModel ur5e_dh = *planner::find_builtin_robot("ur5e");
+  core::set_dh(ur5e_dh, {core::DhConvention::kStandard,
+                         {{0, h, 0.1625, 0}, {-0.425, 0, 0, 0}, {-0.3922, 0, 0, 0}, {0, h, 0.1333, 0},
+                          {0, -h, 0.0997, 0}, {0, 0, 0.0996, 0}}});
+  std::mt19937_64 rng(7);
+  for (const auto& [urdf, dh] : {std::pair{planner::find_builtin_robot("panda"), &panda_dh},
+                                 std::pair{planner::find_builtin_robot("ur5e"), &ur5e_dh}}) {
+    SCOPED_TRACE(urdf->name);
+    for (int k = 0; k < 200; ++k) {
+      const JointVector q = random_q(*urdf, rng);
+      EXPECT_LE((core::forward_kinematics(*urdf, q).matrix() - core::forward_kinematics(*dh, q).matrix()).cwiseAbs().maxCoeff(),
+                1e-12);
+    }
+  }
+  // Franka's documented flange at q = 0: (0.088, 0, 0.926) m, z pointing down.
+  const Eigen::Isometry3d X = core::forward_kinematics(*planner::find_builtin_robot("panda"), JointVector::Zero(7));
+  EXPECT_LE((X.translation() - Eigen::Vector3d(0.088, 0, 0.926)).norm(), 1e-12);
+  EXPECT_LE((X.linear().col(2) - Eigen::Vector3d(0, 0, -1)).norm(), 1e-12);
+  // The iiwa straight up: the flange 0.36 + 0.42 + 0.40 + 0.126 m above the base.
+  const Eigen::Isometry3d Y = core::forward_kinematics(*planner::find_builtin_robot("iiwa14"), JointVector::Zero(7));
+  EXPECT_LE((Y.translation() - Eigen::Vector3d(0, 0, 1.306)).norm(), 1e-12);
+}
+
+TEST(Urdf, FixedJointsFoldAndContinuousJointsAreUnbounded) {
+  const RobotModel scara = load(fixture("scara_like.urdf"));
+  ASSERT_EQ(scara.dof(), 5u);  // elbow_mount and tool_joint are fixed
+  const char* names[] = {"j1", "j2", "j3", "j4", "j5"};
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_EQ(scara.joints[i].name, names[i]);
+  EXPECT_EQ(scara.joints[3].type, core::JointType::kPrismatic);
+  EXPECT_EQ(scara.joints[4].type, core::JointType::kContinuous);
+  EXPECT_LE((scara.joints[2].axis - Eigen::Vector3d(0, 0.6, 0.8)).norm(), 1e-15);
+  EXPECT_FALSE(scara.flange.matrix().isIdentity());  // the tool joint
+  EXPECT_DOUBLE_EQ(scara.limits[3].max_acceleration, 1.0);
+  EXPECT_FALSE(scara.limits[2].max_jerk.has_value());
+
+  const RobotModel gen3 = load(fixture("gen3_like.urdf"));
+  ASSERT_EQ(gen3.dof(), 7u);
+  for (std::size_t i : {0u, 2u, 4u, 6u}) EXPECT_EQ(gen3.joints[i].type, core::JointType::kContinuous) << i;
+  for (std::size_t i : {1u, 3u, 5u}) EXPECT_EQ(gen3.joints[i].type, core::JointType::kRevolute) << i;
+  EXPECT_TRUE(core::within_position_limits(gen3.joints[0].type, gen3.limits[0], 25.0));
+  // The IK turns a continuous joint as far as it needs: a pose whose joints sit beyond 2 pi.
+  JointVector q = core::home_configuration(gen3);
+  q(0) += 2.0;
+  q(6) += 9.0;
+  const Eigen::Isometry3d target = core::forward_kinematics(gen3, q);
+  const core::IkResult r = core::solve_ik(gen3, target, q - JointVector::Constant(7, 0.05));
+  EXPECT_TRUE(r.converged);
+  EXPECT_NEAR(r.q(6), q(6), 0.2);  // near the seed (7 joints: self-motion), not wrapped by 2 pi
+}
+
+TEST(Urdf, BaseAndTipChooseTheChain) {
+  // A hand with two fingers below the Panda's flange: three leaves below the root.
+  std::string text(planner::builtin_urdf("panda"));
+  const std::string hand = R"(<link name="hand"/><link name="finger_left"/><link name="finger_right"/>
+  <joint name="hand_joint" type="fixed"><parent link="panda_link8"/><child link="hand"/><origin xyz="0 0 0.1"/></joint>
+  <joint name="finger_joint1" type="prismatic"><parent link="hand"/><child link="finger_left"/><axis xyz="0 1 0"/>
+    <limit lower="0" upper="0.04" effort="20" velocity="0.2"/></joint>
+  <joint name="finger_joint2" type="prismatic"><parent link="hand"/><child link="finger_right"/><axis xyz="0 -1 0"/>
+    <limit lower="0" upper="0.04" effort="20" velocity="0.2"/><mimic joint="finger_joint1"/></joint>
+)";
+  text.insert(text.find("<geotraj description"), hand);
+  auto branched = planner::robot_from_urdf(text);
+  ASSERT_FALSE(branched);
+  EXPECT_EQ(branched.error()[0].field, "tipLink");
+  EXPECT_THAT(branched.error()[0].description, HasSubstr("'finger_left', 'finger_right'"));
+  const RobotModel to_hand = load(text, "", "hand");
+  EXPECT_EQ(to_hand.dof(), 7u);
+  const Eigen::Isometry3d X = core::forward_kinematics(to_hand, JointVector::Zero(7));
+  EXPECT_NEAR(X.translation().z(), 0.926 - 0.1, 1e-12);  // the hand 0.1 m further along the flange's z (down)
+  // The mimic joint is refused when it is on the chain, named.
+  auto mimic = planner::robot_from_urdf(text, chain("", "finger_right"));
+  ASSERT_FALSE(mimic);
+  EXPECT_THAT(listed(mimic.error()), HasSubstr("finger_joint2"));
+  EXPECT_THAT(listed(mimic.error()), HasSubstr("mimic"));
+  // A base in the middle: the joints above it are not the robot's.
+  const RobotModel forearm = load(std::string(planner::builtin_urdf("panda")), "panda_link4", "");
+  EXPECT_EQ(forearm.dof(), 3u);
+  EXPECT_EQ(forearm.joints[0].name, "panda_joint5");
+  // Unknown links and a tip that is not below the base.
+  auto unknown = planner::robot_from_urdf(std::string(planner::builtin_urdf("panda")), chain("nope", ""));
+  ASSERT_FALSE(unknown);
+  EXPECT_EQ(unknown.error()[0].field, "baseLink");
+  EXPECT_THAT(unknown.error()[0].description, HasSubstr("'panda_link0'"));
+  auto above = planner::robot_from_urdf(std::string(planner::builtin_urdf("panda")), chain("panda_link4", "panda_link2"));
+  ASSERT_FALSE(above);
+  EXPECT_EQ(above.error()[0].field, "tipLink");
+  EXPECT_THAT(above.error()[0].description, HasSubstr("not below"));
+}
+
+// Kinematics need no accelerations: a document without them loads when they are not
+// required; limits given beside the document take precedence over its block.
+TEST(Urdf, AccelerationsRequiredForMotionsOnly) {
+  const std::string text = fixture("scara_like.urdf");
+  const std::string bare = text.substr(0, text.find("<geotraj ")) + "</robot>\n";
+  EXPECT_FALSE(planner::robot_from_urdf(bare));
+  planner::UrdfOptions kinematics;
+  kinematics.require_accelerations = false;
+  const RobotModel m = *planner::robot_from_urdf(bare, kinematics);
+  EXPECT_EQ(m.limits[0].max_acceleration, planner::kUnknownAcceleration);
+  EXPECT_TRUE(core::validate_robot(m).empty());
+
+  planner::UrdfOptions given;
+  for (const char* joint : {"j1", "j2", "j3", "j4", "j5"}) given.limits.push_back({joint, std::nullopt, 2.5, 30.0});
+  given.limits[1].max_velocity = 0.5;
+  const RobotModel g = *planner::robot_from_urdf(bare, given);
+  EXPECT_EQ(g.limits[4].max_acceleration, 2.5);
+  EXPECT_EQ(*g.limits[4].max_jerk, 30.0);
+  EXPECT_EQ(g.limits[1].max_velocity, 0.5);
+  const RobotModel over = *planner::robot_from_urdf(text, given);  // over the block's 6
+  EXPECT_EQ(over.limits[0].max_acceleration, 2.5);
+}
+
+// --- bad documents -----------------------------------------------------------------------
+
+struct BadDocument {
+  const char* name;
+  std::function<std::string(std::string)> spoil;  // from the scara fixture
+  const char* field;
+  std::vector<std::string> says;
+};
+
+std::string replaced(std::string text, const std::string& from, const std::string& to) {
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+void PrintTo(const BadDocument& d, std::ostream* os) { *os << d.name; }
+
+class UrdfRefused : public ::testing::TestWithParam<BadDocument> {};
+
+TEST_P(UrdfRefused, NamesTheElementAndLine) {
+  const std::string text = GetParam().spoil(fixture("scara_like.urdf"));
+  auto m = planner::robot_from_urdf(text);
+  ASSERT_FALSE(m) << GetParam().name;
+  const std::string all = listed(m.error());
+  EXPECT_EQ(m.error()[0].field, GetParam().field) << all;
+  for (const auto& s : GetParam().says) EXPECT_THAT(all, HasSubstr(s));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Urdf, UrdfRefused,
+    ::testing::Values(
+        BadDocument{"NotXml", [](std::string) { return std::string("robot name=\"x\""); }, "urdf", {"not well-formed"}},
+        BadDocument{"Unclosed", [](std::string doc) { return replaced(doc, "</robot>", ""); }, "urdf", {"not well-formed", "line"}},
+        BadDocument{"Empty", [](std::string) { return std::string(); }, "urdf", {"not well-formed"}},
+        BadDocument{"NotARobot",
+                    [](std::string) { return std::string("<?xml version=\"1.0\"?>\n<world name=\"w\"/>"); }, "urdf",
+                    {"line 2", "<robot>"}},
+        BadDocument{"ChildLinkMissing", [](std::string doc) { return replaced(doc, "<child link=\"link3\"/>", ""); }, "urdf",
+                    {"j3"}},
+        BadDocument{"UnknownParent",
+                    [](std::string doc) { return replaced(doc, "<parent link=\"link1\"/>", "<parent link=\"nowhere\"/>"); },
+                    "urdf", {"nowhere"}},
+        BadDocument{"BadNumber",
+                    [](std::string doc) { return replaced(doc, "xyz=\"0.35 0 0.02\"", "xyz=\"0.35 zero 0.02\""); }, "urdf",
+                    {}},
+        BadDocument{"NoLimit",
+                    [](std::string doc) {
+                      return replaced(doc, "<limit lower=\"-2.6\" upper=\"2.6\" effort=\"30\" velocity=\"3.5\"/>", "");
+                    },
+                    "urdf", {"j2"}},
+        BadDocument{"ZeroVelocity",
+                    [](std::string doc) { return replaced(doc, "effort=\"30\" velocity=\"3.5\"", "effort=\"30\" velocity=\"0\""); },
+                    "urdf", {"line", "joint 'j2'", "velocity"}},
+        BadDocument{"LowerAboveUpper",
+                    [](std::string doc) { return replaced(doc, "lower=\"-1.2\" upper=\"1.2\"", "lower=\"1.2\" upper=\"-1.2\""); },
+                    "urdf", {"joint 'j3'", "lower <= upper"}},
+        BadDocument{"ZeroAxis", [](std::string doc) { return replaced(doc, "<axis xyz=\"0 0.6 0.8\"/>", "<axis xyz=\"0 0 0\"/>"); },
+                    "urdf", {"j3"}},
+        BadDocument{"FloatingJoint",
+                    [](std::string doc) { return replaced(doc, "<joint name=\"j2\" type=\"revolute\">", "<joint name=\"j2\" type=\"floating\">"); },
+                    "urdf", {"joint 'j2'", "floating"}},
+        BadDocument{"NoAcceleration",
+                    [](std::string doc) { return replaced(doc, "<joint name=\"j3\" max_acceleration=\"8\" home=\"0.3\"/>", ""); },
+                    "urdf", {"joint 'j3'", "acceleration", "URDF", "<geotraj>"}},
+        BadDocument{"NoSideBlock",
+                    [](std::string doc) { return doc.substr(0, doc.find("<geotraj ")) + "</robot>\n"; }, "urdf",
+                    {"joint 'j1'", "joint 'j5'", "<geotraj>"}},
+        BadDocument{"SideBlockUnknownJoint",
+                    [](std::string doc) {
+                      return replaced(doc, "<joint name=\"j3\" max_acceleration=\"8\"", "<joint name=\"j33\" max_acceleration=\"8\"");
+                    },
+                    "urdf", {"'j33'", "no moving joint"}},
+        BadDocument{"SideBlockFixedJoint",
+                    [](std::string doc) {
+                      return replaced(doc, "<joint name=\"j3\" max_acceleration=\"8\"", "<joint name=\"elbow_mount\" max_acceleration=\"8\"");
+                    },
+                    "urdf", {"'elbow_mount'", "no moving joint"}},
+        BadDocument{"SideBlockBadNumber",
+                    [](std::string doc) { return replaced(doc, "max_acceleration=\"7\"", "max_acceleration=\"seven\""); }, "urdf",
+                    {"joint 'j2'", "not a finite number"}},
+        BadDocument{"NegativeJerk",
+                    [](std::string doc) { return replaced(doc, "max_jerk=\"60\"", "max_jerk=\"-60\""); }, "urdf",
+                    {"joint 'j1'", "max_jerk"}},
+        BadDocument{"HomeOutside", [](std::string doc) { return replaced(doc, "home=\"0.05\"", "home=\"0.5\""); }, "urdf",
+                    {"joint 'j4'", "outside"}},
+        BadDocument{"Loop",
+                    [](std::string doc) { return replaced(doc, "<parent link=\"base_link\"/>", "<parent link=\"tool\"/>"); }, "urdf",
+                    {}}),
+    [](const ::testing::TestParamInfo<BadDocument>& p) { return std::string(p.param.name); });
+
+// What would hang, leak, overflow the stack or read past the end inside TinyXML and urdfdom
+// is refused before them (found by fuzz_urdf; tests/fuzz/regressions/fuzz_urdf).
+TEST(Urdf, HostileDocumentsAreRefusedBeforeTheParsers) {
+  const std::string joint = R"(<joint name="%s" type="revolute"><parent link="%s"/><child link="%s"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>)";
+  const auto j = [&](const char* name, const char* parent, const char* child) {
+    std::string out = joint;
+    for (const char* x : {name, parent, child}) out.replace(out.find("%s"), 2, x);
+    return out;
+  };
+  // A loop of links beside a root: urdfdom accepts it, and the walk to the root never ends.
+  const std::string loop = "<robot name=\"r\"><link name=\"a\"/><link name=\"b\"/><link name=\"c\"/><link name=\"d\"/>" +
+                           j("ab", "a", "b") + j("cd", "c", "d") + j("dc", "d", "c") + "</robot>";
+  auto m = planner::robot_from_urdf(loop, chain("", "c"));
+  ASSERT_FALSE(m);
+  EXPECT_THAT(listed(m.error()), HasSubstr("loop"));
+  // Two parents for one link.
+  const std::string twice = "<robot name=\"r\"><link name=\"a\"/><link name=\"b\"/><link name=\"c\"/>" +
+                            j("ab", "a", "b") + j("cb", "c", "b") + "</robot>";
+  m = planner::robot_from_urdf(twice);
+  ASSERT_FALSE(m);
+  EXPECT_THAT(listed(m.error()), HasSubstr("already the child of line 1, joint 'ab'"));
+  // Nesting: 65 levels are refused at once (TinyXML recurses per level, in time depth^2).
+  std::string deep = "<robot name=\"r\">";
+  for (int k = 0; k < 100000; ++k) deep += "<a>";
+  m = planner::robot_from_urdf(deep);
+  ASSERT_FALSE(m);
+  EXPECT_THAT(m.error()[0].description, HasSubstr("nest deeper than 64"));
+  // Comments, CDATA and quoted '>' do not count as levels.
+  std::string fine(planner::builtin_urdf("ur5e"));
+  fine.insert(fine.find("<link"), "<!-- <a><a><a> --><![CDATA[<b><b>]]>");
+  EXPECT_TRUE(planner::robot_from_urdf(fine)) << "a comment is not nesting";
+  // Not UTF-8: a multi-byte character cut off at the end, a stray continuation byte.
+  m = planner::robot_from_urdf(std::string("<robot name=\"r\">\n<link name=\"a\"/></robot>\xC3"));
+  ASSERT_FALSE(m);
+  EXPECT_THAT(m.error()[0].description, HasSubstr("not UTF-8: line 2"));
+  m = planner::robot_from_urdf(std::string("<robot name=\"\x80\"/>"));
+  ASSERT_FALSE(m);
+  EXPECT_THAT(m.error()[0].description, HasSubstr("not UTF-8"));
+  EXPECT_TRUE(planner::robot_from_urdf(std::string(planner::builtin_urdf("panda")) + "<!-- \xC3\xA9 -->"))
+      << "well-formed UTF-8 is fine";
+}
+
+// Messages point at the line: the element's own line in the document.
+TEST(Urdf, ErrorsGiveTheLineOfTheElement) {
+  const std::string text = fixture("scara_like.urdf");
+  const std::string spoiled = replaced(text, "effort=\"30\" velocity=\"3.5\"", "effort=\"30\" velocity=\"-1\"");
+  std::size_t line = 1;
+  for (std::size_t i = 0; i < spoiled.find("<joint name=\"j2\""); ++i) line += spoiled[i] == '\n';
+  auto m = planner::robot_from_urdf(spoiled);
+  ASSERT_FALSE(m);
+  EXPECT_THAT(m.error()[0].description, HasSubstr("line " + std::to_string(line) + ", joint 'j2'"));
+}
+
+}  // namespace
+}  // namespace geotraj::test

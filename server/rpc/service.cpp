@@ -3,6 +3,8 @@
 // violations to a status in status.cpp.
 #include "server/rpc/service.hpp"
 
+#include <grpc/support/time.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -251,7 +253,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
                      planned_->robot ? planned_->robot->seed : core::JointVector());
     batch_size_ = batch_size;
     real_time_ = real_time;
-    start_ = std::chrono::system_clock::now();
+    start_ = std::chrono::steady_clock::now();  // pacing on the monotonic clock: no wall-clock steps
     batch_.mutable_samples()->Reserve(static_cast<int>(batch_size_));
     NextWrite();
   }
@@ -296,13 +298,17 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
   // Waits for `due` on the alarm, unless the call was cancelled (then it ends now): the
   // flag and the alarm under one lock, so that a cancel between the check and the wait
   // still cancels the wait.
-  void WaitUntil(std::chrono::system_clock::time_point due) {
+  void WaitUntil(std::chrono::steady_clock::time_point due) {
     {
       const std::lock_guard lock(alarm_mutex_);
       if (!cancelled_) {
         alarm_set_ = true;
         handoff_release(this);
-        alarm_.Set(due, [this](bool ok) {
+        // gRPC's monotonic clock is CLOCK_MONOTONIC, as steady_clock's: the same instant.
+        const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(due - std::chrono::steady_clock::now());
+        const gpr_timespec deadline = gpr_time_add(
+            gpr_now(GPR_CLOCK_MONOTONIC), gpr_time_from_nanos(std::max<std::int64_t>(0, left.count()), GPR_TIMESPAN));
+        alarm_.Set(deadline, [this](bool ok) {
           handoff_acquire(this);
           {  // WaitUntil has let go of the lock (the alarm may fire before it does)
             const std::lock_guard wait(alarm_mutex_);
@@ -326,12 +332,12 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
       return;
     }
     batch_.clear_samples();
-    const auto now = std::chrono::system_clock::now();
+    const auto now = std::chrono::steady_clock::now();
     while (static_cast<std::size_t>(batch_.samples_size()) < batch_size_) {
       if (!has_pending_ && !sampler_->next(pending_)) break;
       has_pending_ = true;
       if (real_time_) {
-        const auto due = start_ + std::chrono::duration_cast<std::chrono::system_clock::duration>(
+        const auto due = start_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                       std::chrono::duration<double>(pending_.t));
         if (due > now) {
           if (batch_.samples_size() > 0) break;  // send what is due; the rest waits
@@ -358,7 +364,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
   std::optional<core::TrajectorySampler> sampler_;
   std::size_t batch_size_ = 0;
   bool real_time_ = false;
-  std::chrono::system_clock::time_point start_;
+  std::chrono::steady_clock::time_point start_;
   std::stop_source stop_;
   std::mutex alarm_mutex_;
   bool cancelled_ = false;  // OnCancel ran

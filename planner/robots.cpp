@@ -19,7 +19,6 @@
 namespace geotraj::planner {
 namespace {
 
-using core::FieldViolation;
 using core::Violations;
 
 // urdfdom reports what it refuses through console_bridge, a process-wide logger. One handler,
@@ -54,7 +53,7 @@ std::string where(const TiXmlElement* e) {
   return out;
 }
 
-// The line of the first element of kind `tag` (any depth) named `name`, or nullptr.
+// The first child of `root` of kind `tag` named `name`, or nullptr (for a message's line).
 const TiXmlElement* find_named(const TiXmlElement* root, const char* tag, const std::string& name) {
   for (const TiXmlElement* e = root->FirstChildElement(tag); e != nullptr; e = e->NextSiblingElement(tag)) {
     if (const char* n = e->Attribute("name"); n != nullptr && name == n) return e;
@@ -334,13 +333,24 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
     l = model->getLink(l->parent_joint->parent_link_name);
   }
   std::reverse(path.begin(), path.end());
+  const auto moving = std::count_if(path.begin(), path.end(), [](const auto& j) { return j->type != urdf::Joint::FIXED; });
+  if (static_cast<std::size_t>(moving) > core::kMaxJoints) {  // before any work per joint
+    v.push_back({"urdf", "the chain from '" + base->name + "' to '" + tip->name + "' has " + std::to_string(moving) +
+                             " moving joints; at most " + std::to_string(core::kMaxJoints) + " are supported"});
+    return tl::unexpected(std::move(v));
+  }
+  std::map<std::string, const TiXmlElement*> joint_elements;  // for the lines of messages
+  for (const TiXmlElement* e = robot->FirstChildElement("joint"); e != nullptr; e = e->NextSiblingElement("joint")) {
+    if (const char* n = e->Attribute("name")) joint_elements.emplace(n, e);
+  }
 
   core::RobotModel m;
   m.name = model->getName();
   Eigen::Isometry3d pending = Eigen::Isometry3d::Identity();  // fixed joints since the last moving one
   std::vector<const TiXmlElement*> elements;                  // each moving joint's element
   for (const auto& j : path) {
-    const TiXmlElement* e = find_named(robot, "joint", j->name);
+    const auto found = joint_elements.find(j->name);
+    const TiXmlElement* e = found == joint_elements.end() ? nullptr : found->second;
     const std::string at = e ? where(e) : "joint '" + j->name + "'";
     const Eigen::Isometry3d origin = isometry(j->parent_to_joint_origin_transform);
     if (j->type == urdf::Joint::FIXED) {

@@ -1,4 +1,4 @@
-// Inverse kinematics: the DH chain evaluator, the projected Newton iteration and cold solves
+// Inverse kinematics: the serial chain evaluator, the projected Newton iteration and cold solves
 // with restarts. See ik.hpp and serial_chain.hpp.
 #include "core/robot/ik.hpp"
 

@@ -1,4 +1,4 @@
-// Forward kinematics and Jacobians of a DH chain (thesis 1.1.2-1.1.3). See kinematics.hpp.
+// Forward kinematics and Jacobians of a serial chain (thesis 1.1.2-1.1.3). See kinematics.hpp.
 #include "core/robot/kinematics.hpp"
 
 #include <cmath>
@@ -11,9 +11,9 @@ namespace geotraj::core {
 namespace {
 
 // The tool pose and joint axes at q, by the precomputed chain (serial_chain.hpp, shared with
-// the IK): z_i unit axis of joint i, o_i a point on it, in W. Modified DH (1.3): joint i
-// turns about the z axis of frame i, reached after RotX(alpha_i) TransX(a_i); standard DH:
-// about the z axis of frame i-1.
+// the IK): z_i unit axis of joint i, o_i the origin of its frame, in W (robot.hpp: the frame
+// O_i ends in; modified DH (1.3): frame i, reached after RotX(alpha_i) TransX(a_i); standard
+// DH: frame i-1).
 struct Axes {
   Eigen::Matrix3d R_WT;
   Eigen::Vector3d p_WT;

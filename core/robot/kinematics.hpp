@@ -39,8 +39,9 @@ Vector6d jacobian_dot_qdot(const RobotModel& model, const JointVector& q, const 
 /// the sampling loop uses jacobian_dot_qdot.)
 std::vector<JointJacobian> influence_hessian(const RobotModel& model, const JointVector& q);
 
-/// A joint's axis in W: a point on it (the origin of the DH frame the joint turns about or
-/// slides along) [m] and its unit direction.
+/// A joint's axis in W: a point on it (the origin of the joint's frame, after its origin
+/// transform: for a DH chain the frame the joint turns about or slides along) [m] and its
+/// unit direction.
 struct JointAxis {
   Eigen::Vector3d origin;
   Eigen::Vector3d direction;

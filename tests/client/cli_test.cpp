@@ -183,7 +183,8 @@ TEST(Cli, RobotExamplesPlan) {
                                     {"joint_move_pa10.json", "pa10"},
                                     {"linear_move_ur5.json", "ur5"},
                                     {"sequence_ur5.json", "ur5"},
-                                    {"sequence_blended_ur5.json", "ur5"}}) {
+                                    {"sequence_blended_ur5.json", "ur5"},
+                                    {"plan_panda_path_c.json", "panda"}}) {
     const CliRun run = run_cli("plan " + example_path(file), /*merge_stderr=*/true);
     EXPECT_EQ(run.exit_code, 0) << file << "\n" << run.out;
     EXPECT_THAT(run.out, HasSubstr("robot " + robot + ": ")) << file;

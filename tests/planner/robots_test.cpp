@@ -412,6 +412,15 @@ TEST(Urdf, HostileDocumentsAreRefusedBeforeTheParsers) {
   m = planner::robot_from_urdf(twice);
   ASSERT_FALSE(m);
   EXPECT_THAT(listed(m.error()), HasSubstr("already the child of line 1, joint 'ab'"));
+  // A long chain is refused by its count before any work per joint.
+  std::string longest = "<robot name=\"r\"><link name=\"l0\"/>";
+  for (int k = 1; k <= 5000; ++k) {
+    const std::string a = "l" + std::to_string(k - 1), b = "l" + std::to_string(k);
+    longest += "<link name=\"" + b + "\"/>" + j(("j" + std::to_string(k)).c_str(), a.c_str(), b.c_str());
+  }
+  m = planner::robot_from_urdf(longest + "</robot>");
+  ASSERT_FALSE(m);
+  EXPECT_THAT(m.error()[0].description, HasSubstr("has 5000 moving joints; at most 12"));
   // Nesting: 65 levels are refused at once (TinyXML recurses per level, in time depth^2).
   std::string deep = "<robot name=\"r\">";
   for (int k = 0; k < 100000; ++k) deep += "<a>";

@@ -11,6 +11,7 @@
 
 #include <gmock/gmock.h>
 
+#include "planner/robots.hpp"
 #include "tests/server/support/production_support.hpp"
 
 namespace geotraj::testing {
@@ -127,6 +128,21 @@ class Concurrency : public ::testing::Test {
         status = read_stream(stub, example<v1::PlanRequest>("sequence_ur5.json"), samples, *ctx);
         break;
       }
+      case 14: {  // forward kinematics of an inline URDF (urdfdom and TinyXML in every call)
+        v1::ForwardKinematicsRequest request;
+        request.mutable_robot()->set_urdf(std::string(planner::builtin_urdf("iiwa14")));
+        for (int j = 0; j < 7; ++j) request.add_joints(0.1 * j);
+        v1::ForwardKinematicsResponse response;
+        status = stub.ComputeForwardKinematics(ctx.get(), request, &response);
+        break;
+      }
+      case 15: {  // path C streamed on the Panda given inline as its URDF
+        auto request = example<v1::PlanRequest>("plan_panda_path_c.json");
+        request.mutable_robot()->set_urdf(std::string(planner::builtin_urdf("panda")));
+        std::size_t samples = 0;
+        status = read_stream(stub, request, samples, *ctx);
+        break;
+      }
       default: {  // a health watch, read until cancelled or its deadline
         auto health_stub = grpc::health::v1::Health::NewStub(channel_for(stub));
         grpc::health::v1::HealthCheckRequest request;
@@ -153,7 +169,7 @@ class Concurrency : public ::testing::Test {
   server::RunningServer running_;
 };
 
-constexpr int kKinds = 15;
+constexpr int kKinds = 17;
 
 TEST_F(Concurrency, EveryRpcManyAtOnceSomeCancelledMidway) {
   constexpr int kClients = 6;

@@ -652,7 +652,7 @@ core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, con
       if (model) {
         resolved.model = std::move(*model);
       } else {
-        out = std::move(model.error());
+        out.insert(out.end(), model.error().begin(), model.error().end());
       }
       break;
     }
@@ -662,7 +662,7 @@ core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, con
       if (model) {
         resolved.model = std::move(*model);
       } else {
-        out = core::prefixed(std::move(model.error()), "robot.");
+        for (auto& v : core::prefixed(std::move(model.error()), "robot.")) out.push_back(std::move(v));
       }
       break;
     }

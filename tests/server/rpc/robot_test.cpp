@@ -1303,6 +1303,12 @@ TEST_F(RobotTest, UrdfWithoutAccelerationsServesKinematicsAndTakesJointLimits) {
   elbow->clear_max_jerk();
   violations = refused(named);
   EXPECT_THAT(violation_of(violations, "robot.jointLimits[0].joint"), HasSubstr("'elbow_joint'")) << describe(violations);
+  // Every problem at once: a bad limit beside a bad document.
+  request.mutable_robot()->mutable_joint_limits(0)->set_max_velocity(-1.0);
+  request.mutable_robot()->set_urdf("<robot name=\"broken\">");
+  violations = refused(request);
+  EXPECT_THAT(violation_of(violations, "robot.jointLimits[0].maxVelocity"), HasSubstr("> 0")) << describe(violations);
+  EXPECT_THAT(violation_of(violations, "robot.urdf"), HasSubstr("not well-formed")) << describe(violations);
 }
 
 TEST_F(RobotTest, GeotrajdRefusesABadRobotModelFile) {

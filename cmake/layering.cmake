@@ -5,6 +5,7 @@
 #   core/geometry   core/robot         key frames to curves; arms (independent of each other)
 #   core/motion                        u = f(t) and the tool's orientation, on geometry
 #   core/planning                      trajectories of every kind: motion + robot
+#   core/live                          live execution and jogging, on planning
 #   optim/common                       report, solver lock, AD type
 #   optim/<problem>                    one optimisation problem each, on core and optim/common
 #   planner                            the application layer, on core and optim
@@ -16,17 +17,18 @@
 # core, optim and planner must not include gRPC or protobuf at all (below).
 
 set(_core_shared "core/(error|format)\\.hpp")
-set(_core_all "(${_core_shared}|core/(geometry|robot|motion|planning)/)")
+set(_core_all "(${_core_shared}|core/(geometry|robot|motion|planning|live)/)")
 set(_optim_all "optim/(common|tangent_scales|breakpoints|timing)/")
 # folder (relative to the project root) -> the project include prefixes it may use
 set(_layer_folders
-  core/geometry core/robot core/motion core/planning
+  core/geometry core/robot core/motion core/planning core/live
   optim/common optim/tangent_scales optim/breakpoints optim/timing
   planner server/wire server/ops server/rpc)
 set(_allowed_core/geometry "^(${_core_shared}|core/geometry/)")
 set(_allowed_core/robot "^(${_core_shared}|core/robot/)")
 set(_allowed_core/motion "^(${_core_shared}|core/(geometry|motion)/)")
-set(_allowed_core/planning "^${_core_all}")
+set(_allowed_core/planning "^(${_core_shared}|core/(geometry|robot|motion|planning)/)")
+set(_allowed_core/live "^${_core_all}")
 set(_allowed_optim/common "^(${_core_shared}|optim/common/)")
 set(_allowed_optim/tangent_scales "^(${_core_all}|optim/(common|tangent_scales)/)")
 set(_allowed_optim/breakpoints "^(${_core_all}|optim/(common|breakpoints)/)")

@@ -804,6 +804,8 @@ std::optional<Expected<Request>> with_approach(const Request& request) {
   approach.name = "robot.approach";
   approach.motion = *request.motion;
   approach.motion.duration_s = 0.0;  // as fast as the joint limits (and a line's Cartesian ones) allow
+  // The room for live speed changes (reserve_room), unless the request's motion has it already.
+  if (!request.motion_reserved) approach.motion.speed_scale *= std::sqrt(1.0 - request.reserve);
   // Within the jerks too where the model gives them (a double S; a trapezoid's jerk is unbounded).
   const auto& limits = robot->model.limits;
   if (std::any_of(limits.begin(), limits.end(), [](const core::JointLimits& l) { return l.max_jerk.has_value(); })) {
@@ -831,6 +833,35 @@ std::optional<Expected<Request>> with_approach(const Request& request) {
 bool time_optimally_timed(const core::MotionSpec& motion, bool robot, bool time_optimal, bool jerk_limited) {
   const bool minimum_time = motion.duration_s == 0.0 && (robot || motion.profile == core::ProfileShape::kTrapezoidal);
   return time_optimal || jerk_limited || minimum_time;
+}
+
+void prepare_execution(Request& request, double reserve) {
+  if (request.robot) {
+    const auto& limits = request.robot->model.limits;
+    if (std::any_of(limits.begin(), limits.end(), [](const core::JointLimits& l) { return l.max_jerk.has_value(); })) {
+      if (!request.optimize) request.optimize.emplace();
+      request.optimize->jerk_limited = true;
+    }
+  }
+  reserve_room(request, reserve);
+}
+
+void reserve_room(Request& request, double reserve) {
+  const double factor = std::sqrt(1.0 - std::clamp(reserve, 0.0, 0.99));
+  request.reserve = reserve;
+  const bool robot = request.robot != nullptr;
+  const bool time_optimal = request.optimize && request.optimize->time_optimal;
+  const bool jerk_limited = request.optimize && request.optimize->jerk_limited;
+  if (request.motion && time_optimally_timed(*request.motion, robot, time_optimal, jerk_limited)) {
+    request.motion->speed_scale *= factor;
+    request.motion_reserved = true;
+  }
+  for (Step& step : request.sequence) {
+    const bool path = std::holds_alternative<core::PathSpec>(step.geometry);
+    if (time_optimally_timed(step.motion, robot, path && time_optimal, path && jerk_limited)) {
+      step.motion.speed_scale *= factor;
+    }
+  }
 }
 
 std::optional<Error> check(const Budget& budget) {

@@ -117,7 +117,24 @@ struct Request {
   /// The tool orientation a path starts in where its first frame defines none (see
   /// core::plan_orientation). Absent: the robot's at its initial joints, or the world axes.
   std::optional<Eigen::Quaterniond> start_orientation;
+  /// The fraction of every acceleration kept free by the motions timed by the limits
+  /// (reserve_room), and whether `motion` has been scaled for it.
+  double reserve = 0.0;
+  bool motion_reserved = false;
 };
+
+/// Leaves `reserve` (in [0, 0.99]) of every acceleration free, for live speed changes, in the
+/// motions the limits time (time_optimally_timed: time-optimal paths, minimum-time moves,
+/// and robot.approach): their speedScale times sqrt(1 - reserve), so that their velocities
+/// use at most that factor of the limits, accelerations its square (1 - reserve) and jerks
+/// its cube. A motion with a durationS keeps the room it has. A step of a sequence that takes
+/// the request's motion (own_motion false) holds a copy of it, scaled with the others.
+void reserve_room(Request& request, double reserve);
+
+/// A request made ready for live execution (Execute): with a robot that gives jerk limits,
+/// its paths timed by the limits are timed jerk-limited (live execution keeps the jerk
+/// limits its plan keeps, and refuses a plan that breaks them); then reserve_room.
+void prepare_execution(Request& request, double reserve);
 
 /// The server's bounds on one call's work.
 struct Limits {

@@ -23,7 +23,7 @@ cd "$(dirname "$0")/.."
 
 build_dir="${1:-build-fuzz}"
 seconds="${2:-45}"
-targets="${FUZZ_TARGETS:-fuzz_plan_request fuzz_plan_request_json fuzz_convert fuzz_robot_model_json fuzz_http_head fuzz_kinematics fuzz_urdf}"
+targets="${FUZZ_TARGETS:-fuzz_plan_request fuzz_plan_request_json fuzz_convert fuzz_robot_model_json fuzz_http_head fuzz_kinematics fuzz_live fuzz_urdf}"
 jobs="${FUZZ_JOBS:-$(nproc)}"
 fork="${FUZZ_FORK:-0}"
 timeout="${FUZZ_TIMEOUT:-10}"

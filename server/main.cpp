@@ -67,7 +67,7 @@ int main(int argc, char** argv) {
       ->envname("GEOTRAJ_TLS_CLIENT_CA")
       ->group("Listening");
   app.add_option("--auth-tokens-file", options.auth_tokens_file,
-                 "bearer tokens, one per line: `TOKEN [plan,stream]` (no scopes: both); every call then needs "
+                 "bearer tokens, one per line: `TOKEN [plan,stream,move]` (no scopes: all); every call then needs "
                  "`authorization: Bearer TOKEN` (UNAUTHENTICATED / PERMISSION_DENIED)")
       ->envname("GEOTRAJ_AUTH_TOKENS_FILE")
       ->group("Listening");

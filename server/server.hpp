@@ -97,7 +97,7 @@ struct ServerOptions {
   int max_receive_message_bytes = 4 * 1024 * 1024;
   ServiceLimits limits;
   ConnectionOptions connections;
-  /// Bearer tokens file (lines `TOKEN [plan,stream]`); empty: none.
+  /// Bearer tokens file (lines `TOKEN [plan,stream,move]`); empty: none.
   std::string auth_tokens_file;
   /// One more bearer token with every scope (from the environment); empty: none.
   std::string auth_token;

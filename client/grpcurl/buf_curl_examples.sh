@@ -96,6 +96,37 @@ if [ "$samples" -ne 1001 ]; then
   exit 1
 fi
 
+# Live execution (a bidirectional stream: buf curl sends the file's one message, then closes
+# its side): path C on the Panda in real time at 1 kHz, with a 30 s deadman, so that the
+# 3.4 s motion completes. Only the last batch's state is shown.
+echo "== Execute < execute_panda.json (the last state)"
+state="$("$buf" curl "${opts[@]}" -d "@$here/execute_panda.json" "$service/Execute" | grep '"state": ' | tail -n 1)"
+echo "$state"
+if [[ "$state" != *'"LIVE_STATE_COMPLETED"'* ]]; then
+  echo "buf_curl_examples.sh: Execute did not end with a COMPLETED batch" >&2
+  exit 1
+fi
+
+# Jogging: `start`, then a joint command, and no heartbeat: the 2 s deadman stops the joint
+# and ends the call with ABORTED, after a final sample at rest (STOPPED).
+echo "== Jog < jog_panda.json (ended by the deadman on purpose)"
+out="$(mktemp)"
+err="$(mktemp)"
+if "$buf" curl "${opts[@]}" -d "@$here/jog_panda.json" "$service/Jog" >"$out" 2>"$err"; then
+  rm -f "$out" "$err"
+  echo "buf_curl_examples.sh: Jog ended OK, but the deadman should end it with aborted" >&2
+  exit 1
+fi
+cat "$err"
+grep '"state": ' "$out" | tail -n 1
+if ! grep -q '"code": "aborted"' "$err" || [[ "$(grep '"state": ' "$out" | tail -n 1)" != *'"LIVE_STATE_STOPPED"'* ]]; then
+  rm -f "$out" "$err"
+  echo "buf_curl_examples.sh: Jog failed, but not with aborted after a STOPPED batch" >&2
+  exit 1
+fi
+rm -f "$out" "$err"
+echo "== jog_panda.json ended by the deadman as expected"
+
 # The bad request fails on purpose: INVALID_ARGUMENT with a google.rpc.BadRequest, whose
 # field violations buf curl prints base64-encoded (grpcurl decodes them).
 echo "== PlanTrajectory < bad_request.json (fails on purpose)"

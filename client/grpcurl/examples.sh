@@ -35,6 +35,14 @@
 #   ik_ur5_all.json           InverseKinematicsRequest: every branch of a UR5 tool pose (eight)
 # Each works with StreamSamples too (the joints in every sample): StreamSamples refuses a
 # motion the robot cannot follow unless robot.reportOnly is set.
+# For the live calls (bidirectional streams: grpcurl sends every message of the file, then
+# closes its side, and sends no heartbeats, so the server's deadman ends a motion that lasts
+# longer than the deadman time; see docs/clients.md):
+#   execute_panda.json        ExecuteRequest: plan_panda_path_c.json executed live, with a 30 s
+#                             deadman (options.deadmanS) so that the 3.4 s motion completes: OK
+#   jog_panda.json            JogRequest `start` (the Panda at its home, a 2 s deadman), then a
+#                             `joints` command (joint 0 at half the jog speed): the joint turns
+#                             until the deadman stops it, and the call ends ABORTED
 set -euo pipefail
 
 address="${1:-${GEOTRAJ_ADDRESS:-127.0.0.1:50051}}"
@@ -82,6 +90,20 @@ print(json.dumps(request))' "$here/plan_panda_path_c.json" < <("$geotraj_cli" ro
 fi
 call ComputeForwardKinematics "$here/fk_pa10.json"
 call ComputeInverseKinematics "$here/ik_ur5_all.json"
+
+# Live execution: the samples in real time at 1 kHz (about 340 batches; the last shown), the
+# final one COMPLETED.
+echo "== Execute < execute_panda.json (the last batch)"
+grpcurl -plaintext -d @ "$address" geotraj.v1.TrajectoryService/Execute < "$here/execute_panda.json" | tail -n 24
+
+# Jogging: no heartbeat follows the command, so the deadman (2 s) stops the joint and ends the
+# call with ABORTED, after a final sample at rest.
+echo "== Jog < jog_panda.json (ends ABORTED by the deadman)"
+if grpcurl -plaintext -d @ "$address" geotraj.v1.TrajectoryService/Jog < "$here/jog_panda.json" | tail -n 8; then
+  echo "examples.sh: Jog < jog_panda.json ended OK, but the deadman should have ended it with Aborted" >&2
+  exit 1
+fi
+echo "== jog_panda.json ended by the deadman as expected"
 
 # The bad request fails on purpose: grpcurl prints the code, the message and the
 # google.rpc.BadRequest field violations.

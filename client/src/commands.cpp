@@ -22,7 +22,6 @@
 #include "report.hpp"
 
 namespace geotraj::cli {
-namespace {
 
 bool read_text(const std::string& input, std::string& text) {
   if (input == "-") {
@@ -35,9 +34,7 @@ bool read_text(const std::string& input, std::string& text) {
   return true;
 }
 
-// Parses the request file; prints why it cannot and returns false.
-template <class Request>
-bool read_request(const std::string& input, Request& request) {
+bool read_request(const std::string& input, google::protobuf::Message& request) {
   const std::string name = input == "-" ? "standard input" : input;
   std::string text;
   if (!read_text(input, text)) {
@@ -48,12 +45,14 @@ bool read_request(const std::string& input, Request& request) {
   parse.ignore_unknown_fields = false;
   const auto status = google::protobuf::util::JsonStringToMessage(text, &request, parse);
   if (!status.ok()) {
-    std::cerr << "geotraj: " << name << " is not a " << Request::descriptor()->full_name()
+    std::cerr << "geotraj: " << name << " is not a " << request.GetDescriptor()->full_name()
               << " in the proto JSON mapping: " << status.message() << '\n';
     return false;
   }
   return true;
 }
+
+namespace {
 
 // The request's paths: its `path`, or every path of its sequence.
 std::vector<v1::PathSpec*> paths_of(v1::PlanRequest& request) {
@@ -65,9 +64,9 @@ std::vector<v1::PathSpec*> paths_of(v1::PlanRequest& request) {
   return paths;
 }
 
-// The `--optimize-*` flags written into the request; false (with a message) for an unknown
-// objective name.
-bool apply(const OptimizeFlags& flags, v1::PlanRequest& request) {
+}  // namespace
+
+bool apply_flags(const OptimizeFlags& flags, v1::PlanRequest& request) {
   auto enum_value = [](const std::string& name, const std::string& prefix,
                        const google::protobuf::EnumDescriptor* descriptor, int& out) {
     std::string upper = prefix;
@@ -137,6 +136,8 @@ bool apply(const OptimizeFlags& flags, v1::PlanRequest& request) {
   return true;
 }
 
+namespace {
+
 void set_deadline(grpc::ClientContext& context, double timeout_s) {
   context.set_deadline(std::chrono::system_clock::now() +
                        std::chrono::microseconds(static_cast<long long>(timeout_s * 1e6)));
@@ -173,7 +174,7 @@ int run(const CallOptions& options, Call call) {
   Request request;
   if (!read_request(options.input, request)) return 2;
   if constexpr (std::is_same_v<Request, v1::PlanRequest>) {
-    if (!apply(options.optimize, request)) return 2;
+    if (!apply_flags(options.optimize, request)) return 2;
   }
   grpc::ClientContext context;
   set_deadline(context, options.unary_timeout_s());
@@ -206,7 +207,7 @@ int run_analyze(const Connection& connection, const CallOptions& options) {
 
 int run_stream(const Connection& connection, const CallOptions& options) {
   v1::PlanRequest request;
-  if (!read_request(options.input, request) || !apply(options.optimize, request)) return 2;
+  if (!read_request(options.input, request) || !apply_flags(options.optimize, request)) return 2;
   auto stub = v1::TrajectoryService::NewStub(connection.channel);
   // The expected count, for the progress bar (a plan costs far less than its stream).
   std::uint64_t expected = 0;
@@ -227,7 +228,6 @@ int run_stream(const Connection& connection, const CallOptions& options) {
   v1::SampleBatch batch;
   std::uint64_t received = 0;
   int shown = -1;
-  char line[512];
   while (reader->Read(&batch)) {
     for (const auto& s : batch.samples()) {
       if (options.json) {
@@ -235,33 +235,12 @@ int run_stream(const Connection& connection, const CallOptions& options) {
         (void)google::protobuf::util::MessageToJsonString(s, &json, print);
         std::cout << json << '\n';
       } else {
-        if (!header_written) {  // joint columns q0.., qd0.., qdd0.. (joint 0 at the base) when the samples carry joints
-          std::cout << "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz";
-          if (sequence) std::cout << ",step";
-          for (const char* name : {"q", "qd", "qdd"}) {
-            for (int j = 0; j < s.joints_size(); ++j) std::cout << ',' << name << j;
-          }
+        if (!header_written) {
+          print_sample_csv_header(s, sequence, std::cout);
           std::cout << '\n';
           header_written = true;
         }
-        const auto& p = s.position();
-        const auto& q = s.orientation();
-        const auto& v = s.velocity();
-        const auto& a = s.acceleration();
-        const auto& w = s.angular_velocity();
-        std::snprintf(line, sizeof line,
-                      "%.9g,%.17g,%.17g,%u,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,"
-                      "%.17g,%.17g,%.17g,%.17g,%.17g\n",
-                      s.t(), s.u(), s.s(), s.segment(), p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z(), v.x(), v.y(),
-                      v.z(), a.x(), a.y(), a.z(), s.speed(), w.x(), w.y(), w.z());
-        std::cout.write(line, static_cast<std::streamsize>(std::strlen(line) - 1));  // without the newline
-        if (sequence) std::cout << ',' << s.step();
-        for (const auto* values : {&s.joints(), &s.joint_velocities(), &s.joint_accelerations()}) {
-          for (double x : *values) {
-            std::snprintf(line, sizeof line, ",%.17g", x);
-            std::cout << line;
-          }
-        }
+        print_sample_csv(s, sequence, std::cout);
         std::cout << '\n';
       }
     }

@@ -6,7 +6,10 @@
 #include <string>
 #include <vector>
 
+#include <google/protobuf/message.h>
+
 #include "connection.hpp"
+#include "geotraj/v1/geotraj.pb.h"
 
 namespace geotraj::cli {
 
@@ -37,6 +40,24 @@ struct KinematicsFlags {
   std::optional<std::uint32_t> max_solutions;
 };
 
+/// What the flags of the live subcommands (`execute`, `jog`) write into their first message.
+struct LiveFlags {
+  std::string script;  ///< --script: timed commands (script.hpp), "-" for stdin; empty: none
+  std::optional<double> deadman_s;  ///< options.deadmanS / start.deadmanS [s]; absent: the server's 1 s
+  // execute
+  std::optional<double> override_percent;  ///< options.speedOverride [%]
+  std::optional<double> reserve;           ///< options.accelerationReserve, in [0, 0.9]
+  // jog: the robot (exactly one of robot, robot_file, urdf) and JogStart's options
+  std::string robot;       ///< a built-in model's name
+  std::string robot_file;  ///< a RobotModel in the proto JSON mapping
+  std::string urdf;        ///< a URDF file
+  std::vector<double> joints;  ///< robot.initialJoints [rad or m]; empty: the model's home
+  std::optional<double> rate_hz;            ///< start.cycleRateHz [Hz]
+  std::optional<double> velocity_scale;     ///< start.velocityScale, in (0, 1]
+  std::optional<double> max_linear_speed;   ///< start.maxLinearSpeed [m/s]
+  std::optional<double> max_angular_speed;  ///< start.maxAngularSpeed [rad/s]
+};
+
 struct CallOptions {
   std::string input = "-";  ///< request file in the proto JSON mapping; "-" reads stdin
   bool json = false;        ///< print the response as proto JSON instead of a table
@@ -46,7 +67,17 @@ struct CallOptions {
   double unary_timeout_s() const { return timeout_s > 0.0 ? timeout_s : 60.0; }
   OptimizeFlags optimize;   ///< applied to PlanRequests
   KinematicsFlags kinematics;  ///< applied to the kinematics requests
+  LiveFlags live;              ///< applied to Execute's and Jog's first message
 };
+
+/// Reads `input` ("-": standard input) whole; false when it cannot be read.
+bool read_text(const std::string& input, std::string& text);
+/// Parses a request file ("-": standard input) in the proto JSON mapping; prints why it
+/// cannot (naming the file and the message type) and returns false.
+bool read_request(const std::string& input, google::protobuf::Message& request);
+/// The `--optimize-*` flags (and the robot's scales and approach) written into the request;
+/// false, with a message, for an unknown objective name or a flag the request cannot take.
+bool apply_flags(const OptimizeFlags& flags, v1::PlanRequest& request);
 
 // Each returns the process exit code: 0 on success, 1 when the call failed, 2 when the
 // request could not be read.
@@ -56,6 +87,15 @@ int run_analyze(const Connection& connection, const CallOptions& options);
 /// StreamSamples: one line per sample on stdout, CSV with a header (default) or proto JSON
 /// lines (`json`); a progress bar on stderr when stderr is a terminal.
 int run_stream(const Connection& connection, const CallOptions& options);
+/// Execute: the plan run live, its samples printed as they come (stream's CSV columns plus
+/// plan_time, speed_factor and state, or one SampleBatch per line with `json`), a heartbeat
+/// every deadman / 4; the keys of a terminal or the --script steer it (live.cpp). 0 when
+/// the call ends OK (completed or stopped), 1 otherwise, 2 for a request or script that
+/// cannot be read (before the call).
+int run_execute(const Connection& connection, const CallOptions& options);
+/// Jog: the robot jogged by the --script's commands, its set points printed as they come.
+/// Exit codes as run_execute.
+int run_jog(const Connection& connection, const CallOptions& options);
 /// ComputeForwardKinematics: the tool pose, manipulability, axes and Jacobian of the joints
 /// given (flags, or a ForwardKinematicsRequest file when options.input is not empty).
 int run_fk(const Connection& connection, const CallOptions& options);

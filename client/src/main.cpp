@@ -31,8 +31,8 @@ int main(int argc, char** argv) {
   app.add_option("--token-file", token_file, "file holding a bearer token (its first line), sent on every call")
       ->envname("GEOTRAJ_TOKEN_FILE");
   app.add_option("--timeout", options.timeout_s,
-                 "deadline of the call [s]; default: 60 for every call but `stream`, which has none (a motion may "
-                 "last longer than any fixed deadline)")
+                 "deadline of the call [s]; default: 60 for every call but `stream`, `execute` and `jog`, which have "
+                 "none (a motion may last longer than any fixed deadline)")
       ->envname("GEOTRAJ_TIMEOUT")
       ->check(CLI::PositiveNumber);
   app.add_flag("--json", options.json, "print the response in the proto JSON mapping instead of a table");
@@ -81,6 +81,52 @@ int main(int argc, char** argv) {
   auto* stream = app.add_subcommand("stream", "StreamSamples: the motion sampled at the cycle rate, as CSV (or JSON lines with --json)");
   request_arg(stream, "a PlanRequest with `motion`");
   optimize_flags(stream);
+  auto& live = options.live;
+  auto* execute = app.add_subcommand(
+      "execute", "Execute: the plan run live, its samples printed as they come (stream's CSV plus plan_time, "
+                 "speed_factor, state; or one SampleBatch per line with --json). With stdin a terminal and no "
+                 "--script, keys steer it: space pause/resume, + and - the speed override by 10 %, s or q stop");
+  request_arg(execute, "a PlanRequest with `motion`");
+  optimize_flags(execute);
+  execute->add_option("--override", live.override_percent, "the speed override at the start [%] (default 100)")
+      ->check(CLI::Range(0.0, 100.0));
+  execute->add_option("--deadman", live.deadman_s,
+                      "the deadman time [s] (default 1): the server stops the motion when no message came for this "
+                      "long; a heartbeat goes every deadman / 4")
+      ->check(CLI::PositiveNumber);
+  execute->add_option("--acceleration-reserve", live.reserve,
+                      "the fraction of the acceleration a time-optimal plan leaves for speed changes (default 0.1)")
+      ->check(CLI::Range(0.0, 0.9));
+  execute->add_option("--script", live.script,
+                      "timed commands, one per line: TIME override PCT | pause | resume | stop (TIME [s] from the "
+                      "motion's start; # comments); - for stdin");
+  auto* jog = app.add_subcommand(
+      "jog", "Jog: a robot jogged by a script of joint or Cartesian velocity commands, its set points printed as "
+             "they come (t, joints, velocities, tool pose and twist, damping, joints at a limit, state; one "
+             "SampleBatch per line with --json)");
+  jog->add_option("--robot", live.robot, "a built-in robot's name (see `geotraj robots`)");
+  jog->add_option("--robot-file", live.robot_file, "a RobotModel in the proto JSON mapping (- for stdin)");
+  jog->add_option("--urdf", live.urdf, "a URDF file (its only leaf link is the tip)");
+  jog->add_option("--joints", live.joints,
+                  "where the robot is: joint values [rad or m], joint 0 first, comma-separated (default: the model's "
+                  "home)")
+      ->delimiter(',');
+  jog->add_option("--rate", live.rate_hz, "set points per second [Hz] (default 100)")->check(CLI::PositiveNumber);
+  jog->add_option("--velocity-scale", live.velocity_scale,
+                  "what a joint command of 1 means, as a fraction of each joint's maximum velocity, in (0, 1] "
+                  "(default 0.25)")
+      ->check(CLI::PositiveNumber);
+  jog->add_option("--max-linear-speed", live.max_linear_speed, "the tool's speed at a twist of 1 [m/s] (default 0.25)")
+      ->check(CLI::PositiveNumber);
+  jog->add_option("--max-angular-speed", live.max_angular_speed,
+                  "the tool's angular speed at a twist of 1 [rad/s] (default 0.5)")
+      ->check(CLI::PositiveNumber);
+  jog->add_option("--deadman", live.deadman_s, "the deadman time [s] (default 1); a heartbeat goes every deadman / 4")
+      ->check(CLI::PositiveNumber);
+  jog->add_option("--script", live.script,
+                  "timed commands, one per line: TIME joints V0 V1 ... | twist world|tool VX VY VZ WX WY WZ | stop "
+                  "(each value in [-1, 1]; TIME [s] from the motion's start; # comments); - for stdin")
+      ->required();
   auto& kin = options.kinematics;
   auto* fk = app.add_subcommand("fk", "ComputeForwardKinematics: the tool pose, manipulability, axes and Jacobian of "
                                       "joint values");
@@ -152,6 +198,8 @@ int main(int argc, char** argv) {
   if (plan->parsed()) return geotraj::cli::run_plan(*connection, options);
   if (analyze->parsed()) return geotraj::cli::run_analyze(*connection, options);
   if (stream->parsed()) return geotraj::cli::run_stream(*connection, options);
+  if (execute->parsed()) return geotraj::cli::run_execute(*connection, options);
+  if (jog->parsed()) return geotraj::cli::run_jog(*connection, options);
   if (robots->parsed()) return geotraj::cli::run_robots(*connection, options);
   if (fk->parsed()) return geotraj::cli::run_fk(*connection, options);
   if (ik->parsed()) return geotraj::cli::run_ik(*connection, options);

@@ -404,6 +404,36 @@ void print_table(const v1::InverseKinematicsResponse& ik, std::ostream& out) {
   }
 }
 
+void print_sample_csv_header(const v1::Sample& first, bool sequence, std::ostream& out) {
+  out << "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz";
+  if (sequence) out << ",step";
+  for (const char* name : {"q", "qd", "qdd"}) {  // joint 0 at the base
+    for (int j = 0; j < first.joints_size(); ++j) out << ',' << name << j;
+  }
+}
+
+void print_sample_csv(const v1::Sample& s, bool sequence, std::ostream& out) {
+  const auto& p = s.position();
+  const auto& q = s.orientation();
+  const auto& v = s.velocity();
+  const auto& a = s.acceleration();
+  const auto& w = s.angular_velocity();
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "%.9g,%.17g,%.17g,%u,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,"
+                "%.17g,%.17g,%.17g,%.17g,%.17g",
+                s.t(), s.u(), s.s(), s.segment(), p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z(), v.x(), v.y(), v.z(),
+                a.x(), a.y(), a.z(), s.speed(), w.x(), w.y(), w.z());
+  out << line;
+  if (sequence) out << ',' << s.step();
+  for (const auto* values : {&s.joints(), &s.joint_velocities(), &s.joint_accelerations()}) {
+    for (double x : *values) {
+      std::snprintf(line, sizeof line, ",%.17g", x);
+      out << line;
+    }
+  }
+}
+
 void print_error(const grpc::Status& status, std::ostream& err) {
   err << "geotraj: " << server::status_code_name(status.error_code()) << ": " << status.error_message() << '\n';
   google::rpc::Status details;

@@ -26,6 +26,13 @@ void print_table(const v1::ForwardKinematicsResponse& fk, std::ostream& out);
 /// Inverse kinematics: the solutions nearest the seed first, or the closest pose.
 void print_table(const v1::InverseKinematicsResponse& ik, std::ostream& out);
 
+/// The CSV header of samples like `first` (`geotraj stream`): t,u,s,segment, the tool's pose,
+/// velocity, acceleration, speed and angular velocity, `step` when `sequence`, then
+/// q0.., qd0.., qdd0.. when the samples carry joints. No newline.
+void print_sample_csv_header(const v1::Sample& first, bool sequence, std::ostream& out);
+/// One sample as a CSV row under that header (%.17g: exact). No newline.
+void print_sample_csv(const v1::Sample& s, bool sequence, std::ostream& out);
+
 /// The status code and message, then each google.rpc.BadRequest field violation of the
 /// status details, one per line.
 void print_error(const grpc::Status& status, std::ostream& err);

@@ -362,10 +362,19 @@ double MotionSampler::solve_arc_length(double s_target, double u_guess) {
 
 bool MotionSampler::next(MotionSample& out) {
   if (k_ >= plan_->sample_count) return false;
-  const double t = time_of(k_);
+  sample(time_of(k_), k_ + 1 >= plan_->sample_count, out);
+  ++k_;
+  return true;
+}
+
+void MotionSampler::at(double t, MotionSample& out) {
+  const bool last = !(t < plan_->duration_s);
+  sample(last ? plan_->duration_s : std::max(t, t_prev_), last, out);
+}
+
+void MotionSampler::sample(double t, bool last, MotionSample& out) {
   const auto& portions = plan_->portions;
   // A sample at a rest between portions belongs to the later portion (its start).
-  const bool last = k_ + 1 >= plan_->sample_count;
   while (portion_ + 1 < portions.size() && (last || t >= portions[portion_ + 1].t_start)) enter_portion(portion_ + 1);
   const MotionPortion& por = portions[portion_];
   const double tau = t - por.t_start;
@@ -469,8 +478,6 @@ bool MotionSampler::next(MotionSample& out) {
   // d2s/dt2 = d/dt(|p'| u_t) = |p'| u_tt + (p' . p'' / |p'|) u_t^2 (2.36 differentiated).
   out.s_ddot = sp > 0.0 ? sp * u_tt + jet_[1].dot(jet_[2]) / sp * (u_t * u_t) : 0.0;
   t_prev_ = t;
-  ++k_;
-  return true;
 }
 
 }  // namespace geotraj::core

@@ -171,6 +171,11 @@ class MotionSampler {
 
   /// Writes the next sample and returns true, or returns false after the last one.
   bool next(MotionSample& sample);
+  /// Writes the sample at time t [s] (live execution: t off the grid). Times must not
+  /// decrease from one call to the next (a smaller t is taken as the previous one; the
+  /// Taylor parameterisations step from the previous sample); t at or after the duration is
+  /// the final rest. Do not mix with next() without reset().
+  void at(double t, MotionSample& sample);
   /// Starts again from t = 0.
   void reset();
   /// Index of the next sample.
@@ -182,6 +187,7 @@ class MotionSampler {
     double u_local = 0.0;
   };
   double time_of(std::size_t k) const;
+  void sample(double t, bool last, MotionSample& out);
   Point point_in_portion(double u) const;
   double arc_length_to(const Point& q) const;
   void enter_portion(std::size_t i);

@@ -384,6 +384,15 @@ bool MoveSampler<MovePlan>::next(MoveSample& out) {
   return true;
 }
 
+template <class MovePlan>
+void MoveSampler<MovePlan>::at(double t, MoveSample& out) {
+  const MovePlan& p = *plan_;
+  move_at(p, std::clamp(t, 0.0, p.duration_s), cursor_, out);
+  if (k_ > 0 && out.q_WT.coeffs().dot(q_prev_.coeffs()) < 0.0) out.q_WT.coeffs() = -out.q_WT.coeffs();
+  q_prev_ = out.q_WT;
+  ++k_;
+}
+
 template class MoveSampler<JointMovePlan>;
 template class MoveSampler<LinearMovePlan>;
 

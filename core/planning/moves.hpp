@@ -212,6 +212,9 @@ class MoveSampler {
   explicit MoveSampler(const MovePlan& plan);
   /// Writes the next sample and returns true, or returns false after the last one.
   bool next(MoveSample& sample);
+  /// Writes the sample at time t [s], off the grid (live execution); times must not
+  /// decrease from one call to the next; t is clamped to [0, duration].
+  void at(double t, MoveSample& sample);
   /// Starts again from t = 0.
   void reset();
   /// Index of the next sample.

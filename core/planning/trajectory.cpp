@@ -43,6 +43,21 @@ double duration(const Trajectory& trajectory) {
                     trajectory);
 }
 
+const MotionSpec& motion_spec(const StepMotion& step) {
+  return std::visit(Overloaded{[](const PathMotion& m) -> const MotionSpec& { return m.timing.spec; },
+                               [](const JointMovePlan& m) -> const MotionSpec& { return m.spec; },
+                               [](const LinearMovePlan& m) -> const MotionSpec& { return m.spec; }},
+                    step);
+}
+
+const MotionSpec& motion_spec(const Trajectory& trajectory) {
+  return std::visit(Overloaded{[](const PathMotion& m) -> const MotionSpec& { return m.timing.spec; },
+                               [](const JointMovePlan& m) -> const MotionSpec& { return m.spec; },
+                               [](const LinearMovePlan& m) -> const MotionSpec& { return m.spec; },
+                               [](const SequenceMotion& m) -> const MotionSpec& { return motion_spec(m.steps.front()); }},
+                    trajectory);
+}
+
 SequenceMotion make_sequence(std::vector<StepMotion> steps, double rate_hz) {
   SequenceMotion out;
   out.steps = std::move(steps);
@@ -74,10 +89,30 @@ StepSampler::StepSampler(StepRef step, const RobotModel* robot, const JointVecto
 }
 
 bool StepSampler::next(TrajectorySample& out) {
+  if (path_sampler_) {
+    if (!path_sampler_->next(motion_sample_)) return false;
+  } else if (!(joint_sampler_ ? joint_sampler_->next(move_sample_) : linear_sampler_->next(move_sample_))) {
+    return false;
+  }
+  finish(out);
+  return true;
+}
+
+void StepSampler::at(double t, TrajectorySample& out) {
+  if (path_sampler_) {
+    path_sampler_->at(t, motion_sample_);
+  } else if (joint_sampler_) {
+    joint_sampler_->at(t, move_sample_);
+  } else {
+    linear_sampler_->at(t, move_sample_);
+  }
+  finish(out);
+}
+
+void StepSampler::finish(TrajectorySample& out) {
   CartesianState& x = out.tool;
   if (path_sampler_) {
     const PathMotion& m = *std::get<const PathMotion*>(step_);
-    if (!path_sampler_->next(motion_sample_)) return false;
     const MotionSample& ms = motion_sample_;
     x = cartesian_state(m.path, m.orientation, ms);
     out.t = ms.t;
@@ -87,8 +122,6 @@ bool StepSampler::next(TrajectorySample& out) {
     out.speed = ms.speed;
     out.q_WT = Eigen::Quaterniond(x.X_WT.linear());
   } else {
-    const bool more = joint_sampler_ ? joint_sampler_->next(move_sample_) : linear_sampler_->next(move_sample_);
-    if (!more) return false;
     const MoveSample& ms = move_sample_;
     out.t = ms.t;
     out.u = ms.u;
@@ -122,7 +155,6 @@ bool StepSampler::next(TrajectorySample& out) {
     tracker_->track(x, out.joints);
   }
   ++k_;
-  return true;
 }
 
 TrajectorySampler::TrajectorySampler(const Trajectory& trajectory, const RobotModel* robot, const JointVector& seed,
@@ -163,6 +195,28 @@ bool TrajectorySampler::next(TrajectorySample& out) {
     }
   }
   if (!sampler_->next(out)) return false;
+  finish(out);
+  return true;
+}
+
+void TrajectorySampler::at(double t, TrajectorySample& out) {
+  const auto* sequence = std::get_if<SequenceMotion>(trajectory_);
+  if (sequence != nullptr) {
+    // A step's final rest seeds the next step's IK, as next() does.
+    while (step_ + 1 < sequence->steps.size() && t >= sequence->start_times[step_ + 1]) {
+      sampler_->at(duration(sequence->steps[step_]), scratch_);
+      ++step_;
+      start_step(scratch_.has_joints ? scratch_.joints.q : JointVector());
+    }
+    sampler_->at(t - sequence->start_times[step_], out);
+  } else {
+    sampler_->at(t, out);
+  }
+  finish(out);
+}
+
+void TrajectorySampler::finish(TrajectorySample& out) {
+  const auto* sequence = std::get_if<SequenceMotion>(trajectory_);
   if (sequence != nullptr) {
     out.t += sequence->start_times[step_];
     const auto& segments = sequence->segment_steps[step_];
@@ -172,7 +226,6 @@ bool TrajectorySampler::next(TrajectorySample& out) {
   if (out.q_WT.coeffs().dot(previous_q_.coeffs()) < 0.0) out.q_WT.coeffs() *= -1.0;
   previous_q_ = out.q_WT;
   ++k_;
-  return true;
 }
 
 }  // namespace geotraj::core

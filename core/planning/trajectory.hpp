@@ -55,6 +55,11 @@ SequenceMotion make_sequence(std::vector<StepMotion> steps, double rate_hz);
 /// Any planned trajectory.
 using Trajectory = std::variant<PathMotion, JointMovePlan, LinearMovePlan, SequenceMotion>;
 
+/// The motion spec a trajectory was timed with: its own, or its first step's (the steps of a
+/// sequence share one cycle rate; each holds the request's motion unless it has its own).
+const MotionSpec& motion_spec(const StepMotion& step);
+const MotionSpec& motion_spec(const Trajectory& trajectory);
+
 /// Number of samples of a trajectory (exact; t_k = k / rate, the last at the duration).
 std::size_t sample_count(const Trajectory& trajectory);
 std::size_t sample_count(const StepMotion& step);
@@ -87,9 +92,14 @@ class StepSampler {
   /// Writes the next sample (t from the step's start, q_WT as the step gives it); false
   /// after the last one.
   bool next(TrajectorySample& out);
+  /// Writes the sample at time t from the step's start [s], off the grid (times must not
+  /// decrease; t is clamped to [0, duration]). Do not mix with next().
+  void at(double t, TrajectorySample& out);
   std::size_t index() const { return k_; }
 
  private:
+  void finish(TrajectorySample& out);
+
   StepRef step_;
   std::optional<MotionSampler> path_sampler_;
   std::optional<JointMoveSampler> joint_sampler_;
@@ -112,10 +122,15 @@ class TrajectorySampler {
                     const IkOptions& options = {});
   /// Writes the next sample; false after the last one.
   bool next(TrajectorySample& out);
+  /// Writes the sample at time t [s] off the grid (live execution retimes a trajectory):
+  /// the same path, moves, IK and seeding as next(), at any t in [0, duration] (clamped),
+  /// t not decreasing from call to call. Do not mix with next().
+  void at(double t, TrajectorySample& out);
   /// Index of the next sample.
   std::size_t index() const { return k_; }
 
  private:
+  void finish(TrajectorySample& out);
   StepRef step(std::size_t i) const;
   std::size_t step_count() const;
   void start_step(const JointVector& seed);

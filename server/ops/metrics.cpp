@@ -120,13 +120,22 @@ void Metrics::call_refused(std::string_view method, int grpc_code) {
   count_call(method, grpc_code);
 }
 
-void Metrics::rejected(std::string_view method, std::string_view reason) {
-  const std::lock_guard lock(mutex_);
-  auto by_method = rejected_.find(method);
-  if (by_method == rejected_.end()) by_method = rejected_.emplace(std::string(method), decltype(by_method->second){}).first;
+void Metrics::count_reason(Reasons& family, std::string_view method, std::string_view reason) {
+  auto by_method = family.find(method);
+  if (by_method == family.end()) by_method = family.emplace(std::string(method), decltype(by_method->second){}).first;
   auto count = by_method->second.find(reason);
   if (count == by_method->second.end()) count = by_method->second.emplace(std::string(reason), 0).first;
   ++count->second;
+}
+
+void Metrics::rejected(std::string_view method, std::string_view reason) {
+  const std::lock_guard lock(mutex_);
+  count_reason(rejected_, method, reason);
+}
+
+void Metrics::live_stopped(std::string_view method, std::string_view reason) {
+  const std::lock_guard lock(mutex_);
+  count_reason(live_stops_, method, reason);
 }
 
 void Metrics::samples_streamed(std::uint64_t count) { samples_streamed_.fetch_add(count, std::memory_order_relaxed); }
@@ -222,6 +231,15 @@ std::string Metrics::exposition() const {
       for (const auto& [reason, count] : reasons) {
         append_sample(out, "geotraj_rpc_rejected_total", label("method", method) + "," + label("reason", reason),
                       count);
+      }
+    }
+
+    append_header(out, "geotraj_live_stops_total", "counter",
+                  "Live calls (Execute, Jog) whose motion ended at rest, by reason (completed, stopped, deadman, "
+                  "drain, deadline, invalid).");
+    for (const auto& [method, reasons] : live_stops_) {
+      for (const auto& [reason, count] : reasons) {
+        append_sample(out, "geotraj_live_stops_total", label("method", method) + "," + label("reason", reason), count);
       }
     }
 

@@ -42,6 +42,9 @@ class Metrics {
   /// A refused call (see rejected) ended with `grpc_code`: counted in geotraj_rpc_calls_total
   /// like every call, without a duration and without touching the gauges.
   void call_refused(std::string_view method, int grpc_code);
+  /// A live call (Execute, Jog) ended its motion at rest for `reason` ("completed",
+  /// "stopped", "deadman", "drain", "deadline", "invalid"): geotraj_live_stops_total.
+  void live_stopped(std::string_view method, std::string_view reason);
   /// `count` more samples were written to streams (call once per batch).
   void samples_streamed(std::uint64_t count);
   /// One optimisation of `kind` ("tangent_scales", "breakpoints", "time_optimal",
@@ -82,7 +85,11 @@ class Metrics {
   // Keyed by method / reason / kind; std::less<> finds string_view keys without allocating.
   std::map<std::string, std::array<std::uint64_t, kCodes>, std::less<>> calls_;
   std::map<std::string, Histogram, std::less<>> call_durations_;
-  std::map<std::string, std::map<std::string, std::uint64_t, std::less<>>, std::less<>> rejected_;
+  // Counts by method, then by reason (rejected, live_stopped); mutex_ is held.
+  using Reasons = std::map<std::string, std::map<std::string, std::uint64_t, std::less<>>, std::less<>>;
+  static void count_reason(Reasons& family, std::string_view method, std::string_view reason);
+  Reasons rejected_;
+  Reasons live_stops_;
   std::map<std::string, Histogram, std::less<>> optimization_durations_;
   std::map<std::string, std::int64_t, std::less<>> connections_open_;
   std::map<std::string, std::map<std::string, std::uint64_t, std::less<>>, std::less<>> connections_refused_;

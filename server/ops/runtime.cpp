@@ -25,7 +25,20 @@ bool constant_time_equal(std::string_view a, std::string_view b) {
 
 bool token_char(char c) { return c > ' ' && c < 127; }
 
-bool needs_stream_scope(Method method) { return method == Method::kStreamSamples; }
+// The scope a method needs.
+std::string_view scope_of(Method method) {
+  switch (method) {
+    case Method::kStreamSamples: return "stream";
+    case Method::kExecute:
+    case Method::kJog: return "move";
+    default: return "plan";
+  }
+}
+
+bool allows(const TokenScopes& scopes, Method method) {
+  const std::string_view scope = scope_of(method);
+  return scope == "stream" ? scopes.stream : scope == "move" ? scopes.move : scopes.plan;
+}
 
 }  // namespace
 
@@ -38,8 +51,14 @@ std::string_view method_name(Method method) {
     case Method::kListRobots: return "ListRobots";
     case Method::kComputeForwardKinematics: return "ComputeForwardKinematics";
     case Method::kComputeInverseKinematics: return "ComputeInverseKinematics";
+    case Method::kExecute: return "Execute";
+    case Method::kJog: return "Jog";
   }
   return "unknown";
+}
+
+bool is_streaming(Method method) {
+  return method == Method::kStreamSamples || method == Method::kExecute || method == Method::kJog;
 }
 
 tl::expected<void, std::string> TokenTable::add(std::string token, TokenScopes scopes, const std::string& origin) {
@@ -62,7 +81,7 @@ tl::expected<TokenTable, std::string> TokenTable::from_file(const std::string& p
     std::string token, scope_list, extra;
     if (!(fields >> token) || token.front() == '#') continue;
     const std::string where = "tokens file \"" + path + "\" line " + std::to_string(number);
-    TokenScopes scopes{true, true};
+    TokenScopes scopes{true, true, true};
     if (fields >> scope_list) {
       scopes = {};
       std::istringstream names(scope_list);
@@ -71,8 +90,11 @@ tl::expected<TokenTable, std::string> TokenTable::from_file(const std::string& p
           scopes.plan = true;
         } else if (name == "stream") {
           scopes.stream = true;
+        } else if (name == "move") {
+          scopes.move = true;
         } else {
-          return tl::unexpected(where + ": unknown scope \"" + name + "\" (use plan, stream or both: plan,stream)");
+          return tl::unexpected(where + ": unknown scope \"" + name +
+                                "\" (use plan, stream, move or a list of them: plan,stream)");
         }
       }
     }
@@ -104,11 +126,10 @@ std::optional<grpc::Status> TokenTable::check(const grpc::CallbackServerContext&
     if (constant_time_equal(entry.token, token)) match = &entry;
   }
   if (match == nullptr) return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "the bearer token is not valid");
-  const bool allowed = needs_stream_scope(method) ? match->scopes.stream : match->scopes.plan;
-  if (!allowed) {
-    return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
-                        "this token may not call " + std::string(method_name(method)) + ": it needs the scope `" +
-                            (needs_stream_scope(method) ? "stream" : "plan") + "`");
+  if (!allows(match->scopes, method)) {
+    return grpc::Status(grpc::StatusCode::PERMISSION_DENIED, "this token may not call " +
+                                                                 std::string(method_name(method)) +
+                                                                 ": it needs the scope `" + std::string(scope_of(method)) + "`");
   }
   return std::nullopt;
 }
@@ -153,7 +174,7 @@ Call::Call(Runtime& runtime, grpc::CallbackServerContext& context, Method method
   } else {
     request_id_ = new_request_id();
   }
-  const bool streaming = method == Method::kStreamSamples;
+  const bool streaming = is_streaming(method);
   const auto name = method_name(method);
   admit(context, streaming, name);
   // A refusal is answered with trailers only (no initial metadata), so that a client may
@@ -213,7 +234,7 @@ Call::~Call() {
 void Call::finish(const grpc::Status& status, std::uint64_t samples) {
   if (finished_) return;
   finished_ = true;
-  const bool streaming = method_ == Method::kStreamSamples;
+  const bool streaming = is_streaming(method_);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   const auto name = method_name(method_);
   // The log line first: a drain waits for the count of calls in flight, so the call must be

@@ -23,7 +23,7 @@
 
 namespace geotraj::server {
 
-/// The five RPCs of geotraj.v1.TrajectoryService.
+/// The RPCs of geotraj.v1.TrajectoryService.
 enum class Method {
   kConvertConstraints,
   kPlanTrajectory,
@@ -32,22 +32,28 @@ enum class Method {
   kListRobots,
   kComputeForwardKinematics,
   kComputeInverseKinematics,
+  kExecute,
+  kJog,
 };
 
 std::string_view method_name(Method method);
+/// Streams (StreamSamples, Execute, Jog) count against --max-streams, unary calls against
+/// --max-unary-calls.
+bool is_streaming(Method method);
 
-/// What a bearer token may call: `plan` (every unary RPC), `stream` (StreamSamples, which
-/// drives a robot).
+/// What a bearer token may call: `plan` (every unary RPC), `stream` (StreamSamples, whose
+/// samples a controller may follow), `move` (Execute and Jog, which drive a robot live).
 struct TokenScopes {
   bool plan = false;
   bool stream = false;
+  bool move = false;
 };
 
 /// The bearer tokens a server accepts, with their scopes. Empty: no token is asked for.
 class TokenTable {
  public:
   /// Reads a tokens file: one token per line, optionally followed by its scopes
-  /// (`TOKEN plan,stream`; none: every scope); blank lines and lines starting with # are
+  /// (`TOKEN plan,stream,move`; none: every scope); blank lines and lines starting with # are
   /// skipped. Errors name the file and the line, never the token.
   static tl::expected<TokenTable, std::string> from_file(const std::string& path);
   /// Adds one token with every scope (the GEOTRAJ_AUTH_TOKEN environment variable).

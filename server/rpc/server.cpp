@@ -135,7 +135,7 @@ tl::expected<TokenTable, std::string> tokens(const ServerOptions& options) {
     table = std::move(*from_file);
   }
   if (!options.auth_token.empty()) {
-    auto added = table.add(options.auth_token, TokenScopes{true, true}, "GEOTRAJ_AUTH_TOKEN");
+    auto added = table.add(options.auth_token, TokenScopes{true, true, true}, "GEOTRAJ_AUTH_TOKEN");
     if (!added) return tl::unexpected(added.error());
   }
   return table;

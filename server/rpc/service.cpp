@@ -30,6 +30,7 @@
 #include "planner/planner.hpp"
 #include "server/ops/runtime.hpp"
 #include "core/format.hpp"
+#include "server/rpc/live.hpp"
 #include "server/rpc/tsan.hpp"
 #include "server/wire/convert.hpp"
 #include "server/wire/kinematics.hpp"
@@ -383,6 +384,27 @@ tl::expected<planner::Plan, grpc::Status> plan_stream(const Abandon& abandon, co
   return plan_call(abandon, services, request, RequestUse::kStream, planner::Purpose::kStream);
 }
 
+// The planning of an Execute call (on a worker): as a stream's, with `reserve` of every
+// acceleration left free for speed changes; field paths from the message's root (`plan.`).
+tl::expected<planner::Plan, grpc::Status> plan_execution(const Abandon& abandon, const Services& services,
+                                                         const v1::PlanRequest& request, double reserve) {
+  if (auto stop = abandon.check()) return tl::unexpected(*stop);
+  auto input = request_from_proto(request, services.robots, services.limits, RequestUse::kStream);
+  if (!input) return tl::unexpected(invalid_argument(core::prefixed(std::move(input.error()), "plan.")));
+  if (input->robot && input->robot->report_only) {
+    return tl::unexpected(invalid_argument(core::Violations{
+        {"plan.robot.reportOnly", "Execute drives the robot, within its limits: a plan that may break them "
+                                  "(reportOnly) is for PlanTrajectory and StreamSamples"}}));
+  }
+  planner::prepare_execution(*input, reserve);
+  auto plan = planner::plan(*input, budget_of(abandon, services), limits_of(services), planner::Purpose::kStream);
+  if (!plan) {
+    plan.error().violations = core::prefixed(std::move(plan.error().violations), "plan.");
+    return tl::unexpected(to_status(plan.error(), abandon));
+  }
+  return std::move(*plan);
+}
+
 // The analysis is the path's geometry: a robot, when given, does not change it.
 grpc::Status analyze_path(const Abandon& abandon, const Services& services, const v1::PlanRequest& request,
                           v1::PathProfile& profile) {
@@ -424,7 +446,8 @@ using Api = v1::TrajectoryService;
 using RawService = Api::WithRawCallbackMethod_ConvertConstraints<Api::WithRawCallbackMethod_PlanTrajectory<
     Api::WithRawCallbackMethod_StreamSamples<Api::WithRawCallbackMethod_AnalyzePath<
         Api::WithRawCallbackMethod_ComputeForwardKinematics<Api::WithRawCallbackMethod_ComputeInverseKinematics<
-            Api::WithCallbackMethod_ListRobots<Api::Service>>>>>>>;
+            Api::WithRawCallbackMethod_Execute<Api::WithRawCallbackMethod_Jog<
+                Api::WithCallbackMethod_ListRobots<Api::Service>>>>>>>>>;
 
 class TrajectoryService final : public RawService {
  public:
@@ -433,6 +456,8 @@ class TrajectoryService final : public RawService {
   using RawService::ComputeForwardKinematics;
   using RawService::ComputeInverseKinematics;
   using RawService::ConvertConstraints;
+  using RawService::Execute;
+  using RawService::Jog;
   using RawService::ListRobots;
   using RawService::PlanTrajectory;
   using RawService::StreamSamples;
@@ -496,6 +521,18 @@ class TrajectoryService final : public RawService {
         },
         WorkerPool::Priority::kUrgent);
     return stream;
+  }
+
+  // Live execution: the reactor reads the first message and plans it on a worker.
+  grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* Execute(grpc::CallbackServerContext* context) override {
+    return execute_call(*context, *runtime_,
+                        [this, context](const v1::PlanRequest& request, double reserve, std::stop_token stop) {
+                          return plan_execution(abandon(*context, std::move(stop)), services(), request, reserve);
+                        });
+  }
+
+  grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* Jog(grpc::CallbackServerContext* context) override {
+    return jog_call(*context, *runtime_, robots_);
   }
 
   grpc::ServerUnaryReactor* AnalyzePath(grpc::CallbackServerContext* context, const grpc::ByteBuffer* in,

@@ -319,6 +319,66 @@ void checked_call(const Request& request, std::string_view rpc, Method method) {
 
 }  // namespace
 
+namespace {
+
+// One live call of `open` with `messages`, checked (see check_execute).
+template <class Request, class Open>
+void check_live(std::vector<Request> messages, std::string_view rpc, Open open) {
+  const auto start = Clock::now();
+  grpc::ClientContext context;
+  set_deadline(context);
+  auto stream = open(context);
+  std::size_t next = 0;
+  stream->Write(messages[next++]);
+  v1::SampleBatch batch;
+  int after_last = 0;
+  bool cancelled = false;
+  while (stream->Read(&batch)) {
+    require_finite(batch, std::string(rpc) + " batch", messages.front());
+    if (next < messages.size()) {
+      stream->Write(messages[next++]);
+    } else if (++after_last >= kMaxStreamBatches) {
+      context.TryCancel();
+      cancelled = true;
+      break;
+    }
+  }
+  const auto status = stream->Finish();
+  const double overrun =
+      status.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED ? wait_for_idle_server(rpc, messages.front()) : 0.0;
+  trace(rpc, status, start, overrun);
+  if (status.error_code() == grpc::StatusCode::CANCELLED && !cancelled) {
+    fail(std::string(rpc) + ": CANCELLED although the client did not cancel (" + status.error_message() + ")",
+         messages.front());
+  }
+  require_status(status, rpc, messages.front());
+}
+
+}  // namespace
+
+void check_execute(const std::vector<v1::ExecuteRequest>& messages) {
+  auto run = messages;
+  for (auto& m : run) {
+    if (m.has_plan()) {
+      auto* motion = m.mutable_plan()->mutable_motion();
+      if (motion->cycle_rate_hz() > kFuzzLiveRateHz && motion->cycle_rate_hz() <= 1e5) {
+        motion->set_cycle_rate_hz(kFuzzLiveRateHz);
+      }
+    }
+  }
+  check_live(std::move(run), "Execute", [](grpc::ClientContext& context) { return stub().Execute(&context); });
+}
+
+void check_jog(const std::vector<v1::JogRequest>& messages) {
+  auto run = messages;
+  for (auto& m : run) {
+    if (m.has_start() && m.start().cycle_rate_hz() > kFuzzLiveRateHz && m.start().cycle_rate_hz() <= 1e4) {
+      m.mutable_start()->set_cycle_rate_hz(kFuzzLiveRateHz);
+    }
+  }
+  check_live(std::move(run), "Jog", [](grpc::ClientContext& context) { return stub().Jog(&context); });
+}
+
 void check_convert_request(const v1::ConvertRequest& request) {
   checked_call<v1::ConvertResponse>(request, "ConvertConstraints", &v1::TrajectoryService::Stub::ConvertConstraints);
 }

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <google/protobuf/message.h>
 #include <grpcpp/support/status.h>
@@ -69,6 +70,18 @@ inline constexpr std::uint32_t kFuzzIkRestarts = 1000;
 /// ComputeForwardKinematics and ComputeInverseKinematics on `request`, checked.
 void check_kinematics_request(const v1::ForwardKinematicsRequest& request);
 void check_kinematics_request(const v1::InverseKinematicsRequest& request);
+
+/// Execute and Jog: the most messages of one fuzzed call (harness of fuzz_live).
+inline constexpr std::size_t kMaxLiveMessages = 8;
+
+/// Execute with `messages` (the first opens the call; each later one follows a batch read),
+/// cancelled after kMaxStreamBatches batches past the last message; every batch finite, the
+/// status allowed. A plan's cycle rate above kFuzzLiveRateHz is lowered to it (a fuzzed 1e5 Hz
+/// plan is 100 samples per 10 ms batch of IK: the fuzzer would spend its time there).
+void check_execute(const std::vector<v1::ExecuteRequest>& messages);
+/// Jog with `messages`, the same way.
+void check_jog(const std::vector<v1::JogRequest>& messages);
+inline constexpr double kFuzzLiveRateHz = 1000.0;
 
 /// Aborts (after printing `what`, the field path and `context`) when some double or float
 /// of `message`, at any depth, repeated or not, is NaN or infinite.

@@ -10,6 +10,10 @@
 //   OUT_DIR/seeds/fuzz_kinematics/         every example that is a Forward- or
 //                                          InverseKinematicsRequest, binary after its
 //                                          selector byte (0 forward, 1 inverse)
+//   OUT_DIR/seeds/fuzz_live/               every example PlanRequest with a motion executed with
+//                                          an override, a pause, a resume and a stop; a jog of
+//                                          each built-in arm (selector byte 0 Execute, 1 Jog,
+//                                          then length-prefixed binary messages)
 //   OUT_DIR/seeds/fuzz_urdf/               the hand-written URDF documents as they are (the
 //                                          default options), and variants of each after a
 //                                          selector byte (fuzz_urdf.cpp): its first link as
@@ -155,6 +159,20 @@ void write_dictionary(const fs::path& file, const pb::Descriptor* root) {
   write(file, text);
 }
 
+// A fuzz_live input: the selector byte, then each message as a 2-byte little-endian length
+// and its binary form.
+template <class Message>
+std::string live_seed(char selector, const std::vector<Message>& run) {
+  std::string out(1, selector);
+  for (const auto& m : run) {
+    const std::string bytes = m.SerializeAsString();
+    out += static_cast<char>(bytes.size() & 0xffu);
+    out += static_cast<char>((bytes.size() >> 8) & 0xffu);
+    out += bytes;
+  }
+  return out;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -166,7 +184,7 @@ int main(int argc, char** argv) {
   const fs::path examples = argv[2];
   const fs::path extra = argv[3];
   const fs::path seeds = out / "seeds";
-  int counts[7] = {0, 0, 0, 0, 0, 0, 0};
+  int counts[8] = {0, 0, 0, 0, 0, 0, 0, 0};
 
   // The documented example requests.
   for (const auto& file : files_in(examples, true)) {
@@ -182,6 +200,28 @@ int main(int argc, char** argv) {
         write(seeds / "fuzz_robot_model_json" / (stem + "_robot.json"), to_json(plan.robot().model()));
         counts[3]++;
       }
+    }
+    if (parse_json(text, plan) && plan.has_motion()) {
+      // fuzz_live: the plan executed with an override change, a pause, a resume and a stop.
+      std::vector<geotraj::v1::ExecuteRequest> run(5);
+      *run[0].mutable_plan() = plan;
+      run[0].mutable_plan()->mutable_robot()->clear_report_only();
+      run[0].mutable_options()->set_deadman_s(1.0);
+      run[1].set_speed_override(50.0);
+      run[2].mutable_pause();
+      run[3].mutable_resume();
+      run[4].mutable_stop();
+      write(seeds / "fuzz_live" / (stem + "_execute.bin"), live_seed('\0', run));
+      counts[7]++;
+    }
+    geotraj::v1::ExecuteRequest execute;
+    geotraj::v1::JogRequest jog;
+    if (parse_json(text, execute) && execute.has_plan()) {  // the grpcurl files of the live calls
+      write(seeds / "fuzz_live" / (stem + ".bin"), live_seed('\0', std::vector<geotraj::v1::ExecuteRequest>{execute}));
+      counts[7]++;
+    } else if (parse_json(text, jog) && jog.has_start()) {
+      write(seeds / "fuzz_live" / (stem + ".bin"), live_seed('\1', std::vector<geotraj::v1::JogRequest>{jog}));
+      counts[7]++;
     }
     geotraj::v1::ForwardKinematicsRequest forward;
     geotraj::v1::InverseKinematicsRequest inverse;
@@ -289,10 +329,24 @@ int main(int argc, char** argv) {
     urdf_words += dictionary_entry(word);
   }
   write(out / "fuzz_urdf.dict", urdf_words);
+  // fuzz_live: jogs of each built-in arm, joint by joint and Cartesian in both frames.
+  for (const char* name : {"pa10", "ur5", "panda", "iiwa14", "ur5e"}) {
+    std::vector<geotraj::v1::JogRequest> run(4);
+    run[0].mutable_start()->mutable_robot()->set_name(name);
+    run[0].mutable_start()->set_cycle_rate_hz(250.0);
+    const int dof = std::string(name) == "ur5" || std::string(name) == "ur5e" ? 6 : 7;
+    for (int j = 0; j < dof; ++j) run[1].mutable_joints()->add_velocities(j == 1 ? 1.0 : -0.25);
+    run[2].mutable_twist()->mutable_linear()->set_x(0.5);
+    run[2].mutable_twist()->mutable_angular()->set_z(-0.5);
+    run[2].mutable_twist()->set_frame(geotraj::v1::COORDINATE_MODE_TOOL);
+    run[3].mutable_stop();
+    write(seeds / "fuzz_live" / (std::string("jog_") + name + ".bin"), live_seed('\1', run));
+    counts[7]++;
+  }
   write_dictionary(out / "fuzz_plan_request_json.dict", geotraj::v1::PlanRequest::descriptor());
   write_dictionary(out / "fuzz_robot_model_json.dict", geotraj::v1::RobotModel::descriptor());
   std::printf("fuzz_seed_tool: seeds: %d fuzz_plan_request, %d fuzz_plan_request_json, %d fuzz_convert, "
-              "%d fuzz_robot_model_json, %d fuzz_http_head, %d fuzz_kinematics, %d fuzz_urdf\n",
-              counts[0], counts[1], counts[2], counts[3], counts[4], counts[5], counts[6]);
+              "%d fuzz_robot_model_json, %d fuzz_http_head, %d fuzz_kinematics, %d fuzz_urdf, %d fuzz_live\n",
+              counts[0], counts[1], counts[2], counts[3], counts[4], counts[5], counts[6], counts[7]);
   return 0;
 }

@@ -143,6 +143,43 @@ class Concurrency : public ::testing::Test {
         status = read_stream(stub, request, samples, *ctx);
         break;
       }
+      case 16: {  // Panda path C executed live: override 50 %, a pause, a resume, then a stop
+        auto stream = stub.Execute(ctx.get());
+        v1::ExecuteRequest first;
+        *first.mutable_plan() = example<v1::PlanRequest>("plan_panda_path_c.json");
+        first.mutable_options()->set_deadman_s(5.0);
+        stream->Write(first);
+        v1::SampleBatch batch;
+        for (int n = 0; stream->Read(&batch); ++n) {
+          v1::ExecuteRequest c;
+          if (n == 5) c.set_speed_override(50.0);
+          if (n == 10) c.mutable_pause();
+          if (n == 20) c.mutable_resume();
+          if (n == 30) c.mutable_stop();
+          if (n == 5 || n == 10 || n == 20 || n == 30) stream->Write(c);
+        }
+        stream->WritesDone();
+        status = stream->Finish();
+        break;
+      }
+      case 17: {  // a Cartesian jog of the Panda, then a stop
+        auto stream = stub.Jog(ctx.get());
+        v1::JogRequest first;
+        first.mutable_start()->mutable_robot()->set_name("panda");
+        first.mutable_start()->set_cycle_rate_hz(500.0);
+        first.mutable_start()->set_deadman_s(5.0);
+        stream->Write(first);
+        v1::SampleBatch batch;
+        for (int n = 0; stream->Read(&batch); ++n) {
+          v1::JogRequest c;
+          if (n == 1) c.mutable_twist()->mutable_linear()->set_x(0.5);
+          if (n == 20) c.mutable_stop();
+          if (n == 1 || n == 20) stream->Write(c);
+        }
+        stream->WritesDone();
+        status = stream->Finish();
+        break;
+      }
       default: {  // a health watch, read until cancelled or its deadline
         auto health_stub = grpc::health::v1::Health::NewStub(channel_for(stub));
         grpc::health::v1::HealthCheckRequest request;
@@ -169,7 +206,7 @@ class Concurrency : public ::testing::Test {
   server::RunningServer running_;
 };
 
-constexpr int kKinds = 17;
+constexpr int kKinds = 19;
 
 TEST_F(Concurrency, EveryRpcManyAtOnceSomeCancelledMidway) {
   constexpr int kClients = 6;

@@ -145,7 +145,7 @@ TEST_F(InfraTest, ReflectionDescribesTheService) {
     for (const auto& m : file.service(0).method()) methods.push_back(m.name());
     EXPECT_THAT(methods, ::testing::ElementsAre("ConvertConstraints", "PlanTrajectory", "StreamSamples",
                                                 "AnalyzePath", "ListRobots", "ComputeForwardKinematics",
-                                                "ComputeInverseKinematics"));
+                                                "ComputeInverseKinematics", "Execute", "Jog"));
     found = true;
   }
   EXPECT_TRUE(found) << "geotraj/v1/geotraj.proto not among the files sent";

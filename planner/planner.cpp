@@ -114,7 +114,10 @@ Expected<core::MotionPlan> time_optimal_timing(const core::Path& path, const cor
     options.time_budget_s = std::max(0.0, std::chrono::duration<double>(deadline - started).count());
     options.stop = budget.stop;
     auto result = optim::plan_time_optimal_jerk(path, orientation, motion, model, seed, optim::jerk_exact_options(), options);
-    if (!result) return tl::unexpected(invalid(std::move(result.error())));
+    if (!result) {
+      if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+      return tl::unexpected(invalid(std::move(result.error())));
+    }
     plan = std::move(result->motion);
     timing.binding = result->exact.binding;
     timing.report = result->report;
@@ -123,8 +126,13 @@ Expected<core::MotionPlan> time_optimal_timing(const core::Path& path, const cor
     timing.refinements = result->refinements;
     timing.duration_grid_error_s = result->duration_grid_error;
   } else {
-    auto result = core::plan_time_optimal(path, orientation, motion, model, seed);
-    if (!result) return tl::unexpected(invalid(std::move(result.error())));
+    core::TimeOptimalOptions exact;
+    exact.stop = budget.stop;
+    auto result = core::plan_time_optimal(path, orientation, motion, model, seed, exact);
+    if (!result) {
+      if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+      return tl::unexpected(invalid(std::move(result.error())));
+    }
     plan = std::move(result->motion);
     timing.binding = std::move(result->binding);
     timing.report.status = optim::OptimizerStatus::kConverged;

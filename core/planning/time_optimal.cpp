@@ -445,7 +445,8 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
     if (tracker) tracker->reset(seed);
     double t_prev = 0.0, s_ddot_prev = 0.0;
     bool first = true;
-    while (sampler.next(ms)) {
+    for (std::size_t n = 0; sampler.next(ms); ++n) {
+      if (n % 256 == 0 && options.stop.stop_requested()) return Violations{{"motion", "stopped: the call was cancelled"}};
       const MotionPortion& por = plan.portions[ms.portion];
       const std::size_t N = grids[ms.portion].size() - 1;
       const double h = por.length / static_cast<double>(N);
@@ -555,6 +556,7 @@ Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationP
 
   MotionSpec timed = spec;
   for (int round = 0;; ++round) {
+    if (options.stop.stop_requested()) return tl::unexpected(Violations{{"motion", "stopped: the call was cancelled"}});
     out.solutions.clear();
     std::vector<SpeedProfile> profiles;
     for (std::size_t p = 0; p < P; ++p) {

@@ -31,6 +31,7 @@
 #include <cstddef>
 #include <limits>
 #include <optional>
+#include <stop_token>
 #include <string>
 #include <vector>
 
@@ -129,6 +130,9 @@ struct TimeOptimalOptions {
   /// most this many samples: a minute of motion at 10 kHz is 600,000 IK solutions.
   std::size_t max_check_samples = 200'000;
   IkOptions ik;
+  /// Cancellation (a cancelled call, or its deadline): the sweeps and the sample checks stop
+  /// at their next check (every 256 samples, every refinement) with a `motion` error.
+  std::stop_token stop;
 };
 
 /// A time-optimal plan: the motion (sampled exactly by MotionSampler) and why it takes the

@@ -689,7 +689,9 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
                                                        const core::JointVector& seed,
                                                        const core::TimeOptimalOptions& exact_options,
                                                        JerkTimingOptions options) {
-  auto exact = core::plan_time_optimal(path, orientation, spec, robot, seed, exact_options);
+  core::TimeOptimalOptions exact_stoppable = exact_options;
+  if (!exact_stoppable.stop.stop_possible()) exact_stoppable.stop = options.stop;
+  auto exact = core::plan_time_optimal(path, orientation, spec, robot, seed, exact_stoppable);
   if (!exact) return tl::make_unexpected(exact.error());
   const double sc = spec.speed_scale, sc3 = sc * sc * sc;
   if (robot && options.joint_jerk.size() == 0) {

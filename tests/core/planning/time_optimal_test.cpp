@@ -26,6 +26,8 @@
 #include "core/motion/speed_profile.hpp"
 #include "core/planning/joint_motion.hpp"
 #include "core/planning/time_optimal.hpp"
+
+#include <stop_token>
 #include "test_support.hpp"
 #include "thesis_paths.hpp"
 
@@ -476,6 +478,24 @@ TEST(TimeOptimalErrors, CartesianOnlyNeedsAnAcceleration) {
   const auto plan = core::plan_time_optimal(c.path, c.orientation, m, nullptr, JointVector());
   ASSERT_FALSE(plan);
   EXPECT_EQ(plan.error()[0].field, "motion.maxAcceleration");
+}
+
+}  // namespace
+}  // namespace geotraj::test
+
+namespace geotraj::test {
+namespace {
+
+// A cancelled call stops the sweep and its sample checks (TimeOptimalOptions::stop).
+TEST(TimeOptimalPlan, AStopRequestEndsIt) {
+  Pa10C c;
+  std::stop_source stop;
+  stop.request_stop();
+  core::TimeOptimalOptions options;
+  options.stop = stop.get_token();
+  const auto plan = core::plan_time_optimal(c.path, c.orientation, core::MotionSpec{}, c.robot, c.seed, options);
+  ASSERT_FALSE(plan);
+  EXPECT_NE(plan.error()[0].description.find("stopped"), std::string::npos);
 }
 
 }  // namespace

@@ -42,8 +42,10 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// [s] as the clock's duration, within [0, a year] (no overflow for any double).
 Clock::duration seconds(double s) {
-  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+  const double bounded = std::isfinite(s) ? std::clamp(s, 0.0, 3.2e7) : (s > 0.0 ? 3.2e7 : 0.0);
+  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(bounded));
 }
 
 template <class Message>
@@ -372,6 +374,12 @@ class ExecuteReactor final : public LiveReactor {
           // The cycle rate and Cartesian limits of the plan (of its first step: a sequence's
           // steps share one cycle rate).
           const core::MotionSpec& motion = core::motion_spec(*plan_->trajectory);
+          if (!(motion.cycle_rate_hz >= kMinLiveRateHz)) {
+            fail(invalid_argument(core::Violations{
+                {"plan.motion.cycleRateHz", "Execute streams at least " + core::number(kMinLiveRateHz) +
+                                                " set point per second, got " + core::number(motion.cycle_rate_hz) + " Hz"}}));
+            return;
+          }
           core::LiveOptions options;
           options.stop = stop_token();  // a cancelled call (or its deadline) ends the pass
           auto live = core::LiveExecution::start(*plan_->trajectory, model, robot ? robot->seed : core::JointVector(),

@@ -92,6 +92,10 @@ core::Expected<JogSettings> jog_settings(const v1::JogStart& start, const RobotC
   o.cycle_rate_hz = 100.0;
   o.velocity_scale = 0.25;
   positive(start.has_cycle_rate_hz(), start.cycle_rate_hz(), 10'000.0, "cycleRateHz", o.cycle_rate_hz);
+  if (start.has_cycle_rate_hz() && start.cycle_rate_hz() > 0.0 && start.cycle_rate_hz() < kMinLiveRateHz) {
+    violations.push_back({"start.cycleRateHz", "must be at least " + number(kMinLiveRateHz) + " Hz, got " +
+                                                   number(start.cycle_rate_hz())});
+  }
   positive(start.has_velocity_scale(), start.velocity_scale(), 1.0, "velocityScale", o.velocity_scale);
   positive(start.has_max_linear_speed(), start.max_linear_speed(), 10.0, "maxLinearSpeed", o.max_linear_speed);
   positive(start.has_max_angular_speed(), start.max_angular_speed(), 10.0, "maxAngularSpeed", o.max_angular_speed);

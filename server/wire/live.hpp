@@ -20,6 +20,8 @@ namespace geotraj::server {
 inline constexpr double kDefaultDeadmanS = 1.0;
 inline constexpr double kMaxDeadmanS = 3600.0;
 inline constexpr double kDefaultReserve = 0.1;
+/// The live calls' cycle rates [Hz]: at least one set point per second.
+inline constexpr double kMinLiveRateHz = 1.0;
 
 /// How an Execute call runs, from its first message's `options`.
 struct ExecuteSettings {

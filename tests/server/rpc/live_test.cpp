@@ -286,6 +286,12 @@ TEST_F(Live, JogErrorsNameTheirField) {
   EXPECT_EQ(run.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_NE(violation_of(bad_request_violations(run.status), "start"), "");
 
+  auto slow = panda_jog();  // a rate that would put the next set point past any clock
+  slow.mutable_start()->set_cycle_rate_hz(1.8e-307);
+  run = jog(slow);
+  EXPECT_EQ(run.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(violation_of(bad_request_violations(run.status), "start.cycleRateHz"), "");
+
   auto unknown = panda_jog();
   unknown.mutable_start()->mutable_robot()->set_name("no-such-arm");
   run = jog(unknown);

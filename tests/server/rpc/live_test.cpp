@@ -8,6 +8,7 @@
 #include <fstream>
 #include <functional>
 #include <future>
+#include <optional>
 #include <thread>
 
 #include <gmock/gmock.h>
@@ -193,9 +194,14 @@ TEST_F(Live, OverridePauseAndResume) {
 }
 
 TEST_F(Live, TheDeadmanStopsAMotionWithNoMessages) {
-  const auto started = std::chrono::steady_clock::now();
-  const auto run = execute(panda_plan(0.2), nullptr, /*heartbeats=*/false);
-  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  // Timed from the first batch: planning before the motion (slow under the sanitizers) is
+  // not the deadman's business.
+  std::optional<std::chrono::steady_clock::time_point> started;
+  const auto run = execute(
+      panda_plan(0.2), [&](Stream&, const LiveRun&) { started = started.value_or(std::chrono::steady_clock::now()); },
+      /*heartbeats=*/false);
+  ASSERT_TRUE(started.has_value());
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - *started).count();
   EXPECT_EQ(run.status.error_code(), grpc::StatusCode::ABORTED);
   EXPECT_THAT(run.status.error_message(), HasSubstr("deadman"));
   EXPECT_EQ(run.reason, "deadman");
@@ -250,7 +256,13 @@ TEST_F(Live, BadMessagesNameTheirField) {
 }
 
 TEST_F(Live, ADeadlineBringsTheMotionToRestBeforeIt) {
-  const auto run = execute(panda_plan(), nullptr, true, /*deadline_s=*/1.5);
+  // The PA-10's joint move (planned in milliseconds even under the sanitizers) at half speed
+  // lasts about 4.6 s: the 1.5 s deadline falls mid-motion.
+  v1::ExecuteRequest first;
+  *first.mutable_plan() = example<v1::PlanRequest>("joint_move_pa10.json");
+  first.mutable_plan()->mutable_motion()->set_cycle_rate_hz(250.0);
+  first.mutable_options()->set_speed_override(50.0);
+  const auto run = execute(first, nullptr, true, /*deadline_s=*/1.5);
   EXPECT_EQ(run.status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
   EXPECT_EQ(run.reason, "deadline");
   expect_final_at_rest(run);

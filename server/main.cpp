@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <stop_token>
 #include <string>
 #include <thread>
@@ -33,7 +34,19 @@ INVALID_ARGUMENT beyond --max-analysis-points; DEADLINE_EXCEEDED after
 --default-deadline-seconds for a call that gives no deadline. Connections beyond
 --max-connections are closed on arrival.
 A process ended by a library (not by a signal or a shutdown) exits with status 70.
-Documentation: docs/deploy.md, docs/reliability.md.)";
+The web page and its JSON API (--web-address) call the same service in process: the same
+tokens (`Authorization: Bearer TOKEN`), limits, drain and metrics.
+Documentation: docs/deploy.md, docs/reliability.md, docs/web-api.md.)";
+
+// share/geotraj/web beside the directory of this binary: <prefix>/share/geotraj/web for
+// <prefix>/bin/geotrajd, and <build>/share/geotraj/web (where the build writes the page) for
+// <build>/server/geotrajd.
+std::string default_web_root() {
+  std::error_code error;
+  const auto exe = std::filesystem::read_symlink("/proc/self/exe", error);
+  if (error) return {};
+  return (exe.parent_path().parent_path() / "share" / "geotraj" / "web").string();
+}
 
 }  // namespace
 
@@ -79,6 +92,16 @@ int main(int argc, char** argv) {
   app.add_option("--metrics-address", options.metrics_address,
                  "HTTP address of Prometheus metrics (GET /metrics) and GET /healthz; empty: off")
       ->envname("GEOTRAJ_METRICS_ADDRESS")
+      ->group("Listening");
+
+  app.add_option("--web-address", options.web_address,
+                 "HTTP address of the operator's page (GET /) and the JSON API (POST /v1/plan, ...), with the gRPC "
+                 "port's TLS, tokens and limits; empty: off")
+      ->envname("GEOTRAJ_WEB_ADDRESS")
+      ->group("Listening");
+  app.add_option("--web-root", options.web_root,
+                 "directory of the page's files (default: share/geotraj/web beside the binary's directory)")
+      ->envname("GEOTRAJ_WEB_ROOT")
       ->group("Listening");
 
   // Limits.
@@ -229,6 +252,7 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->group("Models");
   CLI11_PARSE(app, argc, argv);
+  if (options.web_root.empty() && !options.web_address.empty()) options.web_root = default_web_root();
   if (const char* token = std::getenv("GEOTRAJ_AUTH_TOKEN")) options.auth_token = token;
 
   // Block the stop signals in every thread (gRPC's threads inherit the mask) and take them
@@ -254,6 +278,9 @@ int main(int argc, char** argv) {
               host.c_str(), running->port, tls ? (options.tls.client_ca_file.empty() ? "TLS" : "mutual TLS") : "plaintext");
   if (running->health_port != 0) std::printf("geotrajd: health on port %d\n", running->health_port);
   if (running->metrics_port != 0) std::printf("geotrajd: metrics on http port %d\n", running->metrics_port);
+  if (running->web_port != 0) {
+    std::printf("geotrajd: web page and JSON API on %s port %d\n", tls ? "https" : "http", running->web_port);
+  }
   std::fflush(stdout);
   geotraj::server::log_info(*running, "serving",
                             {{"address", host + ":" + std::to_string(running->port)},

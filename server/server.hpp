@@ -93,6 +93,11 @@ struct ServerOptions {
   std::string health_address;
   /// HTTP address of the Prometheus metrics (GET /metrics) and a plain /healthz. Empty: none.
   std::string metrics_address;
+  /// HTTP address of the operator's page and its JSON API (server/web/gateway.hpp), with
+  /// the gRPC port's TLS, tokens and limits; the same loopback rule without TLS. Empty: none.
+  std::string web_address;
+  /// The page's files (index.html, app.js, ...); empty: the API only.
+  std::string web_root;
   /// Largest request message [bytes].
   int max_receive_message_bytes = 4 * 1024 * 1024;
   ServiceLimits limits;
@@ -113,6 +118,7 @@ struct ServerOptions {
 
 class Runtime;
 class HttpExporter;
+class WebGateway;
 class Acceptor;
 class HealthState;
 
@@ -134,9 +140,13 @@ struct RunningServer {
   std::unique_ptr<grpc::Service> health_only_service;    ///< the same on `health_server`
   std::unique_ptr<Acceptor> acceptor;          ///< accepts the gRPC port's TCP connections
   std::unique_ptr<Acceptor> health_acceptor;   ///< the same for the health port
+  /// On ServerOptions::web_address; calls `server` in process (declared after it, so
+  /// destroyed before it).
+  std::unique_ptr<WebGateway> web;
   int port = 0;          ///< the bound TCP port; 0 without a listening address
   int health_port = 0;   ///< the health-only port; 0 without one
   int metrics_port = 0;  ///< the metrics HTTP port; 0 without one
+  int web_port = 0;      ///< the web port; 0 without one
 };
 
 /// Builds and starts the server, then warms it up (one plan, one analysis, in process) and

@@ -16,12 +16,9 @@ namespace {
 
 std::string errno_text(int error) { return std::generic_category().message(error); }
 
-struct HostPort {
-  std::string host;
-  std::string port;
-};
+}  // namespace
 
-tl::expected<HostPort, std::string> split(const std::string& address, const std::string& quoted) {
+tl::expected<HostPort, std::string> split_host_port(const std::string& address, const std::string& quoted) {
   HostPort out;
   if (!address.empty() && address.front() == '[') {
     const std::size_t close = address.find(']');
@@ -45,12 +42,10 @@ tl::expected<HostPort, std::string> split(const std::string& address, const std:
   return out;
 }
 
-}  // namespace
-
 tl::expected<ListeningSocket, std::string> listen_tcp(const std::string& address, const std::string& what,
                                                       int backlog) {
   const std::string quoted = what + " \"" + address + "\"";
-  auto parts = split(address, quoted);
+  auto parts = split_host_port(address, quoted);
   if (!parts) return tl::make_unexpected(parts.error());
   addrinfo hints{};
   hints.ai_family = AF_UNSPEC;

@@ -14,6 +14,15 @@ struct ListeningSocket {
   int port = 0;
 };
 
+/// HOST:PORT or [IPV6]:PORT split into its host (empty for every address) and its port
+/// (digits, 0 to 65535). The error starts with `quoted` (e.g. `the gRPC address "x"`) and
+/// says what is wrong.
+struct HostPort {
+  std::string host;
+  std::string port;
+};
+tl::expected<HostPort, std::string> split_host_port(const std::string& address, const std::string& quoted);
+
 /// Binds `address` (HOST:PORT or [IPV6]:PORT; a host name is resolved; an empty host means
 /// every address, IPv6 and IPv4; port 0 picks a free port) and listens. SO_REUSEADDR only
 /// (a restart binds while old sockets sit in TIME_WAIT); never SO_REUSEPORT, so a second

@@ -6,6 +6,7 @@
 #include <grpcpp/security/server_credentials.h>
 #include <grpcpp/server_builder.h>
 
+#include <csignal>
 #include <fstream>
 #include <sstream>
 #include <thread>
@@ -23,6 +24,7 @@
 #include "server/rpc/health.hpp"
 #include "planner/robots.hpp"
 #include "server/rpc/service.hpp"
+#include "server/web/gateway.hpp"
 
 namespace geotraj::server {
 namespace {
@@ -287,6 +289,9 @@ RunningServer::~RunningServer() {
   for (auto* s : {health_server.get(), server.get()}) {
     if (s != nullptr) s->Shutdown(std::chrono::system_clock::now());
   }
+  // The web side's calls were refused or cancelled with the server: its threads are
+  // joined before the server they call goes.
+  web.reset();
   health_server.reset();
   server.reset();
   if (runtime) unroute_grpc_logs(runtime->logger());
@@ -384,6 +389,26 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
     running.metrics = std::move(*exporter);
     running.metrics_port = running.metrics->port();
   }
+  if (!options.web_address.empty()) {
+    if (!options.tls.enabled() && !options.plaintext && !local_only(options.web_address)) {
+      return tl::unexpected("refusing to serve plaintext HTTP on the web address \"" + options.web_address +
+                            "\": give --tls-cert and --tls-key, or --plaintext to accept unencrypted connections on a "
+                            "non-loopback address");
+    }
+    // cpp-httplib writes to sockets without MSG_NOSIGNAL: a page closed mid-answer must
+    // give EPIPE, not SIGPIPE's end of the process.
+    std::signal(SIGPIPE, SIG_IGN);
+    grpc::ChannelArguments channel;
+    channel.SetMaxReceiveMessageSize(-1);  // answers are bounded by the service (--max-response-bytes)
+    WebOptions web{.address = options.web_address,
+                   .root = options.web_root,
+                   .tls = options.tls,
+                   .max_request_bytes = static_cast<std::size_t>(std::max(0, options.max_receive_message_bytes))};
+    auto gateway = WebGateway::start(web, running.server->InProcessChannel(channel));
+    if (!gateway) return tl::unexpected(gateway.error());
+    running.web = std::move(*gateway);
+    running.web_port = running.web->port();
+  }
   // Liveness: the process serves. Readiness waits for the warm-up, and for the ports to
   // accept connections.
   running.health->set("", true);
@@ -445,6 +470,8 @@ void stop_server(RunningServer& running, std::chrono::milliseconds drain, std::c
   // within an iteration); a short deadline lets cancelled reactors finish.
   running.server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(200));
   running.server->Wait();
+  // The web side's calls have ended with the server's; its connections close.
+  if (running.web) running.web->stop();
   if (running.health_server) {
     running.health_server->Shutdown(std::chrono::system_clock::now());
     running.health_server->Wait();

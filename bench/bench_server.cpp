@@ -1,6 +1,7 @@
 // End-to-end calls over loopback TCP: a geotraj server started in this process on
 // 127.0.0.1 (ephemeral port) and a client stub on a real channel, so every call pays for
 // serialisation, HTTP/2, the thread hand-offs and the core work. One call at a time.
+// The JSON API over loopback HTTP likewise (BM_Web*).
 // Run: build/bench/bench_server --benchmark_repetitions=5
 #include <benchmark/benchmark.h>
 #include <grpcpp/grpcpp.h>
@@ -22,6 +23,10 @@
 #include "server/ops/http_exporter.hpp"
 #include "server/ops/metrics.hpp"
 #include "server/server.hpp"
+
+#include <google/protobuf/util/json_util.h>
+// Last: httplib.h brings <resolv.h>, whose `_res` macro breaks Eigen if included before it.
+#include <httplib.h>
 
 namespace {
 
@@ -78,6 +83,7 @@ class Loopback {
     server::ServerOptions options;
     options.address = "127.0.0.1:0";
     options.log_level = "warning";  // no line per call: the benchmark measures the service
+    options.web_address = "127.0.0.1:0";  // the JSON API too (BM_Web*)
     auto running = server::start_server(options);
     if (!running) {
       std::cerr << "bench_server: " << running.error() << '\n';
@@ -89,6 +95,7 @@ class Loopback {
   }
   ~Loopback() { server::stop_server(running_, std::chrono::milliseconds(100)); }
   v1::TrajectoryService::Stub& stub() { return *stub_; }
+  int web_port() const { return running_.web_port; }
 
  private:
   server::RunningServer running_;
@@ -318,6 +325,49 @@ void BM_MetricsScrape(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_MetricsScrape)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+// The JSON API over loopback HTTP (one keep-alive connection, as the page holds): what an
+// edit in the page costs before it is drawn. JSON both ways, cpp-httplib, then the same
+// in-process gRPC call.
+void run_web_calls(benchmark::State& state, const char* route, const std::string& body) {
+  httplib::Client client("127.0.0.1", loopback().web_port());
+  client.set_keep_alive(true);
+  client.set_tcp_nodelay(true);  // as browsers do
+  std::vector<double> latency_us;
+  std::size_t bytes = 0;
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto res = client.Post(route, body, "application/json");
+    latency_us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+    if (!res || res->status != 200) {
+      state.SkipWithError(res ? res->body.c_str() : "no answer");
+      break;
+    }
+    bytes += res->body.size();
+  }
+  if (latency_us.empty()) return;
+  std::sort(latency_us.begin(), latency_us.end());
+  const auto at = [&](double q) { return latency_us[static_cast<std::size_t>(q * (latency_us.size() - 1))]; };
+  state.counters["p50_us"] = at(0.5);
+  state.counters["p99_us"] = at(0.99);
+  state.counters["answer_bytes"] = static_cast<double>(bytes) / static_cast<double>(latency_us.size());
+}
+
+std::string json_of(const google::protobuf::Message& message) {
+  std::string out;
+  (void)google::protobuf::util::MessageToJsonString(message, &out);
+  return out;
+}
+
+void BM_WebPlanDemo(benchmark::State& state) { run_web_calls(state, "/v1/plan", json_of(demo_request())); }
+BENCHMARK(BM_WebPlanDemo)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+void BM_WebAnalyzeDemo(benchmark::State& state) {
+  auto request = demo_request();
+  request.set_analysis_points(static_cast<std::uint32_t>(state.range(0)));
+  run_web_calls(state, "/v1/analyze", json_of(request));
+}
+BENCHMARK(BM_WebAnalyzeDemo)->Arg(101)->Arg(1001)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
 }  // namespace
 

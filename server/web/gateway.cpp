@@ -236,6 +236,9 @@ tl::expected<std::unique_ptr<WebGateway>, std::string> WebGateway::start(const W
   httplib::Server& http = *state->http;
   const int threads = std::max(1, options.threads);
   http.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<std::size_t>(threads)); };
+  // An answer's head and body go out as separate writes: with Nagle's algorithm the body
+  // would wait for the client's delayed ACK of the head (40 ms on Linux) on every call.
+  http.set_tcp_nodelay(true);
   http.set_payload_max_length(options.max_request_bytes);
   http.set_read_timeout(options.idle_timeout_s, 0);
   http.set_write_timeout(options.idle_timeout_s, 0);

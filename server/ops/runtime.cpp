@@ -1,6 +1,7 @@
 #include "server/ops/runtime.hpp"
 
 #include "server/status_codes.hpp"
+#include "server/wire/text.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -168,6 +169,12 @@ void Runtime::end_watch() {
 Call::Call(Runtime& runtime, grpc::CallbackServerContext& context, Method method)
     : runtime_(&runtime), method_(method), peer_(context.peer()), started_(std::chrono::steady_clock::now()) {
   const auto& metadata = context.client_metadata();
+  // In process (the web side): no address of its own ("ipv4:...", "unix:..." have one).
+  if (peer_.find(':') == std::string::npos) {
+    if (const auto web = metadata.find(std::string(kWebPeerMetadata)); web != metadata.end()) {
+      peer_ = "web:" + truncated(std::string_view(web->second.data(), web->second.size()), 64);
+    }
+  }
   const auto given = metadata.find("x-request-id");
   if (given != metadata.end() && valid_request_id(std::string_view(given->second.data(), given->second.size()))) {
     request_id_.assign(given->second.data(), given->second.size());

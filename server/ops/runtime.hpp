@@ -117,6 +117,11 @@ class Runtime {
 /// when valid, else a new one) and sends it back in the initial metadata; refuses the call
 /// when the server drains, the token does not allow it, or the cap on calls in flight is
 /// reached; on finish() records the metrics and writes the call's log line.
+/// Metadata of a call from the web side (server/web): the HTTP client's address, logged as
+/// the call's peer. Read only on calls that arrive in process, whose gRPC peer has no
+/// address (a TCP client's peer is its own address, whatever metadata it sends).
+inline constexpr std::string_view kWebPeerMetadata = "geotraj-web-peer";
+
 class Call {
  public:
   Call(Runtime& runtime, grpc::CallbackServerContext& context, Method method);

@@ -12,6 +12,7 @@
 
 #include "geotraj/v1/geotraj.grpc.pb.h"
 #include "google/rpc/status.pb.h"
+#include "server/ops/runtime.hpp"
 #include "server/ops/socket.hpp"
 #include "server/wire/status.hpp"
 #include "server/wire/text.hpp"
@@ -63,10 +64,24 @@ std::optional<grpc::Status> parse_body(const std::string& body, Message& message
   return std::nullopt;
 }
 
-// The HTTP request's bearer token becomes the call's metadata, checked by the service as a
-// gRPC client's would be.
+// The HTTP request's bearer token and request id become the call's metadata, checked and
+// logged by the service as a gRPC client's would be; the HTTP client's address is logged
+// as the call's peer (the service honours it on in-process calls only).
 void pass_on(const httplib::Request& req, grpc::ClientContext& context) {
   if (req.has_header("Authorization")) context.AddMetadata("authorization", req.get_header_value("Authorization"));
+  if (req.has_header("X-Request-Id")) context.AddMetadata("x-request-id", req.get_header_value("X-Request-Id"));
+  context.AddMetadata(std::string(kWebPeerMetadata), req.remote_addr + ":" + std::to_string(req.remote_port));
+}
+
+// The call's request id (in its initial metadata, or its trailers when it was refused) as
+// the X-Request-Id header of the answer.
+void pass_back(const grpc::ClientContext& context, httplib::Response& res) {
+  for (const auto* metadata : {&context.GetServerInitialMetadata(), &context.GetServerTrailingMetadata()}) {
+    if (const auto id = metadata->find("x-request-id"); id != metadata->end()) {
+      res.set_header("X-Request-Id", std::string(id->second.data(), id->second.size()));
+      return;
+    }
+  }
 }
 
 template <class Request, class Response>
@@ -79,7 +94,9 @@ void unary(Stub& stub, UnaryMethod<Request, Response> method, const httplib::Req
   grpc::ClientContext context;
   pass_on(req, context);
   Response response;
-  if (const auto status = (stub.*method)(&context, request, &response); !status.ok()) return reply_status(res, status);
+  const auto status = (stub.*method)(&context, request, &response);
+  pass_back(context, res);
+  if (!status.ok()) return reply_status(res, status);
   res.set_content(to_json(response), kJson);
 }
 
@@ -117,10 +134,12 @@ void stream(Stub& stub, const httplib::Request& req, httplib::Response& res) {
   if (!call->reader->Read(&first)) {
     call->finished = true;
     const auto status = call->reader->Finish();
+    pass_back(call->context, res);
     if (!status.ok()) return reply_status(res, status);
     res.set_content("", kNdjson);  // a motion without samples
     return;
   }
+  pass_back(call->context, res);
   call->pending = to_json(first) + "\n";
   res.set_chunked_content_provider(
       kNdjson,
@@ -273,9 +292,9 @@ tl::expected<std::unique_ptr<WebGateway>, std::string> WebGateway::start(const W
     grpc::ClientContext context;
     pass_on(req, context);
     v1::ListRobotsResponse response;
-    if (const auto status = stub.ListRobots(&context, v1::ListRobotsRequest{}, &response); !status.ok()) {
-      return reply_status(res, status);
-    }
+    const auto status = stub.ListRobots(&context, v1::ListRobotsRequest{}, &response);
+    pass_back(context, res);
+    if (!status.ok()) return reply_status(res, status);
     res.set_content(to_json(response), kJson);
   });
   http.Post("/v1/stream", [&stub](const httplib::Request& req, httplib::Response& res) { stream(stub, req, res); });

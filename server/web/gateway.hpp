@@ -20,7 +20,8 @@
 // DEADLINE_EXCEEDED, ...) with the google.rpc.Status as JSON, its BadRequest field
 // violations included. A stream that fails after its first batch has sent its 200: its last
 // line is then {"error": <google.rpc.Status>}. `Authorization: Bearer <token>` is passed on
-// as the call's `authorization` metadata.
+// as the call's `authorization` metadata, `X-Request-Id` as its `x-request-id` (and the
+// call's id comes back in the answer's X-Request-Id).
 #pragma once
 
 #include <cstddef>

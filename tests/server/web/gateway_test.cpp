@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <thread>
 
@@ -298,6 +299,40 @@ TEST_F(Web, TokensAndScopesAreTheGrpcPorts) {
   EXPECT_EQ(status_from(res->body).code(), 7);
   EXPECT_EQ(post("/v1/stream", body, {{"Authorization", "Bearer all-token-0123456789"}})->status, 200);
   std::filesystem::remove_all(dir);
+}
+
+TEST_F(Web, RequestIdsAndTheClientsAddressAreLogged) {
+  const auto log_path = std::filesystem::temp_directory_path() / ("geotraj_web_log_" + std::to_string(::getpid()));
+  std::FILE* log = std::fopen(log_path.c_str(), "w+");
+  ASSERT_NE(log, nullptr);
+  server::ServerOptions options;
+  options.log_output = log;
+  options.log_level = "info";
+  serve(options);
+  auto res = post("/v1/plan", example_text("plan_demo_path_c.json"), {{"X-Request-Id", "cell-7.plan-42"}});
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_EQ(res->get_header_value("X-Request-Id"), "cell-7.plan-42");
+  // Without one, the call's own id comes back; a refused call has one too.
+  res = post("/v1/plan", "{\"path\": {}}");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 400);
+  EXPECT_FALSE(res->get_header_value("X-Request-Id").empty());
+  // A gRPC client cannot pass for the web side: its peer is its own address.
+  grpc::ClientContext context;
+  context.AddMetadata("geotraj-web-peer", "10.9.9.9:1");
+  v1::ListRobotsResponse robots;
+  ASSERT_TRUE(stub_->ListRobots(&context, v1::ListRobotsRequest{}, &robots).ok());
+  server::stop_server(running_, std::chrono::seconds(5));
+  running_ = {};
+  std::fflush(log);
+  std::fclose(log);
+  std::ifstream in(log_path);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(text, HasSubstr("request_id=cell-7.plan-42"));
+  EXPECT_THAT(text, HasSubstr("peer=web:127.0.0.1:"));
+  EXPECT_THAT(text, ::testing::Not(HasSubstr("10.9.9.9")));
+  std::filesystem::remove(log_path);
 }
 
 TEST_F(Web, ADrainingServerRefusesWith503) {

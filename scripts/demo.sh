@@ -2,7 +2,8 @@
 # The thesis's demonstration (Section 7.2) through the geotraj CLI: the key frames of
 # Table 7.8 with the curvature and torsion of Table 7.18 (paths A, B, C), tangent scale
 # 0.25. For each path: the arc length of every segment and the geometry achieved at every
-# key frame; then an SVG picture of the three paths under out/; then the speed tables
+# key frame; then figures of the three paths and their curvature and torsion under out/
+# (scripts/geotraj_plot.py, matplotlib); then the speed tables
 # (Tables 7.21, 7.22) with their plots (scripts/motion_demo.py); then the paths on the PA-10
 # in joint space at 10 s and time-optimal (scripts/robot_demo.py); then the optimisers:
 # tangent scales (SVG before/after) and Appendix B.3's breakpoint table.
@@ -26,14 +27,18 @@ for path in a b c; do
   /usr/bin/python3 scripts/request_with.py "$requests/plan_demo_path_$path.json" "$out/request_$path.json" \
     analysisPoints=600
   "$cli" --json analyze "$out/request_$path.json" > "$out/profile_$path.json"
+  "$cli" --json plan "$out/request_$path.json" > "$out/plan_$path.json"   # its warnings, for the figures
 done
 
-/usr/bin/python3 scripts/plot_paths.py "$out/thesis_paths.svg" \
-  "path A (kappa2 5, tau2 -50; kappa3 1, tau3 0)=$out/request_a.json:$out/profile_a.json" \
-  "path B (kappa2 10, tau2 -50; kappa3 10, tau3 100)=$out/request_b.json:$out/profile_b.json" \
-  "path C (kappa2 20, tau2 -50; kappa3 10, tau3 -100)=$out/request_c.json:$out/profile_c.json"
+# Figures (scripts/geotraj_plot.py, matplotlib): the paths, and their curvature and torsion.
+/usr/bin/python3 scripts/plot_paths.py "$out/thesis_paths.svg" --geometry "$out/thesis_geometry.svg" \
+  --title "The thesis's demonstration: paths A, B, C (Tables 7.8, 7.18)" \
+  "path A (kappa2 5, tau2 -50; kappa3 1, tau3 0)=$out/request_a.json:$out/profile_a.json:$out/plan_a.json" \
+  "path B (kappa2 10, tau2 -50; kappa3 10, tau3 100)=$out/request_b.json:$out/profile_b.json:$out/plan_b.json" \
+  "path C (kappa2 20, tau2 -50; kappa3 10, tau3 -100)=$out/request_c.json:$out/profile_c.json:$out/plan_c.json"
 echo
-echo "Wrote $out/thesis_paths.svg (top and side views of paths A, B, C; key frames in black, the cusp in orange)"
+echo "Wrote $out/thesis_paths.svg (3-D, top and side views of paths A, B, C in metres; key frames numbered from 0, the cusp in orange)"
+echo "Wrote $out/thesis_geometry.svg (curvature, torsion and their derivatives along the arc length)"
 
 # The speed along the path (Tables 7.21 and 7.22): measured as the thesis does, against the
 # profile, for TAYLOR_SECOND_ORDER and ARC_LENGTH timing; SVG plots under out/.
@@ -51,11 +56,12 @@ for reading in smoothest thesis_zeros lowest_degree; do
     "path.unspecified=UNSPECIFIED_CONSTRAINTS_${reading^^}"
   "$cli" --json analyze "$out/request_c_$reading.json" > "$out/profile_c_$reading.json"
 done
-/usr/bin/python3 scripts/plot_paths.py "$out/readings_path_c.svg" \
+/usr/bin/python3 scripts/plot_paths.py "$out/readings_path_c.svg" --geometry "$out/readings_geometry_c.svg" \
+  --title "Path C under the three readings of unspecified constraints" \
   "path C, SMOOTHEST (the default)=$out/request_c_smoothest.json:$out/profile_c_smoothest.json" \
   "path C, THESIS_ZEROS=$out/request_c_thesis_zeros.json:$out/profile_c_thesis_zeros.json" \
   "path C, LOWEST_DEGREE=$out/request_c_lowest_degree.json:$out/profile_c_lowest_degree.json"
-echo "Wrote $out/readings_path_c.svg (path C under the three readings of unspecified constraints)"
+echo "Wrote $out/readings_path_c.svg and $out/readings_geometry_c.svg (path C under the three readings of unspecified constraints)"
 
 # Optimisation (issue "optimisation"): the tangent scales of path A chosen for the least
 # bending energy (the thesis's 0.25 against the optimised ones, SVG), and Appendix B.3's
@@ -68,7 +74,8 @@ echo "=== Tangent scales of path A (the default reading): the thesis's 0.25 at e
   'optimize={"tangentScales": {"objective": "TANGENT_SCALE_OBJECTIVE_BENDING_ENERGY"}}'
 "$cli" plan "$out/request_a_optimised.json" | sed -n '/^optimisation/,$p'
 "$cli" --json analyze "$out/request_a_optimised.json" > "$out/profile_a_optimised.json"
-/usr/bin/python3 scripts/plot_paths.py "$out/tangent_scales_path_a.svg" \
+/usr/bin/python3 scripts/plot_paths.py "$out/tangent_scales_path_a.svg" --geometry "$out/tangent_scales_geometry_a.svg" \
+  --title "Path A: the thesis's tangent scales against the optimised ones" \
   "path A, tangent scale 0.25 (thesis)=$out/request_a.json:$out/profile_a.json" \
   "path A, tangent scales for the least bending energy + E0/L0 x length=$out/request_a.json:$out/profile_a_optimised.json"
 echo "Wrote $out/tangent_scales_path_a.svg"

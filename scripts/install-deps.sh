@@ -21,7 +21,12 @@ packages=(
   prometheus                          # promtool checks the metrics exposition and alert rules
   yamllint python3-yaml nginx         # deploy/ checks, and the nginx grpc_pass load-balancing test
   clang libclang-rt-14-dev            # the libFuzzer targets (make fuzz)
+  python3-matplotlib                  # the figures: scripts/geotraj_plot.py, `geotraj plot`, make demo
 )
+
+# Debian's chromium runs the web page's browser test (tests/web: puppeteer-core drives it
+# headless; no browser is downloaded): a test tool, left out of a build-only install.
+if [ "${GEOTRAJ_DEPS_NO_TEST_TOOLS:-0}" != 1 ]; then packages+=(chromium); fi
 
 # Node.js and npm run the Node interop test and buf (from the npm registry); a machine that
 # has them already (from any source) keeps its own.

@@ -13,7 +13,7 @@ rests, every ramp 0.75 s long and one peak speed for all portions, erratum of Eq
 The paths are planned as the thesis reads them (UNSPECIFIED_CONSTRAINTS_THESIS_ZEROS) with
 its ramps as a time (Table 6.2's RampTime, rampTimeS 0.75). The period in which the path
 reverses at a cusp is skipped.
-Only the Python standard library is used.
+The figures are drawn by scripts/geotraj_plot.py (matplotlib, Debian's python3-matplotlib).
 """
 import json
 import math
@@ -21,6 +21,9 @@ import os
 import subprocess
 import sys
 import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import geotraj_plot as gp  # noqa: E402
 
 REQUESTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "client", "grpcurl")
 RAMP_TIME_S = 0.75  # Table 6.2's RampTime; Table 7.22's peaks satisfy v (T - 1.5 s) = 1.63 m
@@ -148,7 +151,7 @@ def run_case(cli, tmp, path, duration, method):
     return {"periods": periods, "peak": profile.peak,
             "measured_peak": max(m for _, m, _ in valid), "error": error,
             "percent": 100.0 * error / profile.peak,
-            "s_gap": max(abs(s - profile.s(t)) for t, s, _ in samples)}
+            "s_gap": max(abs(s - profile.s(t)) for t, s, _ in samples), "rests": profile.rests}
 
 
 def print_tables(results):
@@ -171,84 +174,27 @@ def print_tables(results):
     print(NOTE)
 
 
-# --- SVG -------------------------------------------------------------------------------
+# --- figures (scripts/geotraj_plot.py) ----------------------------------------------------
 
-W, H, LEFT, RIGHT, LEGEND_Y = 820, 640, 80, 20, 48
-PANELS = [("speed [m/s]", 70, 300), ("measured - reference [m/s]", 410, 170)]  # (label, y, h)
-
-
-def ticks(lo, hi, n=5):
-    step = 10 ** math.floor(math.log10((hi - lo) / n))
-    step *= next(m for m in (1, 2, 5, 10) if (hi - lo) / (step * m) <= n)
-    first = math.ceil(lo / step) * step
-    return [first + i * step for i in range(int((hi - first) / step + 1e-9) + 1)]
-
-
-def panel(svg, label, y0, h, t_max, series, x_label):
-    """One plot: SERIES is [(colour, width, dash, pieces)], each piece a list of (t, value)."""
-    values = [v for _, _, _, pieces in series for piece in pieces for _, v in piece]
-    lo, hi = min(values + [0.0]), max(values + [0.0])
-    pad = 0.05 * (hi - lo or 1.0)
-    lo, hi = lo - pad, hi + pad
-    w = W - LEFT - RIGHT
-    px = lambda t: LEFT + t / t_max * w
-    py = lambda v: y0 + h - (v - lo) / (hi - lo) * h
-    svg.append(f'<rect x="{LEFT}" y="{y0}" width="{w}" height="{h}" fill="none" stroke="#999"/>')
-    for v in ticks(lo, hi):
-        svg.append(f'<line x1="{LEFT}" x2="{LEFT + w}" y1="{py(v):.1f}" y2="{py(v):.1f}" stroke="#eee"/>')
-        svg.append(f'<text x="{LEFT - 6}" y="{py(v) + 4:.1f}" text-anchor="end">{v:.4g}</text>')
-    for t in ticks(0.0, t_max):
-        svg.append(f'<line x1="{px(t):.1f}" x2="{px(t):.1f}" y1="{y0}" y2="{y0 + h}" stroke="#eee"/>')
-        svg.append(f'<text x="{px(t):.1f}" y="{y0 + h + 16}" text-anchor="middle">{t:g}</text>')
-    svg.append(f'<text transform="translate({LEFT - 58},{y0 + h / 2}) rotate(-90)" '
-               f'text-anchor="middle">{label}</text>')
-    if x_label:
-        svg.append(f'<text x="{LEFT + w / 2}" y="{y0 + h + 34}" text-anchor="middle">time [s]</text>')
-    for colour, width, dash, pieces in series:
-        for piece in pieces:
-            d = " ".join(f"{px(t):.1f},{py(v):.1f}" for t, v in piece)
-            svg.append(f'<polyline points="{d}" fill="none" stroke="{colour}" stroke-width="{width}" '
-                       f'stroke-dasharray="{dash or "none"}"/>')
-
-
-def pieces(periods, value):
-    """Splits the periods at skipped ones, mapping each kept period to (t, value(period))."""
-    out = [[]]
-    for p in periods:
-        if p is None:
-            out.append([])
-        else:
-            out[-1].append((p[0], value(p)))
-    return [r for r in out if r]
+def series(periods, value):
+    """(t, value) arrays of the periods, NaN where a period is left out (a gap in the line)."""
+    t = [p[0] if p else float("nan") for p in periods]
+    v = [value(p) if p else float("nan") for p in periods]
+    return t, v
 
 
 def plot(filename, path, duration, results):
-    svg = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" '
-           'font-family="sans-serif" font-size="12">', '<rect width="100%" height="100%" fill="white"/>',
-           f'<text x="{LEFT}" y="24" font-size="15">Path {path}, move time {duration} s: speed measured '
-           'as the thesis does (chord / period) against the profile</text>']
-    reference = results[path, duration, METHODS[-1][0]]["periods"]
-    speed = [("black", 3, "", pieces(reference, lambda p: p[2]))]
-    speed += [(c, 1.5, "6 3" if i else "", pieces(results[path, duration, m]["periods"], lambda p: p[1]))
-              for i, (m, _, c) in enumerate(METHODS)]
-    error = [("black", 1, "", [[(0.0, 0.0), (duration, 0.0)]])]
-    error += [(c, 1.5, "", pieces(results[path, duration, m]["periods"], lambda p: p[1] - p[2]))
-              for m, _, c in METHODS]
-    for (label, y0, h), series, last in zip(PANELS, (speed, error), (False, True)):
-        panel(svg, label, y0, h, duration, series, last)
-    legend = [("black", 3, "", "reference profile (mean speed over each period)")]
-    legend += [(c, 1.5, "6 3" if i else "", f"measured, {name}") for i, (_, name, c) in enumerate(METHODS)]
-    x = LEFT
-    for colour, width, dash, text in legend:
-        svg.append(f'<line x1="{x}" y1="{LEGEND_Y}" x2="{x + 26}" y2="{LEGEND_Y}" stroke="{colour}" '
-                   f'stroke-width="{width}" stroke-dasharray="{dash or "none"}"/>')
-        svg.append(f'<text x="{x + 32}" y="{LEGEND_Y + 4}">{text}</text>')
-        x += 32 + 6.2 * len(text) + 20
-    svg.append(f'<text x="{LEFT}" y="{H - 12}" fill="#555">the period in which the path reverses '
-               'at the cusp (frame 3) is left out</text>')
-    svg.append("</svg>")
-    with open(filename, "w") as f:
-        f.write("\n".join(svg) + "\n")
+    reference = results[path, duration, METHODS[-1][0]]
+    t_ref, v_ref = series(reference["periods"], lambda p: p[2])
+    measured = []
+    for i, (m, name, colour) in enumerate(METHODS):
+        t, v = series(results[path, duration, m]["periods"], lambda p: p[1])
+        measured.append((f"measured, {name}", t, v, colour, "--" if i else "-"))
+    fig = gp.speed_figure(
+        f"Path {path}, move time {duration} s: speed measured as the thesis does (chord / period) against the profile",
+        ("reference profile (mean speed over each period)", t_ref, v_ref), measured, rests=reference["rests"],
+        notes=["the period in which the path reverses at the cusp (frames[2]) is left out"], duration=duration)
+    gp.save(fig, filename)
 
 
 def main():

@@ -15,27 +15,23 @@ Three runs through the Python client, each written as a self-contained SVG:
   jog_limit.svg      Jog, the Panda's joint 4 jogged at full speed into its upper limit
 Commands are sent when the first sample at or after the time arrives (the server paces
 samples in real time, so sample time is the call's clock); a thread sends a heartbeat every
-0.2 s (the deadman time is 1 s). Only the Python standard library and grpcio are used; the
-SVG is written by hand as in scripts/plot_paths.py, every curve decimated to the minimum and
+0.2 s (the deadman time is 1 s). The Python standard library, grpcio and matplotlib (the
+figures, by scripts/geotraj_plot.py) are used; every curve is decimated to the minimum and
 maximum of each bucket (peaks kept) so that the files stay small.
 """
 import argparse
-import math
 import os
 import queue
 import subprocess
 import socket
 import sys
-import textwrap
 import threading
 import time
 
-COLOURS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"]
-WIDTH = 760       # px, whole figure
-PANEL_H = 150     # px, one panel's plotting area
-LEFT, RIGHT = 70, 20
-TOP = 46
-GAP = 60          # px between panels (the next one's title and legend)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import geotraj_plot as gp  # noqa: E402
+
+COLOURS = gp.COLOURS
 BUCKETS = 240     # min/max buckets per curve
 
 ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
@@ -184,134 +180,59 @@ def first_rest(record, after):
     return None
 
 
-# --- hand-written SVG --------------------------------------------------------------------------
+# --- figures (scripts/geotraj_plot.py) -----------------------------------------------------
 
-def nice_ticks(lo, hi, count=5):
-    if hi <= lo:
-        hi = lo + 1.0
-    raw = (hi - lo) / count
-    mag = 10 ** math.floor(math.log10(raw))
-    step = min((m * mag for m in (1, 2, 2.5, 5, 10) if m * mag >= raw), default=10 * mag)
-    first = math.ceil(lo / step - 1e-9) * step
-    ticks = []
-    x = first
-    while x <= hi + 1e-9 * step:
-        ticks.append(round(x, 10))
-        x += step
-    return ticks
-
-
-def fmt(x):
-    return f"{x:.4g}".replace("-", "\u2212")
-
-
-def decimate(xs, ys, buckets=BUCKETS):
-    """The first and last point and, per bucket of samples, its minimum and maximum in order."""
-    n = len(xs)
-    if n <= 2 * buckets:
-        return list(zip(xs, ys))
-    out = [(xs[0], ys[0])]
-    size = n / buckets
-    for b in range(buckets):
-        lo, hi = int(b * size), int((b + 1) * size)
-        if hi <= lo:
-            continue
-        chunk = range(lo, hi)
-        kmin = min(chunk, key=lambda k: ys[k])
-        kmax = max(chunk, key=lambda k: ys[k])
-        for k in sorted({kmin, kmax}):
-            out.append((xs[k], ys[k]))
-    out.append((xs[-1], ys[-1]))
-    return out
-
-
-def text_width(text):
-    """Roughly [px] at font-size 11 (sans-serif)."""
-    return 6.2 * len(text)
+def dash_style(dash):
+    """An SVG dash array ("5,3") as a matplotlib line style."""
+    if not dash:
+        return "-"
+    return (0, tuple(float(v) for v in dash.replace(" ", ",").split(",") if v))
 
 
 class Figure:
-    """Panels stacked over one time axis; `notes`: lines of text under the title."""
+    """Panels stacked over one time axis; `notes`: lines of text under the title. Collects the
+    panels, then draws them with geotraj_plot.stacked_figure on write()."""
 
     def __init__(self, title, x_range, panels, notes=()):
-        self.x0, self.x1 = x_range
-        notes = [line for note in notes for line in textwrap.wrap(note, 108)]
-        self.top = TOP + 14 * len(notes)
-        self.height = self.top + panels * (PANEL_H + GAP) + 24
-        self.svg = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{self.height}" '
-                    f'font-family="sans-serif" font-size="11">',
-                    '<rect width="100%" height="100%" fill="white"/>',
-                    f'<text x="{LEFT}" y="20" font-size="13" font-weight="bold">{title}</text>']
-        for i, line in enumerate(notes):
-            self.svg.append(f'<text x="{LEFT}" y="{38 + 14 * i}">{line}</text>')
+        self.title, self.x_range, self.notes = title, x_range, list(notes)
+        self.panels = [None] * panels
 
     def panel(self, i, title, y_label, series, y_range=None, hlines=(), vlines=(), x_label=False, x_range=None):
-        """series: (label, colour, points, dash or None); hlines: (y, label); vlines: (x, label,
-        colour). The legend is the line between the title and the panel."""
-        top = self.top + i * (PANEL_H + GAP) + GAP - 10
-        w = WIDTH - LEFT - RIGHT
-        x0, x1 = x_range if x_range else (self.x0, self.x1)
-        ys = [y for _, _, p, _ in series for x, y in p if x0 <= x <= x1] + [y for y, _ in hlines]
-        lo, hi = y_range if y_range else (min(ys), max(ys))
-        if hi - lo < 1e-12:
-            lo, hi = lo - 1.0, hi + 1.0
-        pad = 0.06 * (hi - lo)
-        lo, hi = lo - pad, hi + pad
-
-        def px(x):
-            return LEFT + (x - x0) / (x1 - x0) * w
-
-        def py(y):
-            return top + PANEL_H - (y - lo) / (hi - lo) * PANEL_H
-
-        s = self.svg
-        s.append(f'<text x="{LEFT}" y="{top - 22}" font-weight="bold">{title}</text>')
-        clip = f"clip{i}"
-        s.append(f'<clipPath id="{clip}"><rect x="{LEFT}" y="{top}" width="{w}" height="{PANEL_H}"/></clipPath>')
-        s.append(f'<rect x="{LEFT}" y="{top}" width="{w}" height="{PANEL_H}" fill="none" stroke="#999"/>')
-        for y in nice_ticks(lo, hi, 4):
-            s.append(f'<line x1="{LEFT}" y1="{py(y):.1f}" x2="{LEFT + w}" y2="{py(y):.1f}" stroke="#eee"/>')
-            s.append(f'<text x="{LEFT - 4}" y="{py(y) + 4:.1f}" text-anchor="end">{fmt(y)}</text>')
-        for x in nice_ticks(x0, x1, 8):
-            s.append(f'<line x1="{px(x):.1f}" y1="{top}" x2="{px(x):.1f}" y2="{top + PANEL_H}" stroke="#eee"/>')
-            s.append(f'<text x="{px(x):.1f}" y="{top + PANEL_H + 13}" text-anchor="middle">{fmt(x)}</text>')
-        s.append(f'<text x="14" y="{top + PANEL_H / 2:.1f}" transform="rotate(-90 14 {top + PANEL_H / 2:.1f})" '
-                 f'text-anchor="middle">{y_label}</text>')
-        for y, label in hlines:
-            s.append(f'<line x1="{LEFT}" y1="{py(y):.1f}" x2="{LEFT + w}" y2="{py(y):.1f}" stroke="black" '
-                     f'stroke-dasharray="6,3"/>')
-            if label:
-                s.append(f'<text x="{LEFT + w - 4}" y="{py(y) - 3:.1f}" text-anchor="end">{label}</text>')
-        for x, label, colour in vlines:
-            if x0 <= x <= x1:
-                s.append(f'<line x1="{px(x):.1f}" y1="{top}" x2="{px(x):.1f}" y2="{top + PANEL_H}" '
-                         f'stroke="{colour}" stroke-width="1.2" stroke-dasharray="3,2"/>')
-        for label, colour, p, dash in series:
-            d = " ".join(f"{px(x):.1f},{py(y):.1f}" for x, y in p)
-            extra = f' stroke-dasharray="{dash}"' if dash else ""
-            s.append(f'<polyline points="{d}" fill="none" stroke="{colour}" stroke-width="1.4"{extra} '
-                     f'clip-path="url(#{clip})"/>')
-        items = [(label, colour, dash) for label, colour, _, dash in series if label]
-        items += [(label, colour, "3,2") for x, label, colour in vlines if label and x0 <= x <= x1]
-        x, y = LEFT, top - 6
-        for label, colour, dash in items:
-            extra = f' stroke-dasharray="{dash}"' if dash else ""
-            s.append(f'<line x1="{x:.1f}" y1="{y - 4}" x2="{x + 20:.1f}" y2="{y - 4}" stroke="{colour}" '
-                     f'stroke-width="2"{extra}/>')
-            s.append(f'<text x="{x + 24:.1f}" y="{y}">{label}</text>')
-            x += 24 + text_width(label) + 14
-        if x_label:
-            s.append(f'<text x="{LEFT + w / 2:.1f}" y="{top + PANEL_H + 28}" text-anchor="middle">t [s]</text>')
+        """series: (label, colour, points, dash or None); hlines: (y, label), the limits (a label
+        that names a limit) drawn red with an id limit-<panel>-<k>; vlines: (x, label, colour)."""
+        drawn = []
+        for label, colour, points, dash in series:
+            xs, ys = zip(*points) if points else ((), ())
+            drawn.append({"x": xs, "y": ys, "label": label or None, "colour": colour, "ls": dash_style(dash),
+                          "lw": 1.4, "decimate": False})
+        limits = []
+        last_label = ""
+        for k, (y, label) in enumerate(hlines):
+            # An unlabelled line right after a labelled one is its mirror (the lower limit).
+            named = label or last_label
+            is_limit = "limit" in named
+            limits.append({"y": y, "label": label or None, "colour": gp.LIMIT_RED if is_limit else "#555555",
+                           "gid": f"limit-{i}-{k}" if is_limit else None, "ls": (0, (6, 3))})
+            last_label = label or last_label
+        x0, x1 = x_range if x_range else self.x_range
+        marks = [{"x": x, "label": label or None, "colour": colour, "ls": (0, (3, 2))}
+                 for x, label, colour in vlines if x0 <= x <= x1]
+        self.panels[i] = {"series": drawn, "limits": limits, "vlines": marks, "title": title, "ylabel": y_label,
+                          "ylim": y_range and (y_range[0] - 0.06 * (y_range[1] - y_range[0]),
+                                               y_range[1] + 0.06 * (y_range[1] - y_range[0])),
+                          "xlim": x_range, "xlabel": "time t [s]" if (x_label or x_range) else None}
 
     def write(self, path):
-        self.svg.append("</svg>")
-        with open(path, "w") as f:
-            f.write("\n".join(self.svg) + "\n")
+        fig, _ = gp.stacked_figure(self.title, self.panels, notes=self.notes, xlim=self.x_range, width=10.0,
+                                   panel_height=2.1)
+        gp.save(fig, path)
         print(f"wrote {os.path.relpath(path, ROOT)} ({os.path.getsize(path) // 1024} kB)")
 
 
 def pts(xs, ys):
-    return decimate(xs, ys)
+    """The curve reduced to the minimum and maximum of BUCKETS buckets (peaks kept)."""
+    x, y = gp.decimate(xs, ys, BUCKETS)
+    return list(zip(x.tolist(), y.tolist()))
 
 
 # --- the three runs ----------------------------------------------------------------------------

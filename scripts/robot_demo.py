@@ -8,7 +8,9 @@ Usage: robot_demo.py CLI [OUT_DIR]
 For paths A, B, C at 10 s (Tables 7.8 and 7.18, 100 Hz) with the built-in "pa10" model:
 PlanTrajectory's joint report (limit margins, IK residuals, joint-interpolation deviation,
 manipulability), then the joint samples streamed and plotted against time (positions,
-velocities, accelerations), with the joint limits. Only the Python standard library.
+velocities, accelerations), with the joint limits; the time-optimal timing of each path and,
+for path C, which limit binds where. The figures are drawn by scripts/geotraj_plot.py
+(matplotlib, Debian's python3-matplotlib).
 """
 import csv
 import io
@@ -18,9 +20,10 @@ import subprocess
 import sys
 import tempfile
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import geotraj_plot as gp  # noqa: E402
+
 REQUESTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "client", "grpcurl")
-COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f"]
-W, LEFT, RIGHT, PANEL_H, TOP = 980, 90, 200, 210, 40
 
 
 def run(cli, *args):
@@ -44,61 +47,11 @@ def request_for(tmp, path):
     return name
 
 
-def ticks(lo, hi, n=5):
-    if hi <= lo:
-        return [lo]
-    step = (hi - lo) / n
-    return [lo + i * step for i in range(n + 1)]
-
-
-def panel(svg, y0, title, unit, t, series, limits):
-    w = W - LEFT - RIGHT
-    lo = min(min(s) for s in series)
-    hi = max(max(s) for s in series)
-    for lim in limits:
-        lo, hi = min(lo, lim), max(hi, lim)
-    if hi - lo < 1e-12:
-        hi, lo = hi + 1, lo - 1
-    pad = 0.05 * (hi - lo)
-    lo, hi = lo - pad, hi + pad
-    t_max = t[-1] if t[-1] > 0 else 1.0
-    px = lambda x: LEFT + w * x / t_max
-    py = lambda v: y0 + PANEL_H * (hi - v) / (hi - lo)
-    svg.append(f'<rect x="{LEFT}" y="{y0}" width="{w}" height="{PANEL_H}" fill="none" stroke="#999"/>')
-    for v in ticks(lo, hi):
-        svg.append(f'<text x="{LEFT - 6}" y="{py(v) + 4:.1f}" text-anchor="end">{v:.3g}</text>')
-        svg.append(f'<line x1="{LEFT}" x2="{LEFT + w}" y1="{py(v):.1f}" y2="{py(v):.1f}" stroke="#eee"/>')
-    for x in ticks(0, t_max):
-        svg.append(f'<text x="{px(x):.1f}" y="{y0 + PANEL_H + 15}" text-anchor="middle">{x:.3g}</text>')
-    svg.append(f'<text transform="translate({LEFT - 62},{y0 + PANEL_H / 2}) rotate(-90)" '
-               f'text-anchor="middle">{title} [{unit}]</text>')
-    for j, s in enumerate(series):
-        step = max(1, len(s) // 1500)
-        d = " ".join(f"{px(t[k]):.1f},{py(s[k]):.1f}" for k in range(0, len(s), step))
-        svg.append(f'<polyline points="{d}" fill="none" stroke="{COLOURS[j % len(COLOURS)]}" stroke-width="1.3"/>')
-
-
 def plot(filename, path, t, q, qd, qdd, model):
-    duration = t[-1]
-    n = len(q)
-    h = TOP + 3 * (PANEL_H + 40) + 20
-    svg = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" font-family="sans-serif" '
-           f'font-size="12">', f'<rect width="{W}" height="{h}" fill="white"/>',
-           f'<text x="{LEFT}" y="24" font-size="15">PA-10 joint trajectories, thesis path {path}, {duration:.3g} s, 100 Hz '
-           f'(margins to the limits: see the plan report)</text>']
-    panel(svg, TOP, "joint position", "rad", t, q, [])
-    panel(svg, TOP + PANEL_H + 40, "joint velocity", "rad/s", t, qd, [])
-    panel(svg, TOP + 2 * (PANEL_H + 40), "joint acceleration", "rad/s^2", t, qdd, [])
-    for j in range(n):
-        y = TOP + 20 + 18 * j
-        x = W - RIGHT + 8
-        svg.append(f'<line x1="{x}" x2="{x + 24}" y1="{y}" y2="{y}" stroke="{COLOURS[j % len(COLOURS)]}" '
-                   f'stroke-width="2"/>')
-        lim = model["limits"][j]
-        svg.append(f'<text x="{x + 30}" y="{y + 4}">joint {j} (|qd| &lt;= {lim["maxVelocity"]:.3g})</text>')
-    svg.append("</svg>")
-    with open(filename, "w") as f:
-        f.write("\n".join(svg) + "\n")
+    fig = gp.joints_figure(f"PA-10 joint trajectories, thesis path {path}, {t[-1]:.3g} s, 100 Hz "
+                           "(margins to the limits: see the plan report)", t, q, qd, qdd, gp.effective_limits(model),
+                           gp.joint_names(model), gp.joint_unit(model))
+    gp.save(fig, filename)
 
 
 def time_optimal(cli, tmp, model, out):
@@ -131,6 +84,15 @@ def time_optimal(cli, tmp, model, out):
             file = os.path.join(out, "joints_path_c_time_optimal.svg")
             plot(file, "C (time-optimal)", t, *series, model)
             print(f"wrote {file} ({len(rows)} samples): every joint velocity and acceleration within its limit")
+            timed = json.loads(run(cli, "--json", "plan", "--time-optimal", name))
+            stretches = (timed.get("optimization", {}).get("timing", {}).get("binding")
+                         or timed.get("robot", {}).get("binding", []))
+            duration = timed["motion"]["durationS"]
+            fig = gp.binding_figure(f"PA-10, thesis path C time-optimal in {duration:.3f} s: which limit binds where",
+                                    stretches, gp.joint_names(model), duration=duration)
+            file = os.path.join(out, "binding_path_c_time_optimal.svg")
+            gp.save(fig, file)
+            print(f"wrote {file} ({len(stretches)} stretches)")
 
 
 def main():

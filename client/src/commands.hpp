@@ -58,6 +58,16 @@ struct LiveFlags {
   std::optional<double> max_angular_speed;  ///< start.maxAngularSpeed [rad/s]
 };
 
+/// What `plot` takes beyond the request (plot.cpp).
+struct PlotFlags {
+  std::string out_dir = ".";  ///< -o: where the figures go (created when missing)
+  std::string name;           ///< --name: the files' stem; empty: the request file's stem ("request" for stdin)
+  std::string module;         ///< --plot-module (GEOTRAJ_PLOT_MODULE); empty: <exe dir>/../share/geotraj/geotraj_plot.py, then the installed one
+  std::string python;         ///< --python (GEOTRAJ_PYTHON); empty: /usr/bin/python3 when present, else python3 on PATH
+  std::optional<std::uint32_t> points;  ///< --points: AnalyzePath points per path; absent: the request's, else 2001
+  bool png = false;           ///< --png: a PNG beside each SVG
+};
+
 struct CallOptions {
   std::string input = "-";  ///< request file in the proto JSON mapping; "-" reads stdin
   bool json = false;        ///< print the response as proto JSON instead of a table
@@ -68,6 +78,7 @@ struct CallOptions {
   OptimizeFlags optimize;   ///< applied to PlanRequests
   KinematicsFlags kinematics;  ///< applied to the kinematics requests
   LiveFlags live;              ///< applied to Execute's and Jog's first message
+  PlotFlags plot;              ///< `plot`'s own
 };
 
 /// Reads `input` ("-": standard input) whole; false when it cannot be read.
@@ -96,6 +107,14 @@ int run_execute(const Connection& connection, const CallOptions& options);
 /// Jog: the robot jogged by the --script's commands, its set points printed as they come.
 /// Exit codes as run_execute.
 int run_jog(const Connection& connection, const CallOptions& options);
+/// PlanTrajectory, AnalyzePath of every path and StreamSamples (with a motion), then the
+/// plotting module (scripts/geotraj_plot.py, run by Python with matplotlib) draws the figures
+/// that apply into options.plot.out_dir and prints one line per file. 0 when every figure
+/// was drawn; 1 when a call failed (field violations printed as `plan` prints them), the
+/// stream failed (the figures without samples are drawn) or the drawing could not run
+/// (python3 or matplotlib missing: the message names Debian's python3-matplotlib); 2 when the
+/// request cannot be read or the directory cannot be made.
+int run_plot(const Connection& connection, const CallOptions& options);
 /// ComputeForwardKinematics: the tool pose, manipulability, axes and Jacobian of the joints
 /// given (flags, or a ForwardKinematicsRequest file when options.input is not empty).
 int run_fk(const Connection& connection, const CallOptions& options);

@@ -81,6 +81,27 @@ int main(int argc, char** argv) {
   auto* stream = app.add_subcommand("stream", "StreamSamples: the motion sampled at the cycle rate, as CSV (or JSON lines with --json)");
   request_arg(stream, "a PlanRequest with `motion`");
   optimize_flags(stream);
+  auto& drawing = options.plot;
+  auto* plot = app.add_subcommand(
+      "plot", "The request planned, analysed and streamed, its figures drawn with matplotlib (SVG) into a "
+              "directory: the path (3-D, top and side views) and its curvature and torsion; the speed with a motion; "
+              "the joints against their limits with a robot; which limit binds when time-optimal. Prints the files "
+              "written. Needs Python 3 with matplotlib (Debian's python3-matplotlib)");
+  request_arg(plot, "a PlanRequest");
+  optimize_flags(plot);
+  plot->add_option("-o,--out", drawing.out_dir, "directory of the figures (made when missing)")->capture_default_str();
+  plot->add_option("--name", drawing.name, "the files' stem (default: the request file's name without .json)");
+  plot->add_option("--points", drawing.points,
+                   "AnalyzePath points per path (default: the request's analysisPoints, else 2001)")
+      ->check(CLI::Range(2, 100001));
+  plot->add_flag("--png", drawing.png, "a PNG beside each SVG");
+  plot->add_option("--plot-module", drawing.module,
+                   "the plotting module geotraj_plot.py (default: <binary's dir>/../share/geotraj/, then the "
+                   "installed one)")
+      ->envname("GEOTRAJ_PLOT_MODULE");
+  plot->add_option("--python", drawing.python,
+                   "the Python 3 that draws, with matplotlib (default: /usr/bin/python3, else python3 on PATH)")
+      ->envname("GEOTRAJ_PYTHON");
   auto& live = options.live;
   auto* execute = app.add_subcommand(
       "execute", "Execute: the plan run live, its samples printed as they come (stream's CSV plus plan_time, "
@@ -198,6 +219,7 @@ int main(int argc, char** argv) {
   if (plan->parsed()) return geotraj::cli::run_plan(*connection, options);
   if (analyze->parsed()) return geotraj::cli::run_analyze(*connection, options);
   if (stream->parsed()) return geotraj::cli::run_stream(*connection, options);
+  if (plot->parsed()) return geotraj::cli::run_plot(*connection, options);
   if (execute->parsed()) return geotraj::cli::run_execute(*connection, options);
   if (jog->parsed()) return geotraj::cli::run_jog(*connection, options);
   if (robots->parsed()) return geotraj::cli::run_robots(*connection, options);

@@ -24,6 +24,7 @@
 
 #include <gmock/gmock.h>
 
+#include "tests/client/cli_support.hpp"
 #include "tests/server/support/test_server.hpp"
 
 namespace geotraj::testing {
@@ -31,11 +32,6 @@ namespace {
 
 using ::testing::HasSubstr;
 using ::testing::Not;
-
-struct CliRun {
-  int exit_code = -1;
-  std::string out;  ///< stdout, or stdout and stderr together with `merge_stderr`
-};
 
 // Runs the CLI with `args` (shell words), `stdin_text` (no single quotes) on its standard
 // input when given, and captures its output (as cli_test.cpp does).
@@ -45,15 +41,7 @@ CliRun run_cli(const std::string& args, bool merge_stderr = false, const std::st
   // interactive).
   const std::string command = feed + "'" + GEOTRAJ_CLI + "' " + args + (stdin_text.empty() ? " < /dev/null" : "") +
                               (merge_stderr ? " 2>&1" : " 2>/dev/null");
-  CliRun run;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return run;
-  char buf[4096];
-  std::size_t n = 0;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) run.out.append(buf, n);
-  const int status = ::pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
+  return run_shell(command);
 }
 
 std::string example_path(const std::string& name) { return std::string("'") + GEOTRAJ_EXAMPLES_DIR + "/" + name + "'"; }

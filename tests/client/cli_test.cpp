@@ -11,6 +11,7 @@
 
 #include <gmock/gmock.h>
 
+#include "tests/client/cli_support.hpp"
 #include "tests/server/support/test_server.hpp"
 
 namespace geotraj::testing {
@@ -18,26 +19,13 @@ namespace {
 
 using ::testing::HasSubstr;
 
-struct CliRun {
-  int exit_code = -1;
-  std::string out;  ///< stdout, or stdout and stderr together with `merge_stderr`
-};
-
 // Runs the CLI with `args` (shell words), `stdin_text` (no single quotes) on its standard
 // input when given, and captures its output.
 CliRun run_cli(const std::string& args, bool merge_stderr = false, const std::string& stdin_text = "") {
   const std::string feed = stdin_text.empty() ? "" : "printf '%s' '" + stdin_text + "' | ";
   const std::string command =
       feed + "'" + GEOTRAJ_CLI + "' " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null");
-  CliRun run;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return run;
-  char buf[4096];
-  std::size_t n = 0;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) run.out.append(buf, n);
-  const int status = ::pclose(pipe);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
+  return run_shell(command);
 }
 
 std::string example_path(const std::string& name) { return std::string("'") + GEOTRAJ_EXAMPLES_DIR + "/" + name + "'"; }

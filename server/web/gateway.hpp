@@ -52,6 +52,9 @@ struct WebOptions {
   /// Threads that serve connections (each holds one connection while it is open; the
   /// calls they make wait in the server's admission like any other).
   int threads = 16;
+  /// Connections that wait for a thread; one beyond them is served by the accepting thread,
+  /// which accepts no other meanwhile (new ones wait in the kernel's backlog).
+  std::size_t max_queued_connections = 64;
   /// A connection that sends nothing for this long (between requests, or within one
   /// read or write) is closed [s].
   int idle_timeout_s = 5;

@@ -11,6 +11,11 @@
 #include <sstream>
 #include <thread>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <gmock/gmock.h>
 #include <google/protobuf/util/json_util.h>
 #include <google/protobuf/util/message_differencer.h>
@@ -109,7 +114,7 @@ TEST_F(Web, EveryUnaryRouteAnswersWhatTheRpcAnswers) {
     const auto res = post(route, json_of(request));
     ASSERT_TRUE(res);
     ASSERT_EQ(res->status, 200) << res->body;
-    EXPECT_EQ(res->get_header_value("Content-Type"), "application/json");
+    EXPECT_EQ(res->get_header_value("Content-Type"), "application/json; charset=utf-8");
     Response expected;
     ASSERT_TRUE(((*stub_).*rpc)(short_context().get(), request, &expected).ok());
     EXPECT_TRUE(same(message_from<Response>(res->body), expected));
@@ -123,6 +128,15 @@ TEST_F(Web, EveryUnaryRouteAnswersWhatTheRpcAnswers) {
   check("/v1/convert", example<v1::ConvertRequest>("convert_table_5_10.json"), &Stub::ConvertConstraints);
   check("/v1/fk", example<v1::ForwardKinematicsRequest>("fk_pa10.json"), &Stub::ComputeForwardKinematics);
   check("/v1/ik", example<v1::InverseKinematicsRequest>("ik_ur5_all.json"), &Stub::ComputeInverseKinematics);
+  // Sent as they are to a client that takes brotli and gzip (compressing a large analysis
+  // costs far more than sending it on loopback or a LAN).
+  analyze.set_analysis_points(1001);
+  http_->set_decompress(false);
+  const auto big = post("/v1/analyze", json_of(analyze), {{"Accept-Encoding", "br, gzip, deflate"}});
+  ASSERT_TRUE(big);
+  EXPECT_EQ(big->status, 200);
+  EXPECT_EQ(big->get_header_value("Content-Encoding"), "");
+  EXPECT_GT(big->body.size(), 100000u);
   // The example files themselves are bodies too.
   EXPECT_EQ(post("/v1/plan", example_text("plan_pa10_path_c.json"))->status, 200);
   {
@@ -144,7 +158,7 @@ TEST_F(Web, ABadRequestIsTheRpcsErrorAsStatusJson) {
   const auto res = post("/v1/plan", json_of(request));
   ASSERT_TRUE(res);
   EXPECT_EQ(res->status, 400);
-  EXPECT_EQ(res->get_header_value("Content-Type"), "application/json");
+  EXPECT_EQ(res->get_header_value("Content-Type"), "application/json; charset=utf-8");
   EXPECT_EQ(status_from(res->body).code(), 3);
   v1::PlanResponse unused;
   const auto rpc = stub_->PlanTrajectory(short_context().get(), request, &unused);
@@ -363,10 +377,13 @@ TEST_F(Web, ThePageIsServedFromTheWebRoot) {
   EXPECT_THAT(res->get_header_value("Content-Type"), HasSubstr("text/html"));
   EXPECT_THAT(res->body, HasSubstr("<title>geotraj</title>"));
   EXPECT_THAT(res->get_header_value("Content-Security-Policy"), HasSubstr("default-src 'self'"));
-  res = http_->Get("/app.js");
+  http_->set_decompress(false);
+  res = http_->Get("/app.js", {{"Accept-Encoding", "br, gzip"}});
   ASSERT_TRUE(res);
   EXPECT_EQ(res->status, 200);
   EXPECT_THAT(res->get_header_value("Content-Type"), HasSubstr("javascript"));
+  EXPECT_EQ(res->get_header_value("Content-Encoding"), "");
+  EXPECT_EQ(res->body, "console.log('geotraj');");
   EXPECT_EQ(http_->Get("/../../etc/passwd")->status, 404);
   std::filesystem::remove_all(root);
 }
@@ -414,6 +431,50 @@ TEST_F(Web, ManyCallsOfEveryKindAtOnceSomeLeftMidway) {
   EXPECT_TRUE(eventually([&] { return running_.runtime->calls_in_flight() == 0; }));
   // And it serves on.
   EXPECT_EQ(post("/v1/plan", plan)->status, 200);
+}
+
+TEST(WebPool, ConnectionsBeyondThePoolWaitAndAreServed) {
+  // 2 threads, 2 queued connections: 8 silent connections fill the threads, the queue and the
+  // accepting thread; each is closed after the idle timeout (1 s), and a plan that arrives
+  // behind them is answered.
+  server::ServerOptions options;
+  options.address = "";
+  auto running = start(options);
+  ASSERT_TRUE(running.server);
+  server::WebOptions web;
+  web.address = "127.0.0.1:0";
+  web.threads = 2;
+  web.max_queued_connections = 2;
+  web.idle_timeout_s = 1;
+  auto gateway = server::WebGateway::start(web, running.server->InProcessChannel(grpc::ChannelArguments{}));
+  ASSERT_TRUE(gateway) << gateway.error();
+  const int port = (*gateway)->port();
+  std::vector<int> silent;
+  for (int k = 0; k < 8; ++k) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(static_cast<std::uint16_t>(port));
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+    silent.push_back(fd);
+  }
+  std::vector<std::thread> clients;
+  std::atomic<int> answered{0};
+  for (int k = 0; k < 6; ++k) {
+    clients.emplace_back([&] {
+      httplib::Client client("127.0.0.1", port);
+      client.set_read_timeout(60, 0);
+      client.set_connection_timeout(60, 0);
+      const auto res = client.Post("/v1/plan", example_text("plan_demo_path_c.json"), "application/json");
+      if (res && res->status == 200) answered.fetch_add(1);
+    });
+  }
+  for (auto& c : clients) c.join();
+  EXPECT_EQ(answered.load(), 6);
+  for (const int fd : silent) ::close(fd);
+  (*gateway)->stop();
+  server::stop_server(running, std::chrono::seconds(5));
 }
 
 TEST(WebTls, TheWebPortSpeaksHttpsWithTheGrpcPortsCertificate) {

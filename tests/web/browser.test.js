@@ -1,0 +1,377 @@
+// The operator's page in a real browser: Debian's chromium, headless, driven by
+// puppeteer-core, against a real geotrajd serving the built page (--web-root) and its JSON
+// API (--web-address). Runner: node:test (built in).
+//
+// Checks: the page loads without console errors; the thesis's path C renders (a non-empty
+// WebGL canvas; screenshot in the artifacts folder); a curvature typed for frame 2 is the
+// curvature achieved there; an invalid value shows the server's field message beside its
+// field; the family view draws N curves; switching the reading of unspecified constraints
+// changes the curve; a request file loads, and the commands that send it are shown; the
+// PA-10's time-optimal plan shows its binding limits, and its replay moves the arm; with a
+// server that checks tokens, the token typed in the page goes with every call.
+//
+//   cd tests/web && PUPPETEER_SKIP_DOWNLOAD=1 npm ci && \
+//     GEOTRAJD=../../build/server/geotrajd GEOTRAJ_WEB_ROOT=../../build/share/geotraj/web npm test
+//
+// Environment (ctest sets them; the defaults suit a run from the source tree):
+//   GEOTRAJD              the server binary (default: build/server/geotrajd)
+//   GEOTRAJ_WEB_ROOT      the built page (default: build/share/geotraj/web)
+//   GEOTRAJ_CHROMIUM      the browser (default: /usr/bin/chromium)
+//   GEOTRAJ_WEB_ARTIFACTS where screenshots go (default: build/tests/web/artifacts)
+//   GEOTRAJ_UI_FIGURES    optional: also write docs/ui.md's figures (ui_*.png) there
+'use strict';
+
+const { describe, it, before, after } = require('node:test');
+const assert = require('node:assert/strict');
+const { spawn } = require('node:child_process');
+const fs = require('node:fs');
+const net = require('node:net');
+const path = require('node:path');
+const readline = require('node:readline');
+
+const puppeteer = require('puppeteer-core');
+
+const repo = path.resolve(__dirname, '..', '..');
+const env = (name, fallback) => process.env[name] || fallback;
+const GEOTRAJD = env('GEOTRAJD', path.join(repo, 'build', 'server', 'geotrajd'));
+const WEB_ROOT = env('GEOTRAJ_WEB_ROOT', path.join(repo, 'build', 'share', 'geotraj', 'web'));
+const CHROMIUM = env('GEOTRAJ_CHROMIUM', '/usr/bin/chromium');
+const ARTIFACTS = env('GEOTRAJ_WEB_ARTIFACTS', path.join(repo, 'build', 'tests', 'web', 'artifacts'));
+const FIGURES = process.env.GEOTRAJ_UI_FIGURES || '';
+const WAIT_MS = 60000;
+
+// A TCP port that was free a moment ago on 127.0.0.1.
+function freePort() {
+  return new Promise((resolve, reject) => {
+    const server = net.createServer();
+    server.once('error', reject);
+    server.listen(0, '127.0.0.1', () => {
+      const { port } = server.address();
+      server.close(() => resolve(port));
+    });
+  });
+}
+
+// Starts geotrajd with its gRPC port on 127.0.0.1:0 and the page on webPort; resolves when
+// it reports that it serves.
+function startServer(webPort, extraEnv = {}) {
+  return new Promise((resolve, reject) => {
+    const proc = spawn(GEOTRAJD, ['--address', '127.0.0.1:0', '--web-address', `127.0.0.1:${webPort}`,
+      '--web-root', WEB_ROOT], {
+      env: { ...process.env, GEOTRAJ_PLAINTEXT: 'true', ...extraEnv },
+      stdio: ['ignore', 'pipe', 'pipe'],
+    });
+    let stderr = '';
+    proc.stderr.on('data', (chunk) => { stderr += chunk; });
+    const timer = setTimeout(() => {
+      proc.kill('SIGKILL');
+      reject(new Error(`geotrajd did not report serving within 30 s; stderr: ${stderr}`));
+    }, 30000);
+    proc.on('exit', (code, signal) => {
+      clearTimeout(timer);
+      reject(new Error(`geotrajd exited early (code ${code}, signal ${signal}); stderr: ${stderr}`));
+    });
+    readline.createInterface({ input: proc.stdout }).on('line', (line) => {
+      if (/^geotrajd: serving .* on (\S+:\d+)/.test(line)) {
+        clearTimeout(timer);
+        resolve(proc);
+      }
+    });
+  });
+}
+
+function stopServer(proc) {
+  return new Promise((resolve) => {
+    if (!proc || proc.exitCode !== null || proc.signalCode !== null) { resolve(); return; }
+    const timer = setTimeout(() => proc.kill('SIGKILL'), 30000);
+    proc.removeAllListeners('exit');
+    proc.on('exit', () => { clearTimeout(timer); resolve(); });
+    proc.kill('SIGTERM');
+  });
+}
+
+const sel = (testid) => `[data-testid="${testid}"]`;
+
+function launchBrowser() {
+  return puppeteer.launch({
+    executablePath: CHROMIUM,
+    headless: true,
+    // --no-sandbox: the tests run as root (CI); swiftshader: WebGL without a GPU.
+    args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+      '--window-size=1600,1200', '--disable-dev-shm-usage'],
+  });
+}
+
+// A geotrajd (with `extraEnv`) and chromium on a page of 1600 x 1200 that records in
+// `problems` every console error that `tolerated(message)` does not excuse, every page error
+// and every failed request but those the page aborts itself (a replan supersedes its calls).
+async function openPage(problems, extraEnv, tolerated) {
+  const webPort = await freePort();
+  const server = await startServer(webPort, extraEnv);
+  const browser = await launchBrowser();
+  const page = await browser.newPage();
+  await page.setViewport({ width: 1600, height: 1200 });
+  page.on('console', (m) => {
+    if (m.type() !== 'error' || tolerated(m)) return;
+    problems.push(`console: ${m.text()} (${m.location()?.url || ''})`);
+  });
+  page.on('pageerror', (e) => problems.push(`page error: ${e.message}`));
+  page.on('requestfailed', (r) => {
+    if (r.failure()?.errorText !== 'net::ERR_ABORTED') problems.push(`request failed: ${r.url()} ${r.failure()?.errorText}`);
+  });
+  page.setDefaultTimeout(WAIT_MS);
+  return { server, browser, page, base: `http://127.0.0.1:${webPort}/` };
+}
+
+describe('the operator page in chromium', () => {
+  let server;
+  let browser;
+  let page;
+  let base;
+  const problems = [];  // console errors, page errors, failed requests
+
+  before(async () => {
+    assert.ok(fs.existsSync(GEOTRAJD), `geotrajd not found at ${GEOTRAJD}: set GEOTRAJD`);
+    assert.ok(fs.existsSync(path.join(WEB_ROOT, 'index.html')),
+      `the built page is not at ${WEB_ROOT} (build the geotraj_web target): set GEOTRAJ_WEB_ROOT`);
+    // No browser, no test: a machine without chromium fails here, loudly.
+    assert.ok(fs.existsSync(CHROMIUM),
+      `chromium not found at ${CHROMIUM}: apt-get install chromium (scripts/install-deps.sh), or set GEOTRAJ_CHROMIUM`);
+    fs.mkdirSync(ARTIFACTS, { recursive: true });
+    if (FIGURES) fs.mkdirSync(FIGURES, { recursive: true });
+    // The browser logs every 4xx answer as "Failed to load resource"; a refused request
+    // the page shows beside its fields (400 from an API route) is the page working.
+    ({ server, browser, page, base } = await openPage(problems, {}, (m) =>
+      /Failed to load resource: .* status of 400/.test(m.text()) && /\/v1\/(plan|analyze)$/.test(m.location()?.url || '')));
+  });
+
+  after(async () => {
+    if (browser) await browser.close();
+    await stopServer(server);
+  });
+
+  // Waits for fn(arg) in the page; a timeout fails with what the page shows, and a
+  // screenshot (timeout-<what>.png) in the artifacts folder.
+  async function waitFor(what, fn, arg) {
+    try {
+      await page.waitForFunction(fn, { timeout: WAIT_MS }, arg);
+    } catch (e) {
+      const shown = await page.evaluate(() => JSON.stringify({
+        body: { ...document.body.dataset },
+        status: document.querySelector('[data-testid="status"]')?.textContent,
+        errors: document.querySelector('[data-testid="general-errors"]')?.textContent,
+        replay: document.querySelector('[data-testid="replay-status"]')?.textContent,
+      })).catch((why) => `(page unreadable: ${why.message})`);
+      await page.screenshot({ path: path.join(ARTIFACTS, `timeout-${what}.png`) }).catch(() => {});
+      throw new Error(`waiting for ${what}: ${e.message}; the page shows ${shown}; problems so far: ${problems.join('; ')}`);
+    }
+  }
+  const plans = () => page.$eval('body', (b) => Number(b.dataset.plans || 0));
+  // Waits for a plan after `before` plans that is the page's latest, and returns its state.
+  async function settled(beforeCount) {
+    await waitFor('plan', (n) => {
+      const d = document.body.dataset;
+      return Number(d.plans || 0) > n && (d.planState === 'ready' || d.planState === 'error');
+    }, beforeCount);
+    return page.$eval('body', (b) => b.dataset.planState);
+  }
+  async function streamed() {
+    await waitFor('stream', () => document.body.dataset.streamState === 'ready' &&
+      document.querySelector('[data-testid="replay-slider"]').dataset.ready === 'true');
+  }
+  async function typeInto(testid, text) {
+    const input = await page.$(sel(testid));
+    assert.ok(input, `no element ${testid}`);
+    await input.click({ clickCount: 3 });
+    await page.keyboard.press('Backspace');
+    await input.type(text);
+  }
+  const dataValue = (testid) => page.$eval(sel(testid), (e) => Number(e.dataset.value));
+  const signature = () => page.$eval(sel('view3d'), (e) => e.dataset.curveSignature || '');
+  // A screenshot in the artifacts folder (of an element, or the page; fullPage: all of
+  // it), copied to docs/ui.md's figures when GEOTRAJ_UI_FIGURES asks and `figure` is true.
+  async function screenshot(name, { element, fullPage = false, figure = true } = {}) {
+    const file = path.join(ARTIFACTS, `${name}.png`);
+    if (element) await (await page.$(element)).screenshot({ path: file });
+    else await page.screenshot({ path: file, fullPage });
+    if (FIGURES && figure) fs.copyFileSync(file, path.join(FIGURES, `ui_${name}.png`));
+  }
+  async function seek(t) {
+    await page.$eval(sel('replay-slider'), (s, value) => {
+      s.value = String(value);
+      s.dispatchEvent(new Event('input'));
+    }, t);
+    return page.$eval(sel('replay-tool'), (e) => [Number(e.dataset.x), Number(e.dataset.y), Number(e.dataset.z)]);
+  }
+
+  it('loads with the start page and no console errors', async () => {
+    await page.goto(base, { waitUntil: 'load' });
+    await page.waitForSelector(`${sel('start-page')}[open]`);
+    assert.deepEqual(problems, []);
+  });
+
+  it("renders the thesis's demonstration path on a non-empty WebGL canvas", async () => {
+    const n = await plans();
+    await page.click(sel('start-demo'));
+    assert.equal(await settled(n), 'ready');
+    const points = await page.$eval(sel('view3d'), (e) => Number(e.dataset.curvePoints || 0));
+    assert.ok(points > 100, `the curve has ${points} points`);
+    assert.equal(await page.$eval(sel('view3d'), (e) => e.dataset.frames), '4');
+    await streamed();
+    // Pixels that differ from the white background, read back from the WebGL canvas.
+    await new Promise((r) => setTimeout(r, 300));
+    const coloured = await page.$eval(`${sel('view3d')} canvas`, (canvas) => {
+      const copy = document.createElement('canvas');
+      copy.width = canvas.width;
+      copy.height = canvas.height;
+      const ctx = copy.getContext('2d');
+      ctx.drawImage(canvas, 0, 0);
+      const { data } = ctx.getImageData(0, 0, copy.width, copy.height);
+      let count = 0;
+      for (let i = 0; i < data.length; i += 4) if (data[i] < 240 || data[i + 1] < 240 || data[i + 2] < 240) ++count;
+      return count / (data.length / 4);
+    });
+    assert.ok(coloured > 0.01, `only ${(coloured * 100).toFixed(3)} % of the canvas is drawn`);
+    assert.match(await page.$eval(sel('colorbar'), (e) => e.textContent), /curvature κ \[1\/m\]/);
+    await screenshot('overview');
+    assert.deepEqual(problems, []);
+  });
+
+  it('achieves at frame 2 the curvature typed for it', async () => {
+    const before = await signature();
+    const n = await plans();
+    await typeInto('frame-2-input-curvature', '15');
+    assert.equal(await settled(n), 'ready');
+    assert.notEqual(await signature(), before, 'the curve did not change');
+    for (const id of ['frame-2-curvature', 'frame-2-curvature-approach', 'frame-2-curvature-leave']) {
+      const value = await dataValue(id);
+      assert.ok(Math.abs(value - 15) <= 1e-6 * 15, `${id} is ${value}, not 15`);
+    }
+    // What the operator waited (reported, not asserted: timing belongs to the benchmarks).
+    const status = await page.$eval(sel('status'), (e) => e.textContent);
+    console.log(`[ measured ] curvature edit of path C: ${status}`);
+  });
+
+  it("shows the server's field violation beside the field", async () => {
+    const n = await plans();
+    await typeInto('frame-1-input-tangentScale', '-0.25');
+    assert.equal(await settled(n), 'error');
+    const slot = '[data-error-for="path.frames[1].tangentScale"]';
+    const message = await page.$eval(slot, (e) => e.textContent);
+    assert.ok(message.length > 0, 'no message beside path.frames[1].tangentScale');
+    await screenshot('field_error', { element: sel('frame-1') });
+    const m = await plans();
+    await typeInto('frame-1-input-tangentScale', '0.25');
+    assert.equal(await settled(m), 'ready');
+    assert.equal(await page.$eval(slot, (e) => e.textContent), '');
+  });
+
+  it('replays the samples: the tool moves with the slider', async () => {
+    await streamed();
+    const a = await seek(2);
+    const b = await seek(6);
+    const d = Math.hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    assert.ok(d > 1e-3, `the tool is at ${a} and ${b}`);
+  });
+
+  it('draws a family of N curves', async () => {
+    await page.select(sel('family-frame'), '1');
+    await page.select(sel('family-constraint'), 'curvature');
+    await typeInto('family-from', '10');
+    await typeInto('family-to', '30');
+    await typeInto('family-count-input', '5');
+    await page.click(sel('family-run'));
+    await waitFor('family', () => document.querySelector('[data-testid="family"]').dataset.curves === '5');
+    assert.equal(await page.$eval(sel('view3d'), (e) => e.dataset.familyCurves), '5');
+    assert.equal(await page.$$eval(`${sel('family-legend')} li:not(.violation)`, (l) => l.length), 5);
+    await screenshot('family');
+  });
+
+  it('changes the curve with the reading of unspecified constraints', async () => {
+    const before = await signature();
+    const length = await dataValue('plan-arc-length');
+    const n = await plans();
+    await page.select(sel('path-unspecified'), 'UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE');
+    assert.equal(await settled(n), 'ready');
+    assert.notEqual(await signature(), before, 'the curve did not change');
+    assert.notEqual(await dataValue('plan-arc-length'), length);
+  });
+
+  it('loads a request file and shows the commands that send it', async () => {
+    const n = await plans();
+    const input = await page.$(sel('load-file'));
+    await input.uploadFile(path.join(repo, 'client', 'grpcurl', 'plan_demo_path_a.json'));
+    assert.equal(await settled(n), 'ready');
+    const asked = JSON.parse(fs.readFileSync(path.join(repo, 'client', 'grpcurl', 'plan_demo_path_a.json'), 'utf8'));
+    assert.equal(await page.$eval(sel('view3d'), (e) => e.dataset.frames), String(asked.path.frames.length));
+    await page.click(sel('copy-command'));
+    const lines = await page.$eval(sel('command-lines'), (e) => e.textContent);
+    assert.match(lines, /^geotraj --server \S+ plan request\.json$/m);
+    assert.match(lines, /grpcurl .*-d @ \S+ geotraj\.v1\.TrajectoryService\/PlanTrajectory < request\.json/);
+    await page.click('[data-action=close-commands]');
+  });
+
+  it("shows the binding limits of the PA-10's time-optimal plan, and replays the arm", async () => {
+    await page.click('[data-action=start]');
+    const n = await plans();
+    await page.click(sel('start-pa10'));
+    assert.equal(await settled(n), 'ready');
+    const stretches = await page.$eval(sel('plot-binding'), (e) => Number(e.dataset.stretches || 0));
+    assert.ok(stretches > 0, 'no binding stretch shown');
+    assert.match(await page.$eval(sel('binding-stretch-0'), (e) => e.textContent), /joint \d|speed|acceleration/);
+    assert.ok(await dataValue('plan-time-optimal') > 0);
+    await streamed();
+    assert.ok(await page.$eval(sel('plot-joint-positions'), (e) => Number(e.dataset.series)) === 7);
+    const duration = await dataValue('plan-duration');
+    const a = await seek(duration * 0.25);
+    const b = await seek(duration * 0.75);
+    const d = Math.hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    assert.ok(d > 1e-3, `the arm's tool is at ${a} and ${b}`);
+    const links = await page.$eval(sel('view3d'), (e) => Number(e.dataset.robotLinks || 0));
+    assert.ok(links >= 7, `the arm is drawn with ${links} links`);
+    await screenshot('pa10', { fullPage: true });
+    await screenshot('pa10_plots', { element: sel('plots'), figure: false });
+  });
+
+  it('logged no console error on the way', () => {
+    assert.deepEqual(problems, []);
+  });
+});
+
+// A server that checks tokens (GEOTRAJ_AUTH_TOKEN): without the token the page says the
+// calls are unauthenticated; with it typed in the token field, every call carries it.
+describe('the operator page with a server that checks tokens', () => {
+  const TOKEN = 'web-test-token-1234';
+  let server;
+  let browser;
+  let page;
+  let base;
+  const problems = [];
+
+  before(async () => {
+    assert.ok(fs.existsSync(CHROMIUM), `chromium not found at ${CHROMIUM}: apt-get install chromium`);
+    // The 401s before the token is given are what this test is about.
+    ({ server, browser, page, base } = await openPage(problems, { GEOTRAJ_AUTH_TOKEN: TOKEN }, (m) =>
+      /Failed to load resource: .* status of 401/.test(m.text())));
+  });
+
+  after(async () => {
+    if (browser) await browser.close();
+    await stopServer(server);
+  });
+
+  it('says the calls need a token, then plans with the token given', async () => {
+    await page.goto(`${base}#demo`, { waitUntil: 'load' });
+    await page.waitForFunction(() => document.body.dataset.planState === 'error');
+    assert.match(await page.$eval(sel('general-errors'), (e) => e.textContent), /UNAUTHENTICATED/);
+    const n = await page.$eval('body', (b) => Number(b.dataset.plans || 0));
+    await page.type(sel('token'), TOKEN);
+    await page.$eval(sel('token'), (e) => e.dispatchEvent(new Event('change')));
+    await page.waitForFunction((k) => Number(document.body.dataset.plans || 0) > k &&
+      document.body.dataset.planState === 'ready', {}, n);
+    assert.equal(await page.evaluate(() => sessionStorage.getItem('geotraj.token')), TOKEN);
+    assert.equal(await page.$eval(sel('general-errors'), (e) => e.textContent), '');
+    assert.deepEqual(problems, []);
+  });
+});
+

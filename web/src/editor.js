@@ -1,0 +1,436 @@
+// The key-frame editor: every field of a KeyFrame, the path's settings (reading of
+// unspecified constraints, blend, derivative convention), the motion, the robot and the
+// optimisers, written straight into the PlanRequest (proto JSON). Each input carries the
+// server's field path (data-field), and an element beside it (data-error-for) shows the
+// field violation the server returns for that path.
+
+import { getField, setField } from './request.js';
+
+const el = (tag, attrs = {}, ...children) => {
+  const node = document.createElement(tag);
+  for (const [key, value] of Object.entries(attrs)) {
+    if (value === undefined || value === null) continue;
+    if (key === 'class') node.className = value;
+    else if (key === 'text') node.textContent = value;
+    else if (key.startsWith('on')) node.addEventListener(key.slice(2), value);
+    else node.setAttribute(key, value);
+  }
+  for (const child of children) if (child) node.append(child);
+  return node;
+};
+
+// Enum options: value '' is the proto default (the field absent).
+export const ENUMS = {
+  unspecified: [
+    ['', 'default (smoothest)'],
+    ['UNSPECIFIED_CONSTRAINTS_SMOOTHEST', 'smoothest: free derivatives minimise jerk energy'],
+    ['UNSPECIFIED_CONSTRAINTS_THESIS_ZEROS', "thesis's zeros: orders 1-4 fixed, 0 where not given"],
+    ['UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE', 'lowest degree: only the given orders'],
+  ],
+  blend: [
+    ['', 'default (polynomial)'],
+    ['BLEND_METHOD_POLYNOMIAL', 'polynomial (App. B.2)'],
+    ['BLEND_METHOD_TRAPEZOIDAL', 'generalized trapezoid (App. B)'],
+  ],
+  derivativeConvention: [
+    ['', 'default (per metre of arc)'],
+    ['DERIVATIVE_CONVENTION_PER_ARC_LENGTH', 'd/ds per metre of arc [1/m²]'],
+    ['DERIVATIVE_CONVENTION_PER_PARAMETER', "d/du per unit u, the thesis's [1/m]"],
+  ],
+  orientationMode: [
+    ['', 'default (fixed)'],
+    ['ORIENTATION_MODE_FIXED', 'fixed'],
+    ['ORIENTATION_MODE_FRAME_BASED', 'frame based (T, N, B to the next)'],
+    ['ORIENTATION_MODE_CUSTOM', 'custom (orientation below)'],
+    ['ORIENTATION_MODE_FRENET', 'Frenet frame'],
+    ['ORIENTATION_MODE_PARALLEL_TRANSPORT', 'parallel transport'],
+  ],
+  profile: [
+    ['', 'default (trapezoidal)'],
+    ['MOTION_PROFILE_TRAPEZOIDAL', 'trapezoidal (Eq. 6.13)'],
+    ['MOTION_PROFILE_S_CURVE', 'S-curve (jerk-limited)'],
+  ],
+  timeParameterization: [
+    ['', 'default (exact arc length)'],
+    ['TIME_PARAMETERIZATION_ARC_LENGTH', 'exact arc length'],
+    ['TIME_PARAMETERIZATION_TAYLOR_SECOND_ORDER', "thesis's 2nd-order Taylor (Eq. 6.15)"],
+    ['TIME_PARAMETERIZATION_TAYLOR_FIRST_ORDER', '1st-order Taylor (Eq. 6.9)'],
+    ['TIME_PARAMETERIZATION_LINEAR', 'u linear in t (Eq. 6.3)'],
+    ['TIME_PARAMETERIZATION_SMOOTH', 'u smooth in t (Eq. 6.5)'],
+  ],
+  approach: [
+    ['', 'none: the path must start at the robot'],
+    ['APPROACH_MOVE_JOINT', 'a joint move there first'],
+    ['APPROACH_MOVE_LINEAR', 'a straight line there first'],
+  ],
+  tangentScaleObjective: [
+    ['', 'off'],
+    ['TANGENT_SCALE_OBJECTIVE_BENDING_ENERGY', 'bending energy ∫κ² ds'],
+    ['TANGENT_SCALE_OBJECTIVE_PEAK_CURVATURE', 'peak curvature'],
+    ['TANGENT_SCALE_OBJECTIVE_PEAK_TORSION', 'peak torsion'],
+    ['TANGENT_SCALE_OBJECTIVE_ARC_LENGTH', 'arc length'],
+  ],
+};
+
+// The scalar constraints of a key frame: key, label, unit (the derivatives' unit follows
+// the path's derivative convention).
+const FRAME_SCALARS = [
+  ['curvature', 'curvature κ', '1/m'],
+  ['torsion', 'torsion τ', '1/m'],
+  ['curvatureDerivative', "κ'", 'deriv'],
+  ['torsionDerivative', "τ'", 'deriv'],
+  ['tangentScale', 'tangent scale |dp/du|', 'm'],
+  ['leaveTangentScale', 'leaving tangent scale', 'm'],
+];
+
+function derivativeUnit(request) {
+  return request.path?.derivativeConvention === 'DERIVATIVE_CONVENTION_PER_PARAMETER' ? '1/m per u' : '1/m²';
+}
+
+const formatNumber = (value) => (value === undefined || value === null ? '' : String(value));
+
+export class Editor {
+  // root: the element to fill; onChange(kind): called after every edit ('value' or
+  // 'structure').
+  constructor(root, onChange) {
+    this.root = root;
+    this.onChange = onChange;
+    this.request = null;
+    this.robots = [];
+    this.localErrors = new Map();
+  }
+
+  setRobots(robots) {
+    this.robots = robots;
+    if (this.request) this.render(this.request);
+  }
+
+  errorSlot(field) {
+    return el('div', { class: 'field-error', 'data-error-for': field, role: 'alert' });
+  }
+
+  // A number input bound to `field`. optional: an empty input removes the field.
+  numberInput(field, { optional = true, testid, placeholder, title } = {}) {
+    const input = el('input', {
+      type: 'text', inputmode: 'decimal', spellcheck: 'false', 'data-field': field,
+      'data-testid': testid, placeholder: placeholder ?? (optional ? 'absent' : '0'), title,
+      value: formatNumber(getField(this.request, field)),
+    });
+    input.addEventListener('input', () => {
+      const text = input.value.trim();
+      if (text === '') {
+        this.setLocalError(field, null);
+        setField(this.request, field, optional ? undefined : 0);
+        this.onChange('value');
+        return;
+      }
+      const value = Number(text);
+      if (!Number.isFinite(value)) {
+        this.setLocalError(field, `"${text}" is not a number`);
+        return;
+      }
+      this.setLocalError(field, null);
+      setField(this.request, field, value);
+      this.onChange('value');
+    });
+    return input;
+  }
+
+  // A Vec3 (x, y, z) bound to `field`; optional: three empty inputs remove it.
+  vecInput(field, label, { optional = false, testid, unit } = {}) {
+    const inputs = [];
+    const current = getField(this.request, field);
+    const commit = () => {
+      const texts = inputs.map((i) => i.value.trim());
+      if (optional && texts.every((t) => t === '')) {
+        this.setLocalError(field, null);
+        setField(this.request, field, undefined);
+        this.onChange('value');
+        return;
+      }
+      const values = texts.map((t) => (t === '' ? 0 : Number(t)));
+      if (!values.every(Number.isFinite)) {
+        this.setLocalError(field, 'each component must be a number');
+        return;
+      }
+      this.setLocalError(field, null);
+      setField(this.request, field, { x: values[0], y: values[1], z: values[2] });
+      this.onChange('value');
+    };
+    for (const axis of ['x', 'y', 'z']) {
+      const value = current === undefined ? '' : formatNumber(current[axis] ?? 0);
+      const input = el('input', {
+        type: 'text', inputmode: 'decimal', spellcheck: 'false', 'data-field': `${field}.${axis}`,
+        'data-testid': testid ? `${testid}-${axis}` : undefined, placeholder: optional ? axis : '0',
+        'aria-label': `${label} ${axis}`, value,
+      });
+      input.addEventListener('input', commit);
+      inputs.push(input);
+    }
+    return el('div', { class: 'row', 'data-field': field },
+      el('label', { text: label }), el('div', { class: 'vec' }, ...inputs),
+      unit ? el('span', { class: 'unit', text: unit }) : null, this.errorSlot(field));
+  }
+
+  scalarRow(field, label, unit, options = {}) {
+    return el('div', { class: 'row' }, el('label', { text: label }), this.numberInput(field, options),
+      el('span', { class: 'unit', text: unit }), this.errorSlot(field));
+  }
+
+  checkRow(field, label, testid) {
+    const input = el('input', { type: 'checkbox', 'data-field': field, 'data-testid': testid });
+    input.checked = Boolean(getField(this.request, field));
+    input.addEventListener('change', () => {
+      setField(this.request, field, input.checked ? true : undefined);
+      this.onChange('value');
+    });
+    return el('label', { class: 'check' }, input, document.createTextNode(` ${label}`), this.errorSlot(field));
+  }
+
+  selectRow(field, label, options, testid, structural = false) {
+    const select = el('select', { 'data-field': field, 'data-testid': testid });
+    const current = getField(this.request, field) ?? '';
+    for (const [value, text] of options) {
+      const option = el('option', { value, text });
+      if (value === current) option.selected = true;
+      select.append(option);
+    }
+    if (current && !options.some(([value]) => value === current)) {
+      select.append(el('option', { value: current, text: current, selected: 'selected' }));
+    }
+    select.addEventListener('change', () => {
+      setField(this.request, field, select.value || undefined);
+      // No model: the whole robot goes (its other settings mean nothing without one).
+      if (field === 'robot.name' && !select.value) delete this.request.robot;
+      if (structural) this.render(this.request);
+      this.onChange(structural ? 'structure' : 'value');
+    });
+    return el('div', { class: 'row' }, el('label', { text: label }), select, this.errorSlot(field));
+  }
+
+  frameCard(i) {
+    const base = `path.frames[${i}]`;
+    const frames = this.request.path.frames;
+    const dUnit = derivativeUnit(this.request);
+    const card = el('fieldset', { class: 'frame', 'data-testid': `frame-${i}`, 'data-field': base });
+    const remove = el('button', { type: 'button', class: 'small', title: 'remove this key frame',
+      'data-testid': `frame-${i}-remove`, text: '✕ remove' });
+    remove.disabled = frames.length <= 2;
+    remove.addEventListener('click', () => {
+      frames.splice(i, 1);
+      this.render(this.request);
+      this.onChange('structure');
+    });
+    const insert = el('button', { type: 'button', class: 'small', title: 'insert a key frame after this one',
+      'data-testid': `frame-${i}-insert`, text: '+ after' });
+    insert.addEventListener('click', () => {
+      frames.splice(i + 1, 0, interpolatedFrame(frames[i], frames[i + 1]));
+      this.render(this.request);
+      this.onChange('structure');
+    });
+    card.append(el('legend', {}, el('span', { text: `frame ${i}` }), insert, remove));
+    card.append(this.errorSlot(base));
+    card.append(this.vecInput(`${base}.position`, 'position', { testid: `frame-${i}-input-position`, unit: 'm' }));
+    card.append(this.vecInput(`${base}.tangent`, 'tangent T', { testid: `frame-${i}-input-tangent` }));
+    card.append(this.vecInput(`${base}.normal`, 'normal N', { optional: true, testid: `frame-${i}-input-normal` }));
+    for (const [key, label, unit] of FRAME_SCALARS.slice(0, 5)) {
+      card.append(this.scalarRow(`${base}.${key}`, label, unit === 'deriv' ? dUnit : unit,
+        { testid: `frame-${i}-input-${key}` }));
+    }
+    card.append(el('div', { class: 'checks' },
+      this.checkRow(`${base}.cusp`, 'cusp', `frame-${i}-input-cusp`),
+      this.checkRow(`${base}.inflection`, 'inflection', `frame-${i}-input-inflection`),
+      this.checkRow(`${base}.stop`, 'stop', `frame-${i}-input-stop`)));
+    const more = el('details', { class: 'more' }, el('summary', { text: 'binormal, leaving scale, tool orientation' }));
+    more.append(this.vecInput(`${base}.binormal`, 'binormal B', { optional: true, testid: `frame-${i}-input-binormal` }));
+    more.append(this.scalarRow(`${base}.leaveTangentScale`, 'leaving tangent scale', 'm',
+      { testid: `frame-${i}-input-leaveTangentScale` }));
+    more.append(this.selectRow(`${base}.orientationMode`, 'orientation mode', ENUMS.orientationMode,
+      `frame-${i}-input-orientationMode`));
+    const q = el('div', { class: 'row', 'data-field': `${base}.orientation` }, el('label', { text: 'orientation w x y z' }));
+    const quat = el('div', { class: 'vec quat' });
+    for (const c of ['w', 'x', 'y', 'z']) quat.append(this.numberInput(`${base}.orientation.${c}`, { placeholder: c }));
+    q.append(quat, this.errorSlot(`${base}.orientation`));
+    more.append(q);
+    more.append(this.checkRow(`${base}.easeOrientation`, 'ease the orientation (quintic)', `frame-${i}-input-easeOrientation`));
+    if (getField(this.request, `${base}.binormal`) || getField(this.request, `${base}.leaveTangentScale`) !== undefined ||
+        getField(this.request, `${base}.orientationMode`)) {
+      more.open = true;
+    }
+    card.append(more);
+    return card;
+  }
+
+  render(request) {
+    this.request = request;
+    request.path ??= { frames: [] };
+    request.path.frames ??= [];
+    const focused = document.activeElement?.getAttribute?.('data-field');
+    this.localErrors.clear();
+    this.root.replaceChildren();
+
+    const path = el('fieldset', { class: 'settings', 'data-field': 'path' }, el('legend', { text: 'path' }));
+    path.append(this.errorSlot('path'));
+    path.append(this.selectRow('path.unspecified', 'unspecified constraints', ENUMS.unspecified, 'path-unspecified'));
+    path.append(this.selectRow('path.blend', 'blend', ENUMS.blend, 'path-blend'));
+    path.append(this.selectRow('path.derivativeConvention', "κ', τ' convention", ENUMS.derivativeConvention,
+      'path-derivativeConvention'));
+    path.append(this.scalarRow('path.maxCurvature', 'max curvature (warning)', '1/m', { testid: 'path-maxCurvature' }));
+    path.append(el('div', { class: 'checks' }, this.checkRow('path.closed', 'closed path', 'path-closed')));
+    path.append(this.errorSlot('path.frames'));
+    this.root.append(path);
+
+    request.path.frames.forEach((_, i) => this.root.append(this.frameCard(i)));
+    const add = el('button', { type: 'button', 'data-testid': 'frame-add', text: '+ add a key frame at the end' });
+    add.addEventListener('click', () => {
+      const frames = request.path.frames;
+      const last = frames[frames.length - 1];
+      frames.push(last ? extrapolatedFrame(last) : { position: { x: 0, y: 0, z: 0.5 }, tangent: { x: 1 } });
+      this.render(request);
+      this.onChange('structure');
+    });
+    this.root.append(add);
+
+    const motion = el('fieldset', { class: 'settings', 'data-field': 'motion' }, el('legend', { text: 'motion' }));
+    motion.append(this.errorSlot('motion'));
+    motion.append(this.scalarRow('motion.durationS', 'duration (0: fastest)', 's', { testid: 'motion-durationS' }));
+    motion.append(this.selectRow('motion.profile', 'speed profile', ENUMS.profile, 'motion-profile'));
+    motion.append(this.scalarRow('motion.rampFraction', 'ramp fraction', '', { testid: 'motion-rampFraction' }));
+    motion.append(this.scalarRow('motion.rampTimeS', 'ramp time', 's', { testid: 'motion-rampTimeS' }));
+    motion.append(this.scalarRow('motion.cycleRateHz', 'cycle rate', 'Hz', { testid: 'motion-cycleRateHz' }));
+    motion.append(this.selectRow('motion.timeParameterization', 'u(t)', ENUMS.timeParameterization, 'motion-timeParameterization'));
+    motion.append(this.scalarRow('motion.speedScale', 'speed scale', '', { testid: 'motion-speedScale' }));
+    motion.append(this.scalarRow('motion.maxSpeed', 'max speed', 'm/s', { testid: 'motion-maxSpeed' }));
+    motion.append(this.scalarRow('motion.maxAcceleration', 'max acceleration', 'm/s²', { testid: 'motion-maxAcceleration' }));
+    this.root.append(motion);
+
+    const robot = el('fieldset', { class: 'settings', 'data-field': 'robot' }, el('legend', { text: 'robot' }));
+    robot.append(this.errorSlot('robot'));
+    const names = [['', 'none (Cartesian plan)'], ...this.robots.map((r) => [r.name, r.name])];
+    if (!request.robot?.model && !request.robot?.urdf) {
+      robot.append(this.selectRow('robot.name', 'model', names, 'robot-name', true));
+    } else {
+      robot.append(el('div', { class: 'note', text: 'an inline robot model (kept as loaded)' }));
+    }
+    if (request.robot) {
+      robot.append(this.checkRow('robot.reportOnly', 'report limit violations instead of refusing', 'robot-reportOnly'));
+      robot.append(this.jointsRow('robot.initialJoints', 'initial joints', 'robot-initialJoints'));
+      robot.append(this.selectRow('robot.approach', 'path away from the robot', ENUMS.approach, 'robot-approach'));
+      robot.append(this.scalarRow('robot.velocityScale', 'velocity scale', '', { testid: 'robot-velocityScale' }));
+      robot.append(this.scalarRow('robot.accelerationScale', 'acceleration scale', '', { testid: 'robot-accelerationScale' }));
+    }
+    this.root.append(robot);
+
+    const optimize = el('fieldset', { class: 'settings', 'data-field': 'optimize' }, el('legend', { text: 'optimise' }));
+    optimize.append(this.errorSlot('optimize'));
+    optimize.append(this.checkRow('optimize.timing.timeOptimal', 'time-optimal timing within the limits', 'optimize-timeOptimal'));
+    optimize.append(this.selectRow('optimize.tangentScales.objective', 'tangent scales', ENUMS.tangentScaleObjective,
+      'optimize-tangentScales'));
+    this.root.append(optimize);
+
+    if (focused) {
+      const again = this.root.querySelector(`[data-field="${CSS.escape(focused)}"]`);
+      if (again && again.focus) again.focus();
+    }
+  }
+
+  // Comma- or space-separated joint values.
+  jointsRow(field, label, testid) {
+    const current = getField(this.request, field) || [];
+    const input = el('input', { type: 'text', 'data-field': field, 'data-testid': testid,
+      placeholder: "the model's home", value: current.join(', ') });
+    input.addEventListener('input', () => {
+      const text = input.value.trim();
+      const values = text === '' ? [] : text.split(/[\s,]+/).map(Number);
+      if (!values.every(Number.isFinite)) {
+        this.setLocalError(field, 'joint values must be numbers [rad or m]');
+        return;
+      }
+      this.setLocalError(field, null);
+      setField(this.request, field, values.length ? values : undefined);
+      this.onChange('value');
+    });
+    return el('div', { class: 'row' }, el('label', { text: label }), input,
+      el('span', { class: 'unit', text: 'rad' }), this.errorSlot(field));
+  }
+
+  // A value the page cannot send (not a number): shown beside the field at once.
+  setLocalError(field, message) {
+    if (message) this.localErrors.set(field, message);
+    else this.localErrors.delete(field);
+    const slot = this.root.querySelector(`[data-error-for="${CSS.escape(field)}"]`);
+    if (slot && slot.dataset.source !== 'server') {
+      slot.textContent = message || '';
+      slot.dataset.source = message ? 'local' : '';
+    }
+  }
+
+  hasLocalErrors() {
+    return this.localErrors.size > 0;
+  }
+
+  // Shows the server's field violations beside their inputs: each at the element for its
+  // field path, or for the nearest enclosing path that has one. Returns the violations that
+  // found no place in the editor.
+  showViolations(violations) {
+    for (const slot of this.root.querySelectorAll('[data-error-for]')) {
+      if (slot.dataset.source === 'server') {
+        slot.textContent = this.localErrors.get(slot.dataset.errorFor) || '';
+        slot.dataset.source = '';
+      }
+    }
+    for (const input of this.root.querySelectorAll('.invalid')) input.classList.remove('invalid');
+    const unplaced = [];
+    const placed = new Map();
+    for (const v of violations) {
+      let field = v.field;
+      let slot = null;
+      while (field) {
+        slot = this.root.querySelector(`[data-error-for="${CSS.escape(field)}"]`);
+        if (slot) break;
+        field = parentField(field);
+      }
+      if (!slot) {
+        unplaced.push(v);
+        continue;
+      }
+      const prefix = field === v.field ? '' : `${v.field.slice(field.length).replace(/^\./, '')}: `;
+      const text = `${prefix}${v.description}`;
+      placed.set(slot, placed.has(slot) ? `${placed.get(slot)}; ${text}` : text);
+      const input = this.root.querySelector(`[data-field="${CSS.escape(field)}"]`);
+      if (input) input.classList.add('invalid');
+    }
+    for (const [slot, text] of placed) {
+      slot.textContent = text;
+      slot.dataset.source = 'server';
+    }
+    return unplaced;
+  }
+}
+
+// "a.b[2].c" -> "a.b[2]" -> "a.b" -> "a" -> "".
+export function parentField(field) {
+  const m = /^(.*?)(\.[^.[\]]+|\[\d+\])$/.exec(field);
+  return m ? m[1] : '';
+}
+
+function interpolatedFrame(a, b) {
+  const p = a.position || {};
+  const q = b ? b.position || {} : { x: (p.x ?? 0) + 0.1, y: p.y ?? 0, z: p.z ?? 0 };
+  const mid = (key) => Number((((p[key] ?? 0) + (q[key] ?? 0)) / 2).toFixed(4));
+  const d = { x: (q.x ?? 0) - (p.x ?? 0), y: (q.y ?? 0) - (p.y ?? 0), z: (q.z ?? 0) - (p.z ?? 0) };
+  const n = Math.hypot(d.x, d.y, d.z) || 1;
+  const t = (v) => Number((v / n).toFixed(6));
+  return { position: { x: mid('x'), y: mid('y'), z: mid('z') }, tangent: { x: t(d.x), y: t(d.y), z: t(d.z) } };
+}
+
+function extrapolatedFrame(last) {
+  const p = last.position || {};
+  const t = last.tangent || { x: 1 };
+  return {
+    position: { x: Number(((p.x ?? 0) + 0.1 * (t.x ?? 0)).toFixed(4)),
+      y: Number(((p.y ?? 0) + 0.1 * (t.y ?? 0)).toFixed(4)),
+      z: Number(((p.z ?? 0) + 0.1 * (t.z ?? 0)).toFixed(4)) },
+    tangent: { x: t.x ?? 0, y: t.y ?? 0, z: t.z ?? 0 },
+  };
+}

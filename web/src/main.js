@@ -1,0 +1,431 @@
+// The operator's page: wires the editor, the 3-D view, the readout, the plots, the family
+// view and the replay to geotrajd's JSON API. Every edit replans (debounced): plan and
+// analysis at once for the view, then the stream of samples for the replay, the speed and
+// the joints.
+
+import 'uplot/dist/uPlot.min.css';
+import '../style.css';
+import * as api from './api.js';
+import { Editor } from './editor.js';
+import { View3D } from './view3d.js';
+import { Plots } from './plots.js';
+import { Family } from './family.js';
+import { Replay } from './replay.js';
+import { renderFrames, renderSummary, renderWarnings } from './readout.js';
+import { presets, analysisRequest, cloneRequest, commandLines } from './request.js';
+
+const $ = (selector) => document.querySelector(selector);
+const byTestId = (id) => document.querySelector(`[data-testid="${id}"]`);
+
+const REQUEST_KEY = 'geotraj.request';
+const DEBOUNCE_MS = 30;
+const STREAM_DEBOUNCE_MS = 200;
+const ANALYSIS_POINTS = 401;
+
+const state = {
+  request: null,
+  robots: [],
+  generation: 0,
+  plans: 0,
+  controller: null,
+  streamController: null,
+  editTime: 0,
+  timer: null,
+  streamTimer: null,
+  profile: null,
+  samples: null,
+};
+
+const body = document.body;
+const statusEl = byTestId('status');
+const generalErrors = byTestId('general-errors');
+const view = new View3D(byTestId('view3d'), byTestId('colorbar'));
+const plots = new Plots(byTestId('plots'));
+const editor = new Editor(byTestId('editor'), (kind) => onEdit(kind));
+const replay = new Replay({
+  slider: byTestId('replay-slider'), play: byTestId('replay-play'), time: byTestId('replay-time'),
+  tool: byTestId('replay-tool'), status: byTestId('replay-status'),
+}, view);
+const family = new Family(byTestId('family'), view, () => state.request);
+
+function setStatus(text, kind) {
+  statusEl.textContent = text;
+  statusEl.dataset.state = kind;
+}
+
+function showErrors(error) {
+  generalErrors.replaceChildren();
+  if (!error) {
+    editor.showViolations([]);
+    return;
+  }
+  const unplaced = editor.showViolations(error.fieldViolations || []);
+  const head = document.createElement('div');
+  head.className = 'error-summary';
+  head.textContent = error.summary || error.message;
+  generalErrors.append(head);
+  const list = document.createElement('ul');
+  for (const v of unplaced) {
+    const li = document.createElement('li');
+    li.textContent = `${v.field}: ${v.description}`;
+    list.append(li);
+  }
+  for (const v of error.preconditionViolations || []) {
+    const li = document.createElement('li');
+    li.textContent = `${v.subject || v.type}: ${v.description}`;
+    list.append(li);
+  }
+  if (list.children.length) generalErrors.append(list);
+}
+
+function saveLocally() {
+  try {
+    sessionStorage.setItem(REQUEST_KEY, JSON.stringify(state.request));
+  } catch {
+    // Too large or refused: the page works without it.
+  }
+}
+
+function onEdit(kind) {
+  state.editTime = performance.now();
+  saveLocally();
+  if (kind === 'structure') family.updateFrames(state.request.path?.frames || []);
+  schedule();
+}
+
+function schedule() {
+  clearTimeout(state.timer);
+  state.scheduled = true;
+  body.dataset.planState = 'scheduled';
+  body.dataset.streamState = 'pending';
+  state.timer = setTimeout(replan, DEBOUNCE_MS);
+}
+
+// The joint names and limits of the request's robot (for the plots), from its inline model
+// or the built-in model of that name, with the request's overrides.
+function robotInfo(spec) {
+  if (!spec) return null;
+  const model = spec.model || state.robots.find((r) => r.name === spec.name);
+  if (!model) return { names: [], limits: [] };
+  const names = (model.links?.length ? model.links : model.joints || []).map((j) => j.name || '');
+  const limits = (model.limits || []).map((l) => ({ ...l }));
+  for (const o of spec.jointLimits || []) {
+    const j = names.indexOf(o.joint);
+    if (j < 0 || !limits[j]) continue;
+    if (o.maxVelocity !== undefined) limits[j].maxVelocity = o.maxVelocity;
+    if (o.maxAcceleration !== undefined) limits[j].maxAcceleration = o.maxAcceleration;
+  }
+  return { names, limits, velocityScale: spec.velocityScale, accelerationScale: spec.accelerationScale };
+}
+
+// Arc length [m] at every key frame, from the segments' lengths.
+function frameArcLengths(response, frameCount) {
+  const s = [0];
+  for (const seg of response.segments || []) {
+    if ((seg.toFrame ?? 0) === 0 && s.length >= frameCount) break;
+    s.push(s[s.length - 1] + (seg.arcLength ?? 0));
+  }
+  return s.slice(0, frameCount);
+}
+
+function extent(points) {
+  if (!points?.length) return 0.5;
+  const lo = [Infinity, Infinity, Infinity];
+  const hi = [-Infinity, -Infinity, -Infinity];
+  for (const p of points) {
+    ['x', 'y', 'z'].forEach((k, i) => {
+      const v = p.position?.[k] ?? 0;
+      lo[i] = Math.min(lo[i], v);
+      hi[i] = Math.max(hi[i], v);
+    });
+  }
+  return Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+}
+
+async function replan() {
+  state.scheduled = false;
+  if (!state.request) return;
+  if (editor.hasLocalErrors()) {
+    setStatus('a value is not a number: fix it to replan', 'error');
+    body.dataset.planState = 'local-error';
+    return;
+  }
+  state.controller?.abort();
+  const controller = new AbortController();
+  state.controller = controller;
+  const generation = ++state.generation;
+  const request = cloneRequest(state.request);
+  const started = performance.now();
+  const editTime = state.editTime || started;
+  setStatus('planning…', 'planning');
+  body.dataset.planState = 'planning';
+  const [planned, analyzed] = await Promise.allSettled([
+    api.plan(request, controller.signal),
+    request.path ? api.analyze(analysisRequest(request, ANALYSIS_POINTS), controller.signal) : Promise.resolve(null),
+  ]);
+  if (generation !== state.generation) return;
+  const aborted = (r) => r.status === 'rejected' && r.reason?.name === 'AbortError';
+  if (aborted(planned) || aborted(analyzed)) return;
+  const callsMs = performance.now() - started;
+
+  const response = planned.status === 'fulfilled' ? planned.value : null;
+  const profile = analyzed.status === 'fulfilled' ? analyzed.value : null;
+  const error = planned.status === 'rejected' ? planned.reason : analyzed.status === 'rejected' ? analyzed.reason : null;
+  if (error && !(error instanceof api.ApiError)) {
+    console.warn(error);
+  }
+  showErrors(error);
+
+  const frames = request.path?.frames || [];
+  if (profile) {
+    state.profile = profile;
+    view.setCurve(profile.points || [], state.speedAtS || null);
+  }
+  // A path with an approach move is planned as a sequence: its path's report is a step's.
+  const report = response?.steps?.length
+    ? response.steps.find((step) => step.kind === 'path' || step.kind === 'blended') || {}
+    : response;
+  view.setFrames(frames, report?.warnings || [], profile?.points || state.profile?.points, extent(profile?.points));
+  renderWarnings(byTestId('warnings'), report?.warnings, error?.preconditionViolations);
+  // What the readout shows belongs to the last plan that succeeded.
+  for (const id of ['readout', 'summary']) byTestId(id).classList.toggle('stale', !response);
+  if (response) {
+    state.response = report;
+    renderFrames(byTestId('readout'), request, report);
+    renderSummary(byTestId('summary'), response, request);
+    plots.setFrameMarks(frameArcLengths(report, frames.length));
+    const names = robotInfo(request.robot)?.names || [];
+    const timing = response.optimization?.timing;
+    if (timing?.binding?.length) plots.setBinding(timing.binding, response.motion?.durationS, names, 'time-optimal timing');
+    else if (response.robot?.binding?.length) plots.setBinding(response.robot.binding, response.motion?.durationS, names, 'robot report');
+    else plots.setBinding(null, 0);
+  }
+  if (profile) plots.setProfile(profile.points || []);
+  const elapsed = performance.now() - editTime;
+  state.plans += 1;
+  body.dataset.plans = String(state.plans);
+  // An edit made while this plan was on its way has its own plan coming.
+  if (!state.scheduled) body.dataset.planState = error ? 'error' : 'ready';
+  if (error) {
+    setStatus(`${error.summary || error.message}`, 'error');
+  } else {
+    setStatus(`planned: view updated ${Math.round(elapsed)} ms after the edit (plan and analysis calls ${Math.round(callsMs)} ms)`, 'ready');
+  }
+  statusEl.dataset.ms = String(Math.round(elapsed));
+  state.editTime = 0;
+
+  clearTimeout(state.streamTimer);
+  if (response && request.motion && !(request.sequence || []).length) {
+    body.dataset.streamState = 'pending';
+    state.streamTimer = setTimeout(() => streamSamples(request, generation), STREAM_DEBOUNCE_MS);
+  } else {
+    state.streamController?.abort();
+    body.dataset.streamState = 'none';
+    state.samples = null;
+    state.speedAtS = null;
+    replay.clear(response ? 'no motion in the request: give it a duration to replay' : 'no plan');
+    plots.setSamples(null, null);
+  }
+}
+
+// The samples of the plan (POST /v1/stream): the replay, the speed plot, the joint plots
+// and the curve's speed colouring.
+async function streamSamples(request, generation) {
+  state.streamController?.abort();
+  const controller = new AbortController();
+  state.streamController = controller;
+  body.dataset.streamState = 'streaming';
+  const samples = [];
+  try {
+    await api.stream({ ...request, samplesPerBatch: 1024, pacing: undefined },
+      (batch) => { for (const s of batch.samples || []) samples.push(s); }, controller.signal);
+  } catch (e) {
+    if (e.name === 'AbortError' || generation !== state.generation) return;
+    body.dataset.streamState = 'error';
+    replay.clear(`stream failed: ${e.summary || e.message}`);
+    plots.setSamples(null, null);
+    return;
+  }
+  if (generation !== state.generation) return;
+  state.samples = samples;
+  state.speedAtS = speedLookup(samples);
+  if (view.colorMode === 'speed' && state.profile) view.setCurve(state.profile.points || [], state.speedAtS);
+  plots.setSamples(samples, robotInfo(request.robot));
+  await replay.load(samples, request.robot || null);
+  if (generation !== state.generation) return;
+  body.dataset.streamState = 'ready';
+}
+
+// Tool speed [m/s] at arc length s [m], from the samples (nearest sample in s).
+function speedLookup(samples) {
+  if (!samples.length || samples.some((s) => (s.step ?? 0) !== 0)) return null;
+  const s = samples.map((x) => x.s ?? 0);
+  return (value) => {
+    let lo = 0;
+    let hi = s.length - 1;
+    while (lo < hi) {
+      const mid = (lo + hi) >> 1;
+      if (s[mid] < value) lo = mid + 1;
+      else hi = mid;
+    }
+    return samples[lo].speed ?? 0;
+  };
+}
+
+function setRequest(request) {
+  state.request = request;
+  request.path ??= { frames: [] };
+  view.fitted = false;
+  state.speedAtS = null;
+  family.clear();
+  editor.render(request);
+  family.updateFrames(request.path.frames || []);
+  family.suggestRange();
+  saveLocally();
+  state.editTime = performance.now();
+  schedule();
+}
+
+// --- start page, files, commands, token --------------------------------------------------
+
+const startDialog = byTestId('start-page');
+function openStart() {
+  if (!startDialog.open) startDialog.showModal();
+}
+for (const button of document.querySelectorAll('[data-start]')) {
+  button.addEventListener('click', () => {
+    startDialog.close();
+    setRequest(presets[button.dataset.start]());
+  });
+}
+$('[data-action=start]').addEventListener('click', openStart);
+
+function loadFile(input) {
+  const file = input.files?.[0];
+  if (!file) return;
+  file.text().then((text) => {
+    let request;
+    try {
+      request = JSON.parse(text);
+    } catch (e) {
+      showErrors({ message: `${file.name} is not JSON: ${e.message}` });
+      return;
+    }
+    if (typeof request !== 'object' || request === null || Array.isArray(request)) {
+      showErrors({ message: `${file.name} does not hold a PlanRequest object` });
+      return;
+    }
+    if (startDialog.open) startDialog.close();
+    setRequest(request);
+  });
+  input.value = '';
+}
+for (const id of ['load-file', 'start-file']) {
+  byTestId(id).addEventListener('change', (e) => loadFile(e.target));
+}
+
+byTestId('save').addEventListener('click', () => {
+  if (!state.request) return;
+  const blob = new Blob([`${JSON.stringify(state.request, null, 2)}\n`], { type: 'application/json' });
+  const url = URL.createObjectURL(blob);
+  const a = document.createElement('a');
+  a.href = url;
+  a.download = 'request.json';
+  document.body.append(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 1000);
+});
+
+const commandsPanel = byTestId('commands');
+const addressInput = byTestId('grpc-address');
+try {
+  addressInput.value = localStorage.getItem('geotraj.grpcAddress') || addressInput.value;
+} catch {
+  // localStorage refused: keep the default address.
+}
+function updateCommands() {
+  byTestId('command-lines').textContent = commandLines(addressInput.value.trim() || '127.0.0.1:50051',
+    Boolean(api.token())).join('\n');
+}
+addressInput.addEventListener('input', () => {
+  try { localStorage.setItem('geotraj.grpcAddress', addressInput.value.trim()); } catch { /* see above */ }
+  updateCommands();
+});
+byTestId('copy-command').addEventListener('click', () => {
+  updateCommands();
+  commandsPanel.hidden = false;
+});
+$('[data-action=close-commands]').addEventListener('click', () => { commandsPanel.hidden = true; });
+$('[data-action=copy]').addEventListener('click', async () => {
+  const text = byTestId('command-lines').textContent;
+  try {
+    await navigator.clipboard.writeText(text);
+    setStatus('commands copied (save the request as request.json beside them)', 'ready');
+  } catch {
+    const range = document.createRange();
+    range.selectNodeContents(byTestId('command-lines'));
+    getSelection().removeAllRanges();
+    getSelection().addRange(range);
+    setStatus('select and copy the lines by hand (the clipboard is not available here)', 'ready');
+  }
+});
+
+const tokenInput = byTestId('token');
+tokenInput.value = api.token();
+tokenInput.addEventListener('change', () => {
+  api.setToken(tokenInput.value.trim());
+  loadRobots();
+  schedule();
+});
+
+byTestId('color-mode').addEventListener('change', (e) => view.setColorMode(e.target.value, state.speedAtS));
+byTestId('show-frames').addEventListener('change', (e) => {
+  view.showFrames = e.target.checked;
+  if (state.request) view.setFrames(state.request.path?.frames || [], state.response?.warnings || [],
+    state.profile?.points, extent(state.profile?.points));
+});
+$('[data-action=fit]').addEventListener('click', () => view.refit());
+
+async function loadRobots() {
+  try {
+    const answer = await api.robots();
+    state.robots = answer.robots || [];
+    editor.setRobots(state.robots);
+  } catch (e) {
+    showErrors(e);
+    setStatus(`robots: ${e.summary || e.message}`, 'error');
+  }
+}
+
+// Forms here are groups of inputs: Enter never submits them (the family's form has its own
+// handler). The page's policy (Content-Security-Policy default-src 'self') allows no inline
+// handlers, hence here.
+for (const form of document.querySelectorAll('form.editor, form.token')) {
+  form.addEventListener('submit', (e) => e.preventDefault());
+}
+
+window.addEventListener('unhandledrejection', (e) => {
+  if (e.reason?.name === 'AbortError') e.preventDefault();
+});
+
+// --- start -----------------------------------------------------------------------------------
+
+loadRobots();
+const preset = location.hash.replace(/^#/, '');
+let saved = null;
+try {
+  saved = JSON.parse(sessionStorage.getItem(REQUEST_KEY) || 'null');
+} catch {
+  saved = null;
+}
+window.addEventListener('hashchange', () => {
+  const name = location.hash.replace(/^#/, '');
+  if (!presets[name]) return;
+  if (startDialog.open) startDialog.close();
+  setRequest(presets[name]());
+});
+if (presets[preset]) setRequest(presets[preset]());
+else if (saved) setRequest(saved);
+else openStart();
+body.dataset.ready = 'true';

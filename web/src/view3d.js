@@ -1,0 +1,422 @@
+// The 3-D view (three.js, z up as the robots' world frame W): the curve coloured by
+// curvature, torsion or speed with its colour bar, the key frames with their T, N, B
+// arrows, cusps, inflections and plan warnings marked, a family of curves, and the robot as
+// capsules. Orbit (left drag), pan (right drag), zoom (wheel). Lengths in metres.
+
+import * as THREE from 'three';
+import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
+import { Line2 } from 'three/examples/jsm/lines/Line2.js';
+import { LineGeometry } from 'three/examples/jsm/lines/LineGeometry.js';
+import { LineMaterial } from 'three/examples/jsm/lines/LineMaterial.js';
+import { CSS2DRenderer, CSS2DObject } from 'three/examples/jsm/renderers/CSS2DRenderer.js';
+import { makeScale } from './colormap.js';
+
+export const FRAME_COLORS = { T: 0xd62728, N: 0x2ca02c, B: 0x1f77b4 };
+
+// What the curve can be coloured by: label, unit, diverging scale.
+export const COLOR_MODES = {
+  curvature: { label: 'curvature κ', unit: '1/m', diverging: false },
+  torsion: { label: 'torsion τ', unit: '1/m', diverging: true },
+  speed: { label: 'tool speed', unit: 'm/s', diverging: false },
+  parametricSpeed: { label: 'parametric speed |dp/du|', unit: 'm per unit u', diverging: false },
+};
+
+const v3 = (p) => new THREE.Vector3(p?.x ?? 0, p?.y ?? 0, p?.z ?? 0);
+
+function label(text, className) {
+  const div = document.createElement('div');
+  div.className = `label3d ${className || ''}`;
+  div.textContent = text;
+  return new CSS2DObject(div);
+}
+
+function disposeGroup(group) {
+  for (const child of [...group.children]) {
+    child.traverse((o) => {
+      o.geometry?.dispose?.();
+      if (o.material && !o.userData.sharedMaterial) o.material.dispose?.();
+      if (o.element) o.element.remove();
+    });
+    group.remove(child);
+  }
+}
+
+export class View3D {
+  constructor(container, colorBar) {
+    this.container = container;
+    this.colorBar = colorBar;
+    this.renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+    this.renderer.setPixelRatio(Math.min(2, window.devicePixelRatio || 1));
+    this.renderer.setClearColor(0xffffff);
+    container.append(this.renderer.domElement);
+    this.renderer.domElement.setAttribute('data-testid', 'view3d-canvas');
+    this.labels = new CSS2DRenderer();
+    this.labels.domElement.className = 'labels3d';
+    container.append(this.labels.domElement);
+
+    this.scene = new THREE.Scene();
+    this.camera = new THREE.PerspectiveCamera(40, 1, 0.001, 100);
+    this.camera.up.set(0, 0, 1);
+    this.camera.position.set(1.6, -1.4, 1.3);
+    this.controls = new OrbitControls(this.camera, this.labels.domElement);
+    this.controls.target.set(0.3, 0, 0.5);
+    this.controls.addEventListener('change', () => this.render());
+    this.scene.add(new THREE.AmbientLight(0xffffff, 1.2));
+    const sun = new THREE.DirectionalLight(0xffffff, 1.8);
+    sun.position.set(2, -3, 4);
+    this.scene.add(sun);
+
+    this.grid = new THREE.Group();
+    this.curve = new THREE.Group();
+    this.frames = new THREE.Group();
+    this.marks = new THREE.Group();
+    this.family = new THREE.Group();
+    this.robot = new THREE.Group();
+    this.scene.add(this.grid, this.curve, this.frames, this.marks, this.family, this.robot);
+    this.lineMaterials = [];
+    this.colorMode = 'curvature';
+    this.showFrames = true;
+    this.fitted = false;
+    this.buildGrid(-0.5, 1, -0.5, 0.5, 1);
+
+    new ResizeObserver(() => this.resize()).observe(container);
+    this.resize();
+  }
+
+  resize() {
+    const w = this.container.clientWidth || 640;
+    const h = this.container.clientHeight || 480;
+    this.renderer.setSize(w, h);
+    this.labels.setSize(w, h);
+    this.camera.aspect = w / h;
+    this.camera.updateProjectionMatrix();
+    for (const m of this.lineMaterials) m.resolution.set(w, h);
+    this.render();
+  }
+
+  render() {
+    if (this.pending) return;
+    this.pending = true;
+    requestAnimationFrame(() => {
+      this.pending = false;
+      this.renderer.render(this.scene, this.camera);
+      this.labels.render(this.scene, this.camera);
+    });
+  }
+
+  // The floor grid (z = 0) every 0.1 m over [x0, x1] x [y0, y1] (the curve and the origin,
+  // the robot's base), coordinates in metres along its edges, the axes of W from the origin,
+  // and a z scale up to z1.
+  buildGrid(x0, x1, y0, y1, z1) {
+    disposeGroup(this.grid);
+    const vertices = [];
+    const minor = 0.1;
+    for (let x = x0; x <= x1 + 1e-9; x += minor) vertices.push(x, y0, 0, x, y1, 0);
+    for (let y = y0; y <= y1 + 1e-9; y += minor) vertices.push(x0, y, 0, x1, y, 0);
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute('position', new THREE.Float32BufferAttribute(vertices, 3));
+    this.grid.add(new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({ color: 0xdddddd })));
+    const span = Math.max(x1 - x0, y1 - y0, z1);
+    const step = span > 2.5 ? 0.5 : span > 1.2 ? 0.2 : 0.1;
+    const ticks = (a, b) => {
+      const out = [];
+      for (let v = Math.ceil((a - 1e-9) / step) * step; v <= b + 1e-9; v += step) out.push(Math.abs(v) < 1e-9 ? 0 : v);
+      return out;
+    };
+    const digits = 1;
+    for (const x of ticks(x0, x1)) {
+      const l = label(x.toFixed(digits), 'tick');
+      l.position.set(x, y0 - 0.03, 0);
+      this.grid.add(l);
+    }
+    for (const y of ticks(y0, y1)) {
+      const l = label(y.toFixed(digits), 'tick');
+      l.position.set(x1 + 0.03, y, 0);
+      this.grid.add(l);
+    }
+    for (const z of ticks(step, z1)) {
+      const l = label(z.toFixed(digits), 'tick');
+      l.position.set(0, 0, z);
+      l.center.set(-0.2, 0.5);
+      this.grid.add(l);
+    }
+    const axes = [[x1, 0, 0, 0xd62728], [0, y1, 0, 0x2ca02c], [0, 0, z1, 0x1f77b4]];
+    for (const [x, y, z, color] of axes) {
+      const line = new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3(x, y, z)]);
+      this.grid.add(new THREE.Line(line, new THREE.LineBasicMaterial({ color })));
+    }
+    const zl = label('z [m]', 'axis');
+    zl.position.set(0, 0, z1 + 0.05);
+    this.grid.add(zl);
+    const xl = label('x [m]', 'axis');
+    xl.position.set((x0 + x1) / 2, y0 - 0.12, 0);
+    const yl = label('y [m]', 'axis');
+    yl.position.set(x1 + 0.14, (y0 + y1) / 2, 0);
+    this.grid.add(xl, yl);
+  }
+
+  // The grid around positions (and the origin), on 0.1 m lines with 0.1 m to spare.
+  gridAround(positions) {
+    const box = new THREE.Box3().setFromPoints([...positions, new THREE.Vector3()]);
+    const down = (v) => Math.floor(v * 10 - 1e-6) / 10 - 0.1;
+    const up = (v) => Math.ceil(v * 10 + 1e-6) / 10 + 0.1;
+    this.buildGrid(down(box.min.x), up(box.max.x), down(box.min.y), up(box.max.y), Math.max(0.2, up(box.max.z)));
+  }
+
+  makeLine(points, colors, width, dashed) {
+    const geometry = new LineGeometry();
+    geometry.setPositions(points.flatMap((p) => [p.x, p.y, p.z]));
+    if (colors) geometry.setColors(colors);
+    const material = new LineMaterial({
+      linewidth: width, vertexColors: Boolean(colors), color: colors ? 0xffffff : 0x888888,
+      dashed: Boolean(dashed), dashSize: 0.01, gapSize: 0.006, worldUnits: false,
+    });
+    material.resolution.set(this.container.clientWidth || 640, this.container.clientHeight || 480);
+    this.lineMaterials.push(material);
+    material.addEventListener('dispose', () => {
+      this.lineMaterials = this.lineMaterials.filter((m) => m !== material);
+    });
+    const line = new Line2(geometry, material);
+    line.computeLineDistances();
+    return line;
+  }
+
+  // The values the curve is coloured by, at each profile point.
+  colorValues(points, speedAtS) {
+    switch (this.colorMode) {
+      case 'torsion': return points.map((p) => (p.torsion ?? NaN));
+      case 'speed': return speedAtS ? points.map((p) => speedAtS(p.s ?? 0)) : points.map((p) => p.speed ?? 0);
+      case 'parametricSpeed': return points.map((p) => p.speed ?? 0);
+      default: return points.map((p) => p.curvature ?? NaN);
+    }
+  }
+
+  // profile: PathProfile.points; speedAtS: the tool speed [m/s] at arc length s from the
+  // streamed samples, or null (speed then falls back to |dp/du|).
+  setCurve(points, speedAtS) {
+    disposeGroup(this.curve);
+    this.lastCurve = { points, speedAtS };
+    if (!points || points.length < 2) {
+      this.container.dataset.curvePoints = '0';
+      this.updateColorBar(null);
+      this.render();
+      return;
+    }
+    let mode = this.colorMode;
+    if (mode === 'speed' && !speedAtS) mode = 'parametricSpeed';
+    const values = this.colorValues(points, speedAtS);
+    const scale = makeScale(values, COLOR_MODES[mode].diverging);
+    const colors = values.flatMap((v) => scale.color(v));
+    const positions = points.map((p) => v3(p.position));
+    this.curve.add(this.makeLine(positions, colors, 4));
+    this.container.dataset.curvePoints = String(points.length);
+    // A signature of the drawn curve, so that a change of its shape can be seen from outside.
+    let sum = 0;
+    positions.forEach((p, i) => { sum += (i + 1) * (p.x * 3 + p.y * 5 + p.z * 7); });
+    this.container.dataset.curveSignature = sum.toPrecision(12);
+    this.updateColorBar(scale, mode);
+    if (!this.fitted) this.fit(positions);
+    this.render();
+  }
+
+  // speedAtS: the tool speed lookup for the 'speed' mode (null: none streamed yet).
+  setColorMode(mode, speedAtS) {
+    this.colorMode = mode;
+    if (this.lastCurve) this.setCurve(this.lastCurve.points, speedAtS ?? this.lastCurve.speedAtS);
+  }
+
+  updateColorBar(scale, mode) {
+    const bar = this.colorBar;
+    bar.replaceChildren();
+    if (!scale) return;
+    const info = COLOR_MODES[mode];
+    const title = document.createElement('div');
+    title.className = 'title';
+    title.textContent = `${info.label} [${info.unit}]`;
+    const canvas = document.createElement('canvas');
+    canvas.width = 200;
+    canvas.height = 12;
+    const ctx = canvas.getContext('2d');
+    for (let x = 0; x < canvas.width; ++x) {
+      ctx.fillStyle = scale.css(x / (canvas.width - 1));
+      ctx.fillRect(x, 0, 1, canvas.height);
+    }
+    const ticks = document.createElement('div');
+    ticks.className = 'ticks';
+    for (const t of [0, 0.25, 0.5, 0.75, 1]) {
+      const span = document.createElement('span');
+      const value = scale.lo + (scale.hi - scale.lo) * t;
+      span.textContent = formatTick(Math.abs(value) < 1e-9 * (scale.hi - scale.lo) ? 0 : value);
+      if (scale.clipped && t === 1) span.textContent = `≥ ${span.textContent}`;
+      if (scale.clipped && scale.diverging && t === 0) span.textContent = `≤ ${span.textContent}`;
+      ticks.append(span);
+    }
+    bar.append(title, canvas, ticks);
+    bar.dataset.mode = mode;
+  }
+
+  // frames: the request's key frames (positions and the operator's T, N, B);
+  // warnings: PlanResponse.warnings placed on the profile by u.
+  setFrames(frames, warnings, profilePoints, scaleHint) {
+    disposeGroup(this.frames);
+    disposeGroup(this.marks);
+    // Arrows a tenth of the path's size, within 4 to 15 cm.
+    const length = Math.min(0.15, Math.max(0.04, (scaleHint || 0.5) * 0.1));
+    frames.forEach((frame, i) => {
+      const p = v3(frame.position);
+      const t = v3(frame.tangent).normalize();
+      const dirs = [['T', t]];
+      if (frame.normal) {
+        const n = v3(frame.normal).normalize();
+        dirs.push(['N', n]);
+        const b = frame.binormal ? v3(frame.binormal).normalize() : t.clone().cross(n).normalize();
+        dirs.push(['B', b]);
+      }
+      if (this.showFrames) {
+        for (const [name, d] of dirs) {
+          if (d.lengthSq() < 1e-12) continue;
+          this.frames.add(new THREE.ArrowHelper(d, p, length, FRAME_COLORS[name], length * 0.25, length * 0.12));
+        }
+      }
+      const tag = label(`${i}`, 'frame');
+      tag.position.copy(p);
+      tag.center.set(-0.3, 1.2);
+      this.frames.add(tag);
+      const dot = new THREE.Mesh(new THREE.SphereGeometry(length * 0.08, 12, 8),
+        new THREE.MeshStandardMaterial({ color: 0x222222 }));
+      dot.position.copy(p);
+      this.frames.add(dot);
+      if (frame.cusp) this.addMark(p, 0xc2185b, 'cusp', length, 'cusp');
+      if (frame.inflection) this.addMark(p, 0xef6c00, 'inflection', length, 'inflection');
+      if (frame.stop) this.addMark(p, 0x555555, 'stop', length, 'stop');
+    });
+    (warnings || []).forEach((w, k) => {
+      const at = pointAtU(profilePoints, w.u ?? 0);
+      if (!at) return;
+      this.addMark(v3(at.position), 0xd32f2f, `⚠ ${k + 1}`, length, 'warning');
+    });
+    this.container.dataset.frames = String(frames.length);
+    this.render();
+  }
+
+  addMark(p, color, text, length, kind) {
+    const geometry = kind === 'warning' ? new THREE.TetrahedronGeometry(length * 0.22)
+      : new THREE.OctahedronGeometry(length * 0.2);
+    const mesh = new THREE.Mesh(geometry, new THREE.MeshStandardMaterial({ color, transparent: true, opacity: 0.85 }));
+    mesh.position.copy(p);
+    this.marks.add(mesh);
+    const tag = label(text, `mark ${kind}`);
+    tag.position.copy(p);
+    tag.center.set(0.5, -0.6);
+    this.marks.add(tag);
+  }
+
+  // curves: [{points: PathPoint[], color: css colour}].
+  setFamily(curves) {
+    disposeGroup(this.family);
+    for (const c of curves) {
+      const line = this.makeLine(c.points.map((p) => v3(p.position)), null, 2);
+      line.material.color.set(c.color);
+      this.family.add(line);
+    }
+    this.container.dataset.familyCurves = String(curves.length);
+    this.render();
+  }
+
+  // points: joint axis origins (base first) then the tool position, in W [m].
+  setRobot(points) {
+    if (!points) {
+      disposeGroup(this.robot);
+      this.robotParts = null;
+      this.container.dataset.robotLinks = '0';
+      this.render();
+      return;
+    }
+    const links = points.length - 1;
+    if (!this.robotParts || this.robotParts.links.length !== links) {
+      disposeGroup(this.robot);
+      const linkMaterial = new THREE.MeshStandardMaterial({ color: 0xf0a030, transparent: true, opacity: 0.8 });
+      const jointMaterial = new THREE.MeshStandardMaterial({ color: 0x37474f });
+      const toolMaterial = new THREE.MeshStandardMaterial({ color: 0xd32f2f });
+      const cylinder = new THREE.CylinderGeometry(0.025, 0.025, 1, 16);
+      const sphere = new THREE.SphereGeometry(0.035, 16, 12);
+      this.robotParts = { links: [], joints: [] };
+      for (let i = 0; i < links; ++i) {
+        const mesh = new THREE.Mesh(cylinder, linkMaterial);
+        this.robotParts.links.push(mesh);
+        this.robot.add(mesh);
+      }
+      for (let i = 0; i < points.length; ++i) {
+        const mesh = new THREE.Mesh(i === points.length - 1 ? new THREE.SphereGeometry(0.02, 12, 8) : sphere,
+          i === points.length - 1 ? toolMaterial : jointMaterial);
+        this.robotParts.joints.push(mesh);
+        this.robot.add(mesh);
+      }
+    }
+    this.container.dataset.robotLinks = String(links);
+    const up = new THREE.Vector3(0, 1, 0);
+    points.forEach((p, i) => this.robotParts.joints[i].position.copy(p));
+    for (let i = 0; i < links; ++i) {
+      const a = points[i];
+      const b = points[i + 1];
+      const mesh = this.robotParts.links[i];
+      const d = b.clone().sub(a);
+      const len = d.length();
+      mesh.visible = len > 1e-6;
+      if (!mesh.visible) continue;
+      mesh.position.copy(a).addScaledVector(d, 0.5);
+      mesh.quaternion.setFromUnitVectors(up, d.divideScalar(len));
+      mesh.scale.set(1, len, 1);
+    }
+    this.render();
+  }
+
+  // The tool's position during a replay without a robot.
+  setToolMarker(p) {
+    if (!this.toolMarker) {
+      this.toolMarker = new THREE.Mesh(new THREE.SphereGeometry(0.012, 16, 12),
+        new THREE.MeshStandardMaterial({ color: 0xd32f2f }));
+      this.scene.add(this.toolMarker);
+    }
+    this.toolMarker.visible = Boolean(p);
+    if (p) this.toolMarker.position.copy(p);
+    this.render();
+  }
+
+  fit(positions) {
+    this.gridAround(positions);
+    // The curve and the origin (the robot's base) in view: the camera at the distance where
+    // their bounding sphere fills the vertical field of view.
+    const box = new THREE.Box3().setFromPoints([...positions, new THREE.Vector3()]);
+    const center = box.getCenter(new THREE.Vector3());
+    const radius = Math.max(0.05, box.getSize(new THREE.Vector3()).length() / 2);
+    this.controls.target.copy(center);
+    const dir = new THREE.Vector3(1, -1.3, 0.9).normalize();
+    const fov = THREE.MathUtils.degToRad(this.camera.fov);
+    this.camera.position.copy(center).addScaledVector(dir, (radius / Math.sin(fov / 2)) * 1.05);
+    this.controls.update();
+    this.fitted = true;
+  }
+
+  refit() {
+    if (this.lastCurve?.points?.length) this.fit(this.lastCurve.points.map((p) => v3(p.position)));
+    this.render();
+  }
+}
+
+// The profile point nearest global parameter u.
+export function pointAtU(points, u) {
+  if (!points || !points.length) return null;
+  let best = points[0];
+  for (const p of points) if (Math.abs((p.u ?? 0) - u) < Math.abs((best.u ?? 0) - u)) best = p;
+  return best;
+}
+
+export function formatTick(value) {
+  if (value === 0) return '0';
+  const a = Math.abs(value);
+  if (a >= 1e4 || a < 1e-3) return value.toExponential(1);
+  if (a >= 100) return value.toFixed(0);
+  if (a >= 10) return value.toFixed(1);
+  return value.toPrecision(3).replace(/\.?0+$/, '');
+}

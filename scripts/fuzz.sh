@@ -6,7 +6,7 @@
 #   scripts/fuzz.sh [BUILD_DIR] [SECONDS_PER_TARGET]     (defaults: build-fuzz, 45)
 #
 # Environment:
-#   FUZZ_TARGETS     the targets to run (default: all seven)
+#   FUZZ_TARGETS     the targets to run (default: all nine)
 #   FUZZ_JOBS        build parallelism (default: nproc)
 #   FUZZ_FORK        >0: run each target with -fork=N (N processes; a long job on a big machine)
 #   FUZZ_KEEP_CORPUS 1: keep growing BUILD_DIR/fuzz-corpus/<target> across runs instead of
@@ -23,7 +23,7 @@ cd "$(dirname "$0")/.."
 
 build_dir="${1:-build-fuzz}"
 seconds="${2:-45}"
-targets="${FUZZ_TARGETS:-fuzz_plan_request fuzz_plan_request_json fuzz_convert fuzz_robot_model_json fuzz_http_head fuzz_kinematics fuzz_live fuzz_urdf}"
+targets="${FUZZ_TARGETS:-fuzz_plan_request fuzz_plan_request_json fuzz_convert fuzz_robot_model_json fuzz_http_head fuzz_kinematics fuzz_live fuzz_web fuzz_urdf}"
 jobs="${FUZZ_JOBS:-$(nproc)}"
 fork="${FUZZ_FORK:-0}"
 timeout="${FUZZ_TIMEOUT:-10}"

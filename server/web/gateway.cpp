@@ -62,6 +62,17 @@ std::optional<grpc::Status> parse_body(const std::string& body, Message& message
   if (body.find_first_not_of(" \t\r\n") == std::string::npos) {
     return invalid_argument(core::Violations{{"", "the request body is empty: send a " + name + " in proto JSON"}});
   }
+  // JSON is UTF-8 (RFC 8259), and protobuf's JSON parser lets invalid bytes through into
+  // string fields (its binary parser refuses them): a robot name of such bytes would come
+  // back in an error message no client could decode.
+  for (std::size_t i = 0; i < body.size();) {
+    const std::size_t n = utf8_sequence(body, i);
+    if (n == 0) {
+      return invalid_argument(core::Violations{
+          {"", "the request body is not valid UTF-8 (byte " + std::to_string(i) + "): JSON text is UTF-8"}});
+    }
+    i += n;
+  }
   pbu::JsonParseOptions options;
   options.ignore_unknown_fields = false;
   if (const auto parsed = pbu::JsonStringToMessage(body, &message, options); !parsed.ok()) {
@@ -325,9 +336,10 @@ tl::expected<std::unique_ptr<WebGateway>, std::string> WebGateway::start(const W
   // would wait for the client's delayed ACK of the head (40 ms on Linux) on every call.
   http.set_tcp_nodelay(true);
   http.set_payload_max_length(options.max_request_bytes);
-  http.set_read_timeout(options.idle_timeout_s, 0);
-  http.set_write_timeout(options.idle_timeout_s, 0);
-  http.set_keep_alive_timeout(options.idle_timeout_s);
+  const auto idle_ms = std::max<std::chrono::milliseconds::rep>(1, options.idle_timeout.count());
+  http.set_read_timeout(idle_ms / 1000, (idle_ms % 1000) * 1000);
+  http.set_write_timeout(idle_ms / 1000, (idle_ms % 1000) * 1000);
+  http.set_keep_alive_timeout((idle_ms + 999) / 1000);
   http.set_default_headers({
       {"X-Content-Type-Options", "nosniff"},
       {"Referrer-Policy", "no-referrer"},

@@ -24,6 +24,7 @@
 // call's id comes back in the answer's X-Request-Id).
 #pragma once
 
+#include <chrono>
 #include <cstddef>
 #include <memory>
 #include <string>
@@ -55,9 +56,10 @@ struct WebOptions {
   /// Connections that wait for a thread; one beyond them is served by the accepting thread,
   /// which accepts no other meanwhile (new ones wait in the kernel's backlog).
   std::size_t max_queued_connections = 64;
-  /// A connection that sends nothing for this long (between requests, or within one
-  /// read or write) is closed [s].
-  int idle_timeout_s = 5;
+  /// A connection that sends nothing for this long within a request, or takes nothing for
+  /// this long within an answer, is closed; between requests it may wait this long,
+  /// rounded up to whole seconds.
+  std::chrono::milliseconds idle_timeout{5000};
 };
 
 /// The web side of a running server.

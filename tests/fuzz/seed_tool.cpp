@@ -20,11 +20,14 @@
 //                                          baseLink and its last as tipLink, a link in the
 //                                          middle as tipLink alone, accelerations not
 //                                          required, and jointLimits for its first joint
+//   OUT_DIR/seeds/fuzz_web/                every example posted (HTTP/1.1) to each route that
+//                                          takes it; GET /v1/robots, GET /, a wrong method,
+//                                          two requests on one connection, a chunked body
 //   OUT_DIR/<target>.dict                  for the JSON targets: every field name (JSON and
 //                                          proto spelling) and enum value of the messages,
 //                                          and the JSON tokens of proto3's special numbers;
-//                                          for fuzz_http_head and fuzz_urdf, the words of
-//                                          their languages
+//                                          for fuzz_http_head, fuzz_web and fuzz_urdf, the
+//                                          words of their languages
 //
 // EXTRA_DIR/<target>/ holds hand-written seeds (tests/fuzz/corpus): added as they are to the
 // JSON targets; for the binary targets a *.json file is converted, any other file is copied.
@@ -33,12 +36,14 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include <google/protobuf/descriptor.h>
+#include <google/protobuf/message.h>
 #include <google/protobuf/util/json_util.h>
 
 #include "core/robot/robot.hpp"
@@ -70,6 +75,18 @@ void write(const fs::path& file, const std::string& bytes) {
 template <class M>
 bool parse_json(const std::string& text, M& message) {
   return pb::util::JsonStringToMessage(text, &message).ok();
+}
+
+// Whether `text` is a message of type `descriptor` in proto3 JSON.
+bool parses_as(const std::string& text, const pb::Descriptor* descriptor) {
+  std::unique_ptr<pb::Message> message(pb::MessageFactory::generated_factory()->GetPrototype(descriptor)->New());
+  return pb::util::JsonStringToMessage(text, message.get()).ok();
+}
+
+// A POST of `body` to `route` as an HTTP/1.1 client sends it.
+std::string http_post(const std::string& route, const std::string& body) {
+  return "POST " + route + " HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\nContent-Length: " +
+         std::to_string(body.size()) + "\r\n\r\n" + body;
 }
 
 std::string to_json(const pb::Message& message) {
@@ -184,7 +201,7 @@ int main(int argc, char** argv) {
   const fs::path examples = argv[2];
   const fs::path extra = argv[3];
   const fs::path seeds = out / "seeds";
-  int counts[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int counts[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
 
   // The documented example requests.
   for (const auto& file : files_in(examples, true)) {
@@ -222,6 +239,19 @@ int main(int argc, char** argv) {
     } else if (parse_json(text, jog) && jog.has_start()) {
       write(seeds / "fuzz_live" / (stem + ".bin"), live_seed('\1', std::vector<geotraj::v1::JogRequest>{jog}));
       counts[7]++;
+    }
+    // fuzz_web: the file posted to each route that takes it, as a client sends it.
+    for (const auto& [route, message] : std::initializer_list<std::pair<const char*, const pb::Descriptor*>>{
+             {"/v1/plan", geotraj::v1::PlanRequest::descriptor()},
+             {"/v1/analyze", geotraj::v1::PlanRequest::descriptor()},
+             {"/v1/stream", geotraj::v1::PlanRequest::descriptor()},
+             {"/v1/convert", geotraj::v1::ConvertRequest::descriptor()},
+             {"/v1/fk", geotraj::v1::ForwardKinematicsRequest::descriptor()},
+             {"/v1/ik", geotraj::v1::InverseKinematicsRequest::descriptor()}}) {
+      if (!parses_as(text, message)) continue;
+      const std::string name = std::string(route).substr(4);
+      write(seeds / "fuzz_web" / (stem + "_" + name + ".http"), http_post(route, text));
+      counts[8]++;
     }
     geotraj::v1::ForwardKinematicsRequest forward;
     geotraj::v1::InverseKinematicsRequest inverse;
@@ -343,10 +373,27 @@ int main(int argc, char** argv) {
     write(seeds / "fuzz_live" / (std::string("jog_") + name + ".bin"), live_seed('\1', run));
     counts[7]++;
   }
+  // fuzz_web: the GET routes, a wrong method, two requests on one connection, a chunked body.
+  const std::string robots = "GET /v1/robots HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+  write(seeds / "fuzz_web" / "robots.http", robots);
+  write(seeds / "fuzz_web" / "page.http", "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+  write(seeds / "fuzz_web" / "wrong_method.http", "GET /v1/plan HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+  write(seeds / "fuzz_web" / "two_requests.http", robots + http_post("/v1/plan", "{\"path\": {}}"));
+  write(seeds / "fuzz_web" / "chunked.http",
+        "POST /v1/convert HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: chunked\r\n\r\n"
+        "a\r\n{\"path\": {\r\n2\r\n}}\r\n0\r\n\r\n");
+  counts[8] += 5;
+  std::string web_words = http_words;
+  for (const char* word : {"/v1/plan", "/v1/analyze", "/v1/stream", "/v1/convert", "/v1/fk", "/v1/ik", "/v1/robots",
+                           "Authorization", "Bearer ", "X-Request-Id", "application/json", "{", "}", "[", "]", "\\\"",
+                           "null", "true", "1e308", "NaN", "-Infinity"}) {
+    web_words += dictionary_entry(word);
+  }
+  write(out / "fuzz_web.dict", web_words);
   write_dictionary(out / "fuzz_plan_request_json.dict", geotraj::v1::PlanRequest::descriptor());
   write_dictionary(out / "fuzz_robot_model_json.dict", geotraj::v1::RobotModel::descriptor());
   std::printf("fuzz_seed_tool: seeds: %d fuzz_plan_request, %d fuzz_plan_request_json, %d fuzz_convert, "
-              "%d fuzz_robot_model_json, %d fuzz_http_head, %d fuzz_kinematics, %d fuzz_urdf, %d fuzz_live\n",
-              counts[0], counts[1], counts[2], counts[3], counts[4], counts[5], counts[6], counts[7]);
+              "%d fuzz_robot_model_json, %d fuzz_http_head, %d fuzz_kinematics, %d fuzz_urdf, %d fuzz_live, %d fuzz_web\n",
+              counts[0], counts[1], counts[2], counts[3], counts[4], counts[5], counts[6], counts[7], counts[8]);
   return 0;
 }

@@ -187,6 +187,7 @@ TEST_F(Web, BodiesThatAreNoRequestAreRefusedWithTheReason) {
            {"[1, 2]", "not a geotraj.v1.PlanRequest"},
            {"{\"pathh\": {}}", "pathh"},                        // a misspelt field is no silent default
            {"{\"path\": {\"frames\": [{\"curvature\": \"a lot\"}]}}", "curvature"},
+           {"{\"robot\": {\"name\": \"pa\xff" "10\"}}", "not valid UTF-8 (byte 22)"},
        }) {
     SCOPED_TRACE(c.body);
     const auto res = post("/v1/plan", c.body);
@@ -445,7 +446,7 @@ TEST(WebPool, ConnectionsBeyondThePoolWaitAndAreServed) {
   web.address = "127.0.0.1:0";
   web.threads = 2;
   web.max_queued_connections = 2;
-  web.idle_timeout_s = 1;
+  web.idle_timeout = std::chrono::seconds(1);
   auto gateway = server::WebGateway::start(web, running.server->InProcessChannel(grpc::ChannelArguments{}));
   ASSERT_TRUE(gateway) << gateway.error();
   const int port = (*gateway)->port();

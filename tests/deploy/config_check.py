@@ -6,7 +6,8 @@
    `geotrajd --help` names: a misspelt variable would be ignored silently.
 2. geotrajd starts with deploy/k8s/geotraj.env as its environment (the addresses moved to
    free loopback ports on the command line, which wins, and a tokens file), reports
-   SERVING on its health-only port for "" and geotraj.readiness, and exits 0 on SIGTERM.
+   SERVING on its health-only port for "" and geotraj.readiness, answers its web side's
+   GET /v1/robots with the token only, and exits 0 on SIGTERM.
 
 usage: config_check.py SOURCE_DIR GEOTRAJD
 """
@@ -91,20 +92,34 @@ def main():
 
     env = dict(os.environ)
     env.update(env_file(os.path.join(src, "deploy", "k8s", "geotraj.env")))
-    grpc_port, health_port, metrics_port = free_port(), free_port(), free_port()
+    grpc_port, health_port, metrics_port, web_port = free_port(), free_port(), free_port(), free_port()
     with tempfile.TemporaryDirectory() as tmp:
         tokens = os.path.join(tmp, "tokens")
         with open(tokens, "w") as f:
             f.write("config-check-token-0123456789 plan,stream\n")
         env["GEOTRAJ_AUTH_TOKENS_FILE"] = tokens
         argv = [server, "--address", f"127.0.0.1:{grpc_port}", "--health-address", f"127.0.0.1:{health_port}",
-                "--metrics-address", f"127.0.0.1:{metrics_port}"]
+                "--metrics-address", f"127.0.0.1:{metrics_port}", "--web-address", f"127.0.0.1:{web_port}"]
         proc = subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         try:
             for service in ("", "geotraj.readiness"):
                 status = health(health_port, service)
                 if status != 1:
                     failures.append(f"with deploy/k8s/geotraj.env, health {service!r} is {status}, not SERVING")
+            # The web side with the tokens: none is 401, the token's is 200.
+            import urllib.error
+            import urllib.request
+            url = f"http://127.0.0.1:{web_port}/v1/robots"
+            try:
+                urllib.request.urlopen(url, timeout=10)
+                failures.append("GET /v1/robots without a token was answered")
+            except urllib.error.HTTPError as e:
+                if e.code != 401:
+                    failures.append(f"GET /v1/robots without a token: {e.code}, not 401")
+            authorized = urllib.request.Request(url, headers={"Authorization": "Bearer config-check-token-0123456789"})
+            with urllib.request.urlopen(authorized, timeout=10) as answer:
+                if answer.status != 200 or b'"robots"' not in answer.read():
+                    failures.append("GET /v1/robots with the token did not list the robots")
             proc.send_signal(signal.SIGTERM)
             code = proc.wait(timeout=60)
             if code != 0:

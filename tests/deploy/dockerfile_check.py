@@ -171,11 +171,12 @@ def check(src):
     if not users or not re.fullmatch(r"65532(:65532)?", users[-1]):
         fail(f"runtime USER {users[-1] if users else None}: expected the numeric non-root 65532:65532")
     exposed = set(" ".join(a for _, a in rt.get("EXPOSE", [])).split())
-    for port in ("50051", "9090"):
+    for port in ("50051", "9090", "8080"):
         if port not in exposed and f"{port}/tcp" not in exposed:
             fail(f"runtime does not EXPOSE {port}")
     env = " ".join(a for _, a in rt.get("ENV", []))
     for name, value in (("GEOTRAJ_ADDRESS", "0.0.0.0:50051"), ("GEOTRAJ_METRICS_ADDRESS", "0.0.0.0:9090"),
+                        ("GEOTRAJ_WEB_ADDRESS", "0.0.0.0:8080"),
                         ("GEOTRAJ_LOG_FORMAT", "json")):
         if not re.search(rf"\b{name}={re.escape(value)}\b", env):
             fail(f"runtime ENV lacks {name}={value}")

@@ -78,6 +78,25 @@ std::optional<double> line_time(const Line& line, double previous, Report& repor
   return t;
 }
 
+// The time of the command on `line`, in order after `previous` (which it then becomes);
+// nothing (reported) when the line comes after the stop on line `stop_line` (0: none yet),
+// its time is not valid, or no command follows it (`usage` lists the commands).
+std::optional<double> command_time(const Line& line, int stop_line, double& previous, Report& report,
+                                   const std::string& usage) {
+  if (stop_line > 0) {
+    report.add(line, "comes after the stop on line " + std::to_string(stop_line) + ", where the call ends");
+    return std::nullopt;
+  }
+  const auto t = line_time(line, previous, report);
+  if (!t) return std::nullopt;
+  previous = *t;
+  if (line.words.size() < 2) {
+    report.add(line, "no command after the time (" + usage + ")");
+    return std::nullopt;
+  }
+  return t;
+}
+
 // The words from `first` on as fractions in [-1, 1]; false (reported) when one is not.
 bool fractions(const Line& line, std::size_t first, std::vector<double>& out, Report& report) {
   bool ok = true;
@@ -103,17 +122,8 @@ tl::expected<std::vector<ExecuteStep>, ScriptErrors> parse_execute_script(std::s
   double previous = 0.0;
   int stop_line = 0;
   for (const Line& line : command_lines(text)) {
-    if (stop_line > 0) {
-      report.add(line, "comes after the stop on line " + std::to_string(stop_line) + ", where the call ends");
-      continue;
-    }
-    const auto t = line_time(line, previous, report);
+    const auto t = command_time(line, stop_line, previous, report, "override PCT, pause, resume or stop");
     if (!t) continue;
-    previous = *t;
-    if (line.words.size() < 2) {
-      report.add(line, "no command after the time (override PCT, pause, resume or stop)");
-      continue;
-    }
     ExecuteStep step;
     step.t_s = *t;
     step.line = line.number;
@@ -154,17 +164,9 @@ tl::expected<std::vector<JogStep>, ScriptErrors> parse_jog_script(std::string_vi
   int joints_line = 0;  // the first `joints` line: every other one has as many values
   std::size_t joint_count = 0;
   for (const Line& line : command_lines(text)) {
-    if (stop_line > 0) {
-      report.add(line, "comes after the stop on line " + std::to_string(stop_line) + ", where the call ends");
-      continue;
-    }
-    const auto t = line_time(line, previous, report);
+    const auto t = command_time(line, stop_line, previous, report,
+                                "joints V..., twist world|tool VX VY VZ WX WY WZ, or stop");
     if (!t) continue;
-    previous = *t;
-    if (line.words.size() < 2) {
-      report.add(line, "no command after the time (joints V..., twist world|tool VX VY VZ WX WY WZ, or stop)");
-      continue;
-    }
     JogStep step;
     step.t_s = *t;
     step.line = line.number;

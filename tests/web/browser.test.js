@@ -7,8 +7,11 @@
 // curvature achieved there; an invalid value shows the server's field message beside its
 // field; the family view draws N curves; switching the reading of unspecified constraints
 // changes the curve; a request file loads, and the commands that send it are shown; the
-// PA-10's time-optimal plan shows its binding limits, and its replay moves the arm; with a
-// server that checks tokens, the token typed in the page goes with every call.
+// PA-10's time-optimal plan shows its binding limits, and its replay moves the arm; path C
+// typed into the empty start field by field achieves at frames 1 and 2 the curvature and
+// torsion the API answers for client/grpcurl/plan_demo_path_c.json, saves as that file, and
+// reads frame 0's curvature as the API does under every reading of unspecified constraints;
+// with a server that checks tokens, the token typed in the page goes with every call.
 //
 //   cd tests/web && PUPPETEER_SKIP_DOWNLOAD=1 npm ci && \
 //     GEOTRAJD=../../build/server/geotrajd GEOTRAJ_WEB_ROOT=../../build/share/geotraj/web npm test
@@ -123,6 +126,71 @@ async function openPage(problems, extraEnv, tolerated) {
   return { server, browser, page, base: `http://127.0.0.1:${webPort}/` };
 }
 
+// The browser logs every 4xx answer as "Failed to load resource"; a refused request the
+// page shows beside its fields (400 from an API route) is the page working.
+const refusedPlan = (m) =>
+  /Failed to load resource: .* status of 400/.test(m.text()) && /\/v1\/(plan|analyze)$/.test(m.location()?.url || '');
+
+// What the tests do on a page (the page that pageOf() returns when called, and the list of
+// problems its openPage records): waiting on the page's own state, typing, reading values,
+// screenshots, seeking the replay.
+function pageHelpers(pageOf, problems) {
+  // Waits for fn(arg) in the page; a timeout fails with what the page shows, and a
+  // screenshot (timeout-<what>.png) in the artifacts folder.
+  async function waitFor(what, fn, arg) {
+    try {
+      await pageOf().waitForFunction(fn, { timeout: WAIT_MS }, arg);
+    } catch (e) {
+      const shown = await pageOf().evaluate(() => JSON.stringify({
+        body: { ...document.body.dataset },
+        status: document.querySelector('[data-testid="status"]')?.textContent,
+        errors: document.querySelector('[data-testid="general-errors"]')?.textContent,
+        replay: document.querySelector('[data-testid="replay-status"]')?.textContent,
+      })).catch((why) => `(page unreadable: ${why.message})`);
+      await pageOf().screenshot({ path: path.join(ARTIFACTS, `timeout-${what}.png`) }).catch(() => {});
+      throw new Error(`waiting for ${what}: ${e.message}; the page shows ${shown}; problems so far: ${problems.join('; ')}`);
+    }
+  }
+  const plans = () => pageOf().$eval('body', (b) => Number(b.dataset.plans || 0));
+  // Waits for a plan after `before` plans that is the page's latest, and returns its state.
+  async function settled(beforeCount) {
+    await waitFor('plan', (n) => {
+      const d = document.body.dataset;
+      return Number(d.plans || 0) > n && (d.planState === 'ready' || d.planState === 'error');
+    }, beforeCount);
+    return pageOf().$eval('body', (b) => b.dataset.planState);
+  }
+  async function streamed() {
+    await waitFor('stream', () => document.body.dataset.streamState === 'ready' &&
+      document.querySelector('[data-testid="replay-slider"]').dataset.ready === 'true');
+  }
+  async function typeInto(testid, text) {
+    const input = await pageOf().$(sel(testid));
+    assert.ok(input, `no element ${testid}`);
+    await input.click({ clickCount: 3 });
+    await pageOf().keyboard.press('Backspace');
+    await input.type(text);
+  }
+  const dataValue = (testid) => pageOf().$eval(sel(testid), (e) => Number(e.dataset.value));
+  const signature = () => pageOf().$eval(sel('view3d'), (e) => e.dataset.curveSignature || '');
+  // A screenshot in the artifacts folder (of an element, or the page; fullPage: all of
+  // it), copied to docs/ui.md's figures when GEOTRAJ_UI_FIGURES asks and `figure` is true.
+  async function screenshot(name, { element, fullPage = false, figure = true } = {}) {
+    const file = path.join(ARTIFACTS, `${name}.png`);
+    if (element) await (await pageOf().$(element)).screenshot({ path: file });
+    else await pageOf().screenshot({ path: file, fullPage });
+    if (FIGURES && figure) fs.copyFileSync(file, path.join(FIGURES, `ui_${name}.png`));
+  }
+  async function seek(t) {
+    await pageOf().$eval(sel('replay-slider'), (s, value) => {
+      s.value = String(value);
+      s.dispatchEvent(new Event('input'));
+    }, t);
+    return pageOf().$eval(sel('replay-tool'), (e) => [Number(e.dataset.x), Number(e.dataset.y), Number(e.dataset.z)]);
+  }
+  return { waitFor, plans, settled, streamed, typeInto, dataValue, signature, screenshot, seek };
+}
+
 describe('the operator page in chromium', () => {
   let server;
   let browser;
@@ -139,10 +207,7 @@ describe('the operator page in chromium', () => {
       `chromium not found at ${CHROMIUM}: apt-get install chromium (scripts/install-deps.sh), or set GEOTRAJ_CHROMIUM`);
     fs.mkdirSync(ARTIFACTS, { recursive: true });
     if (FIGURES) fs.mkdirSync(FIGURES, { recursive: true });
-    // The browser logs every 4xx answer as "Failed to load resource"; a refused request
-    // the page shows beside its fields (400 from an API route) is the page working.
-    ({ server, browser, page, base } = await openPage(problems, {}, (m) =>
-      /Failed to load resource: .* status of 400/.test(m.text()) && /\/v1\/(plan|analyze)$/.test(m.location()?.url || '')));
+    ({ server, browser, page, base } = await openPage(problems, {}, refusedPlan));
   });
 
   after(async () => {
@@ -150,59 +215,8 @@ describe('the operator page in chromium', () => {
     await stopServer(server);
   });
 
-  // Waits for fn(arg) in the page; a timeout fails with what the page shows, and a
-  // screenshot (timeout-<what>.png) in the artifacts folder.
-  async function waitFor(what, fn, arg) {
-    try {
-      await page.waitForFunction(fn, { timeout: WAIT_MS }, arg);
-    } catch (e) {
-      const shown = await page.evaluate(() => JSON.stringify({
-        body: { ...document.body.dataset },
-        status: document.querySelector('[data-testid="status"]')?.textContent,
-        errors: document.querySelector('[data-testid="general-errors"]')?.textContent,
-        replay: document.querySelector('[data-testid="replay-status"]')?.textContent,
-      })).catch((why) => `(page unreadable: ${why.message})`);
-      await page.screenshot({ path: path.join(ARTIFACTS, `timeout-${what}.png`) }).catch(() => {});
-      throw new Error(`waiting for ${what}: ${e.message}; the page shows ${shown}; problems so far: ${problems.join('; ')}`);
-    }
-  }
-  const plans = () => page.$eval('body', (b) => Number(b.dataset.plans || 0));
-  // Waits for a plan after `before` plans that is the page's latest, and returns its state.
-  async function settled(beforeCount) {
-    await waitFor('plan', (n) => {
-      const d = document.body.dataset;
-      return Number(d.plans || 0) > n && (d.planState === 'ready' || d.planState === 'error');
-    }, beforeCount);
-    return page.$eval('body', (b) => b.dataset.planState);
-  }
-  async function streamed() {
-    await waitFor('stream', () => document.body.dataset.streamState === 'ready' &&
-      document.querySelector('[data-testid="replay-slider"]').dataset.ready === 'true');
-  }
-  async function typeInto(testid, text) {
-    const input = await page.$(sel(testid));
-    assert.ok(input, `no element ${testid}`);
-    await input.click({ clickCount: 3 });
-    await page.keyboard.press('Backspace');
-    await input.type(text);
-  }
-  const dataValue = (testid) => page.$eval(sel(testid), (e) => Number(e.dataset.value));
-  const signature = () => page.$eval(sel('view3d'), (e) => e.dataset.curveSignature || '');
-  // A screenshot in the artifacts folder (of an element, or the page; fullPage: all of
-  // it), copied to docs/ui.md's figures when GEOTRAJ_UI_FIGURES asks and `figure` is true.
-  async function screenshot(name, { element, fullPage = false, figure = true } = {}) {
-    const file = path.join(ARTIFACTS, `${name}.png`);
-    if (element) await (await page.$(element)).screenshot({ path: file });
-    else await page.screenshot({ path: file, fullPage });
-    if (FIGURES && figure) fs.copyFileSync(file, path.join(FIGURES, `ui_${name}.png`));
-  }
-  async function seek(t) {
-    await page.$eval(sel('replay-slider'), (s, value) => {
-      s.value = String(value);
-      s.dispatchEvent(new Event('input'));
-    }, t);
-    return page.$eval(sel('replay-tool'), (e) => [Number(e.dataset.x), Number(e.dataset.y), Number(e.dataset.z)]);
-  }
+  const { waitFor, plans, settled, streamed, typeInto, dataValue, signature, screenshot, seek } =
+    pageHelpers(() => page, problems);
 
   it('loads with the start page and no console errors', async () => {
     await page.goto(base, { waitUntil: 'load' });
@@ -334,6 +348,223 @@ describe('the operator page in chromium', () => {
   });
 
   it('logged no console error on the way', () => {
+    assert.deepEqual(problems, []);
+  });
+});
+
+// The thesis's path C typed in by an operator, through the page only: from the empty start,
+// frames added to four, every value of client/grpcurl/plan_demo_path_c.json typed into its
+// field (the derivative convention and blend chosen in their selects, the cusp ticked), the
+// readout at frames 1 and 2 against what POST /v1/plan answers for the file itself, the saved
+// request against the file; then each reading of unspecified constraints against the API
+// for the file with that reading; then the PA-10's time-optimal start, its binding joint
+// limit named and its arm moved by the replay slider.
+describe('path C typed into the editor by hand', () => {
+  const demoFile = path.join(repo, 'client', 'grpcurl', 'plan_demo_path_c.json');
+  const asked = JSON.parse(fs.readFileSync(demoFile, 'utf8'));
+  const downloads = path.join(ARTIFACTS, 'typed_path_c_saved');
+  let server;
+  let browser;
+  let page;
+  let base;
+  const problems = [];
+  const { waitFor, plans, settled, streamed, typeInto, dataValue, screenshot } = pageHelpers(() => page, problems);
+
+  before(async () => {
+    assert.ok(fs.existsSync(CHROMIUM), `chromium not found at ${CHROMIUM}: apt-get install chromium`);
+    fs.mkdirSync(ARTIFACTS, { recursive: true });
+    // A fresh folder: chromium would name a second download "request (1).json".
+    fs.rmSync(downloads, { recursive: true, force: true });
+    fs.mkdirSync(downloads, { recursive: true });
+    // Intermediate values (a normal half typed, a curvature' before its curvature) are
+    // refused with 400 and shown beside their fields: the page working.
+    ({ server, browser, page, base } = await openPage(problems, {}, refusedPlan));
+    // The page's "save" is a download: into `downloads`, under the name the page gives it.
+    const session = await browser.target().createCDPSession();
+    await session.send('Browser.setDownloadBehavior', { behavior: 'allow', downloadPath: downloads });
+  });
+
+  after(async () => {
+    if (browser) await browser.close();
+    await stopServer(server);
+  });
+
+  // What POST /v1/plan answers for `request`, asked from here (Node's fetch, same server).
+  async function planOf(request) {
+    const answer = await fetch(new URL('v1/plan', base), {
+      method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(request),
+    });
+    const text = await answer.text();
+    assert.equal(answer.status, 200, `POST /v1/plan: ${text}`);
+    return JSON.parse(text);
+  }
+  // Equal to 1e-9 relative (absolute below 1).
+  function assertClose(actual, expected, what) {
+    assert.equal(typeof expected, 'number', `${what}: the API answers ${expected}`);
+    assert.ok(Math.abs(actual - expected) <= 1e-9 * Math.max(1, Math.abs(expected)),
+      `${what} reads ${actual}, the API answers ${expected}`);
+  }
+  const frameCount = () => page.$$eval(`${sel('editor')} fieldset.frame`, (f) => f.length);
+  // Polls a condition of this process (a file written by chromium) until it holds.
+  async function until(what, check) {
+    const deadline = Date.now() + WAIT_MS;
+    while (!check()) {
+      if (Date.now() > deadline) throw new Error(`waiting for ${what}`);
+      await new Promise((r) => setTimeout(r, 50));
+    }
+  }
+  // A PlanRequest in proto JSON with what proto3 leaves implicit written the same way on
+  // both sides: a Vec3's absent components are 0, a false bool is absent. Optional scalars
+  // stay as they are: absent is not 0 there.
+  function canonical(request) {
+    const out = JSON.parse(JSON.stringify(request));
+    for (const frame of out.path?.frames || []) {
+      for (const key of ['position', 'tangent', 'normal', 'binormal']) {
+        if (frame[key]) frame[key] = { x: frame[key].x ?? 0, y: frame[key].y ?? 0, z: frame[key].z ?? 0 };
+      }
+      for (const key of ['cusp', 'inflection', 'stop', 'easeOrientation']) if (frame[key] === false) delete frame[key];
+    }
+    if (out.path?.closed === false) delete out.path.closed;
+    return out;
+  }
+
+  it("achieves at frames 1 and 2 what the API answers for path C's file, and saves the file", async () => {
+    await page.goto(base, { waitUntil: 'load' });
+    await page.waitForSelector(`${sel('start-page')}[open]`);
+    let n = await plans();
+    await page.click(sel('start-empty'));
+    assert.equal(await settled(n), 'ready');
+    // The built-in robots re-render the editor when they arrive: before typing, not during.
+    await waitFor('robots', () => document.querySelector('[data-testid="robot-name"]')?.options.length > 1);
+    assert.equal(await frameCount(), 2);
+    const frames = asked.path.frames;
+    assert.equal(frames.length, 4);
+    while (await frameCount() < frames.length) await page.click(sel('frame-add'));
+    assert.equal(await frameCount(), 4);
+
+    n = await plans();
+    // The path's selects: the empty start's defaults are not the file's convention and blend.
+    assert.notEqual(await page.$eval(sel('path-derivativeConvention'), (s) => s.value), asked.path.derivativeConvention);
+    for (const [testid, key] of [['path-derivativeConvention', 'derivativeConvention'], ['path-blend', 'blend'],
+      ['path-unspecified', 'unspecified']]) {
+      const wanted = asked.path[key] ?? '';
+      if (await page.$eval(sel(testid), (s) => s.value) !== wanted) await page.select(sel(testid), wanted);
+    }
+    // κ' and τ' are now per unit u, and their fields say so.
+    assert.deepEqual(await page.$$eval(`${sel('frame-1')} [data-derivative-unit]`, (u) => u.map((e) => e.textContent)),
+      ['1/m per u', '1/m per u']);
+
+    for (const [i, frame] of frames.entries()) {
+      // The binormal is under "binormal, leaving scale, tool orientation".
+      const more = `${sel(`frame-${i}`)} details.more`;
+      if ((frame.binormal || frame.leaveTangentScale !== undefined) && !await page.$eval(more, (d) => d.open)) {
+        await page.click(`${more} > summary`);
+      }
+      for (const vector of ['position', 'tangent', 'normal', 'binormal']) {
+        if (!frame[vector]) continue;
+        for (const axis of ['x', 'y', 'z']) {
+          await typeInto(`frame-${i}-input-${vector}-${axis}`, String(frame[vector][axis] ?? 0));
+        }
+      }
+      // Curvature first: torsion and the derivatives need it.
+      for (const key of ['curvature', 'torsion', 'curvatureDerivative', 'torsionDerivative', 'tangentScale',
+        'leaveTangentScale']) {
+        if (frame[key] !== undefined) await typeInto(`frame-${i}-input-${key}`, String(frame[key]));
+      }
+      for (const mark of ['cusp', 'inflection', 'stop']) {
+        const box = sel(`frame-${i}-input-${mark}`);
+        if (Boolean(frame[mark]) !== await page.$eval(box, (c) => c.checked)) await page.click(box);
+      }
+    }
+    assert.ok(await page.$eval(sel('frame-2-input-cusp'), (c) => c.checked), 'frame 2 is not a cusp');
+    for (const [key, value] of Object.entries(asked.motion)) await typeInto(`motion-${key}`, String(value));
+    assert.equal(await settled(n), 'ready');
+    assert.equal(await page.$eval(sel('view3d'), (e) => e.dataset.frames), '4');
+    assert.match(await page.$eval(sel('frame-2-row'), (e) => e.cells[0].textContent), /cusp/);
+
+    // The thesis's frames 2 and 3 (1-based): what the page reads, what the API answers for
+    // the file, and what the file asks.
+    const answer = await planOf(asked);
+    for (const i of [1, 2]) {
+      for (const key of ['curvature', 'torsion']) {
+        for (const side of ['approach', 'leave']) {
+          assertClose(await dataValue(`frame-${i}-${key}-${side}`), answer.frames[i][side]?.[key],
+            `frame ${i} ${key} (${side})`);
+        }
+        const shown = await dataValue(`frame-${i}-${key}`);
+        assertClose(shown, answer.frames[i].leave[key], `frame ${i} ${key}`);
+        assert.ok(Math.abs(shown - frames[i][key]) <= 1e-6 * Math.abs(frames[i][key]),
+          `frame ${i} ${key} reads ${shown}, the file asks ${frames[i][key]}`);
+      }
+    }
+    await streamed();
+    // The view was fitted to the empty start's curve: framed again as the operator would.
+    await page.click('[data-action=fit]');
+    await screenshot('typed_path_c', { figure: false });
+
+    // The request as saved is the file, field for field.
+    await page.click(sel('save'));
+    const saved = path.join(downloads, 'request.json');
+    await until(`${saved} from the page's save`, () => fs.existsSync(saved));
+    assert.deepEqual(canonical(JSON.parse(fs.readFileSync(saved, 'utf8'))), canonical(asked));
+    assert.deepEqual(problems, []);
+  });
+
+  it("reads frame 0's unconstrained curvature as the API does under every reading of unspecified constraints", async () => {
+    assert.equal(asked.path.frames[0].curvature, undefined, 'frame 0 of the file is not unconstrained');
+    const options = await page.$$eval(`${sel('path-unspecified')} option`, (o) => o.map((e) => e.value));
+    assert.ok(options.length >= 3, `the select offers ${options}`);
+    // Each selection a change: the current value last.
+    const current = await page.$eval(sel('path-unspecified'), (s) => s.value);
+    const readings = new Map();
+    for (const value of [...options.filter((v) => v !== current), current]) {
+      const n = await plans();
+      await page.select(sel('path-unspecified'), value);
+      const label = value || '(default)';
+      assert.equal(await settled(n), 'ready', `unspecified ${label}`);
+      const request = JSON.parse(JSON.stringify(asked));
+      if (value) request.path.unspecified = value;
+      const expected = (await planOf(request)).frames[0].leave?.curvature;
+      const shown = await page.$eval(sel('frame-0-curvature'), (e) => e.dataset.value);
+      if (expected === undefined) assert.equal(shown, '', `frame 0 curvature under ${label}`);
+      else assertClose(Number(shown), expected, `frame 0 curvature under ${label}`);
+      readings.set(label, shown);
+    }
+    assert.ok(new Set(readings.values()).size >= 2,
+      `frame 0's curvature reads the same under every reading: ${JSON.stringify([...readings])}`);
+    console.log(`[ measured ] frame 0 curvature of typed path C by reading: ${JSON.stringify(Object.fromEntries(readings))}`);
+    await screenshot('typed_path_c_readout', { element: sel('readout'), figure: false });
+  });
+
+  it("names the joint limit that binds on the PA-10's time-optimal path C, and its replay moves the arm", async () => {
+    await page.click('[data-action=start]');
+    await page.waitForSelector(`${sel('start-page')}[open]`);
+    const n = await plans();
+    await page.click(sel('start-pa10'));
+    assert.equal(await settled(n), 'ready');
+    const jointLimit = /\bjoint \d+\b.*\b(velocity|acceleration)\b/;
+    const stretches = await page.$$eval(`${sel('plot-binding')} [data-testid^="binding-stretch-"]`,
+      (l) => l.map((e) => e.textContent));
+    assert.ok(stretches.some((t) => jointLimit.test(t)), `no binding stretch names a joint limit: ${stretches}`);
+    const rows = await page.$$eval(`${sel('plot-binding')} svg text.row-label`, (l) => l.map((e) => e.textContent));
+    assert.ok(rows.some((t) => jointLimit.test(t)), `no row of the timeline names a joint limit: ${rows}`);
+
+    // The slider dragged as an operator would: a click at a quarter and at three quarters.
+    // (After the samples: the joint plots above the timeline are drawn from them.)
+    await streamed();
+    await screenshot('typed_pa10_binding', { element: sel('plot-binding'), figure: false });
+    const slider = await page.$(sel('replay-slider'));
+    const toolAt = async (fraction) => {
+      const box = await slider.boundingBox();
+      await slider.click({ offset: { x: box.width * fraction, y: box.height / 2 } });
+      return page.$eval(sel('replay-tool'), (e) => ({ text: e.textContent, t: Number(e.dataset.t) }));
+    };
+    const early = await toolAt(0.25);
+    const late = await toolAt(0.75);
+    assert.ok(late.t > early.t, `the slider went from t = ${early.t} to t = ${late.t} s`);
+    assert.match(early.text, /^tool \(/);
+    assert.notEqual(late.text, early.text, `the tool stays at ${early.text}`);
+    await screenshot('typed_pa10_replay', { figure: false });
     assert.deepEqual(problems, []);
   });
 });

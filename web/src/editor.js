@@ -202,6 +202,8 @@ export class Editor {
       setField(this.request, field, select.value || undefined);
       // No model: the whole robot goes (its other settings mean nothing without one).
       if (field === 'robot.name' && !select.value) delete this.request.robot;
+      // κ' and τ' are read in the new convention: their unit labels say so at once.
+      if (field === 'path.derivativeConvention') this.updateDerivativeUnits();
       if (structural) this.render(this.request);
       this.onChange(structural ? 'structure' : 'value');
     });
@@ -234,8 +236,11 @@ export class Editor {
     card.append(this.vecInput(`${base}.tangent`, 'tangent T', { testid: `frame-${i}-input-tangent` }));
     card.append(this.vecInput(`${base}.normal`, 'normal N', { optional: true, testid: `frame-${i}-input-normal` }));
     for (const [key, label, unit] of FRAME_SCALARS.slice(0, 5)) {
-      card.append(this.scalarRow(`${base}.${key}`, label, unit === 'deriv' ? dUnit : unit,
-        { testid: `frame-${i}-input-${key}` }));
+      const row = this.scalarRow(`${base}.${key}`, label, unit === 'deriv' ? dUnit : unit,
+        { testid: `frame-${i}-input-${key}` });
+      // Marked so that a change of the path's derivative convention relabels it.
+      if (unit === 'deriv') row.querySelector('.unit').dataset.derivativeUnit = '';
+      card.append(row);
     }
     card.append(el('div', { class: 'checks' },
       this.checkRow(`${base}.cusp`, 'cusp', `frame-${i}-input-cusp`),
@@ -352,6 +357,12 @@ export class Editor {
     });
     return el('div', { class: 'row' }, el('label', { text: label }), input,
       el('span', { class: 'unit', text: 'rad' }), this.errorSlot(field));
+  }
+
+  // The unit labels of every frame's κ' and τ', from the path's derivative convention.
+  updateDerivativeUnits() {
+    const unit = derivativeUnit(this.request);
+    for (const span of this.root.querySelectorAll('[data-derivative-unit]')) span.textContent = unit;
   }
 
   // A value the page cannot send (not a number): shown beside the field at once.

@@ -121,7 +121,8 @@ void check_answer(std::string_view input, const std::string& answer) {
   if (answer.empty()) return;  // closed without an answer (e.g. a head that never ended)
   if (!answer.starts_with("HTTP/1.1 ") || answer.size() < 12) fail("no status line", input, answer);
   const int status = std::atoi(answer.substr(9, 3).c_str());
-  if (status < 200 || status > 599) fail("a status out of range", input, answer);
+  // 100 Continue answers a request that expects it, before its final answer.
+  if (status < 100 || status > 599) fail("a status out of range", input, answer);
   if (answer.find("\"NaN\"") != std::string::npos || answer.find("Infinity\"") != std::string::npos) {
     fail("NaN or Infinity in an answer", input, answer);
   }

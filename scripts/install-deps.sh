@@ -5,12 +5,14 @@ set -euo pipefail
 
 packages=(
   build-essential cmake make pkg-config
+  ccache                              # compiler cache shared by the build, sanitizer, TSan and fuzz trees
   libeigen3-dev libexpected-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   golang-github-gogo-googleapis-dev   # google/rpc/status.proto and error_details.proto
   golang-google-grpc-dev              # grpc/health/v1/health.proto
   libcli11-dev nlohmann-json3-dev
   libcpp-httplib-dev                  # HTTP of the metrics and probe endpoint
+  libboost-dev                        # Boost.Beast and Asio: the web port's HTTP server (server/web)
   libgtest-dev libgmock-dev libbenchmark-dev
   liblapacke-dev                      # LAPACK's banded Cholesky, compared in bench_banded_cholesky
   liborocos-kdl-dev                   # Orocos KDL: the kinematics cross-check (tests only)

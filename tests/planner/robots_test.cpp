@@ -4,6 +4,7 @@
 // with their makers' DH tables; continuous and fixed joints, base and tip links; and every
 // kind of bad document is refused with the element and line it is about.
 #include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -440,6 +441,184 @@ TEST(Urdf, HostileDocumentsAreRefusedBeforeTheParsers) {
   EXPECT_THAT(m.error()[0].description, HasSubstr("not UTF-8"));
   EXPECT_TRUE(planner::robot_from_urdf(std::string(planner::builtin_urdf("panda")) + "<!-- \xC3\xA9 -->"))
       << "well-formed UTF-8 is fine";
+}
+
+// --- bounds before the parsers (issue 28) ------------------------------------------------
+
+// Well-formed UTF-8 (RFC 3629), written here independently of the reader's own check: every
+// message goes back to a client in a protobuf string.
+bool utf8(const std::string& s) {
+  std::size_t i = 0;
+  while (i < s.size()) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    const std::size_t n = c < 0x80 ? 1 : c < 0xC2 ? 0 : c < 0xE0 ? 2 : c < 0xF0 ? 3 : c < 0xF5 ? 4 : 0;
+    if (n == 0 || i + n > s.size()) return false;
+    std::uint32_t cp = n == 1 ? c : c & (0x7Fu >> n);
+    for (std::size_t k = 1; k < n; ++k) {
+      const auto b = static_cast<unsigned char>(s[i + k]);
+      if ((b & 0xC0) != 0x80) return false;
+      cp = (cp << 6) | (b & 0x3Fu);
+    }
+    const std::uint32_t least[] = {0, 0, 0x80, 0x800, 0x10000};
+    if (cp < least[n] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return false;
+    i += n;
+  }
+  return true;
+}
+
+core::Violations refused(const std::string& text) {
+  auto m = planner::robot_from_urdf(text);
+  EXPECT_FALSE(m) << "accepted:\n" << text.substr(0, 300);
+  if (m) return {};
+  for (const auto& v : m.error()) EXPECT_TRUE(utf8(v.description)) << "a message is not UTF-8: " << v.field;
+  return m.error();
+}
+
+std::string repeated(const std::string& s, int times) {
+  std::string out;
+  out.reserve(s.size() * static_cast<std::size_t>(times));
+  for (int k = 0; k < times; ++k) out += s;
+  return out;
+}
+
+// Stray closing tags before <robot> drove the depth count negative, and the nesting they made
+// room for reached TinyXML's recursive parser (50,000 of each: SIGSEGV). A closing tag that
+// closes nothing, or not the element open, is refused where it is.
+TEST(Urdf, StrayClosingTagsAreRefusedAndCannotMakeRoomForNesting) {
+  const std::string attack = "<?xml version=\"1.0\"?>\n\n" + repeated("</a>", 50000) + "<robot name=\"r\">" +
+                             repeated("<a>", 50000) + repeated("</a>", 50000) + "</robot>";
+  auto v = refused(attack);
+  ASSERT_FALSE(v.empty());
+  EXPECT_EQ(v[0].field, "urdf");
+  EXPECT_THAT(v[0].description, HasSubstr("line 3: the closing tag </a> closes no element"));
+  // Inside the document: a closing tag of another element than the one open.
+  v = refused("<robot name=\"r\">\n<link name=\"a\">\n</joint>\n</robot>");
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr("line 3: the closing tag </joint> does not close <link> (line 2)"));
+  // After the root: nothing is open any more.
+  v = refused(std::string(planner::builtin_urdf("ur5e")) + "</robot>" + repeated("<a>", 100));
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr("closes no element"));
+}
+
+// TinyXML reads a malformed character reference up to the next ';', markup included, and
+// some of its lenient readings end a tag later than a plain scan would: all refused, so that
+// the nesting counted is the nesting parsed.
+TEST(Urdf, MarkupThatHidesTagsFromTheCountIsRefused) {
+  const std::string level = "<a x=\"&#x\"></a>x41;\">";  // TinyXML: the value swallows </a>
+  auto v = refused("<robot name=\"r\">" + repeated(level, 200) + "</robot>");
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr("line 1: the character reference \"&#x\" is malformed"));
+  v = refused("<robot name=\"r\">\n<link name=a/></robot>");
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr("line 2: in <link>: an attribute is name=\"value\""));
+  v = refused("<?xml version=\"1.0>\"?><robot name=\"r\"/>");
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr("an XML declaration is"));
+  v = refused("<robot name=\"r\">\n\n< link/></robot>");
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr("line 3: '<' starts no tag"));
+  v = refused(std::string("<robot name=\"r\">\n\x01</robot>"));
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr("line 2: the control character U+0001"));
+}
+
+// TinyXML compares each attribute with the element's earlier ones: 40,000 on one element held
+// a worker 26 s. More than 64 on one element are refused; 64 are fine.
+TEST(Urdf, ManyAttributesOnOneElementAreRefused) {
+  const std::string ur5e(planner::builtin_urdf("ur5e"));
+  const auto with_attributes = [&](int count) {
+    std::string extra;
+    for (int k = 1; k < count; ++k) extra += " x" + std::to_string(k) + "=\"" + std::to_string(k) + "\"";
+    std::string text = ur5e;
+    text.insert(text.find("<link name=\"base_link\"") + 22, extra);  // after its name: `count` in all
+    return text;
+  };
+  EXPECT_TRUE(planner::robot_from_urdf(with_attributes(64))) << "64 attributes on an element are fine";
+  std::size_t line = 1;
+  for (std::size_t i = 0; i < ur5e.find("<link name=\"base_link\""); ++i) line += ur5e[i] == '\n';
+  auto v = refused(with_attributes(65));
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr("line " + std::to_string(line) + ": <link> has more than 64 attributes"));
+  v = refused(with_attributes(40000));
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr("has more than 64 attributes"));
+}
+
+// urdfdom splits a vector's value into a string per space (32 bytes each): 4 MiB of spaces in
+// one xyz cost 180 MB. A value has at most 16 KiB.
+TEST(Urdf, LongAttributeValuesAreRefused) {
+  const std::string ur5e(planner::builtin_urdf("ur5e"));
+  const auto padded = [&](std::size_t spaces) { return replaced(ur5e, "xyz=\"", "xyz=\"" + std::string(spaces, ' ')); };
+  EXPECT_TRUE(planner::robot_from_urdf(padded(16000))) << "16,000 bytes in a value are fine";
+  auto v = refused(padded(4u << 20));
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr(": the value of xyz has "));
+  EXPECT_THAT(v[0].description, HasSubstr("bytes; at most 16384"));
+}
+
+// Elements, attributes, comments and other markup: at most 100,000 in all (a robot has a few
+// thousand; each is an object of both parsers).
+TEST(Urdf, ManyElementsAreRefused) {
+  std::string text(planner::builtin_urdf("panda"));
+  const std::size_t at = text.find("<link");
+  text.insert(at, repeated("<empty/>", 10000) + repeated("<!-- c -->", 10000));
+  EXPECT_TRUE(planner::robot_from_urdf(text)) << "20,000 more elements and comments are fine";
+  text.insert(at, repeated("<empty/>", 50000) + repeated("<!-- c -->", 30000));
+  auto v = refused(text);
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr("more than 100000 elements, attributes, comments and other markup"));
+  EXPECT_THAT(v[0].description, HasSubstr("line "));
+}
+
+// TinyXML decodes a character reference to whatever it names (a surrogate, past U+10FFFF, NUL)
+// and urdfdom reads one beyond ASCII as a single byte: either puts bytes that are not UTF-8
+// into names and messages. Refused, naming the reference and its line.
+TEST(Urdf, CharacterReferencesThatAreNotAsciiTextAreRefusedByName) {
+  const std::string scara = fixture("scara_like.urdf");
+  const std::string entry = "<joint name=\"j3\" max_acceleration=\"8\"";
+  std::size_t line = 1;
+  for (std::size_t i = 0; i < scara.find(entry); ++i) line += scara[i] == '\n';
+  struct Case {
+    const char* reference;
+    const char* says;
+  };
+  for (const Case& c : {Case{"&#xD800;", "surrogate"}, Case{"&#x110000;", "past U+10FFFF"},
+                        Case{"&#0;", "control character U+0000"}, Case{"&#55296;", "surrogate"},
+                        Case{"&#xE9;", "beyond ASCII (U+00E9)"}, Case{"&#x;", "malformed"},
+                        Case{"&#X41;", "malformed"}, Case{"&#x1F600;", "beyond ASCII"},
+                        Case{"&#x100000041;", "past U+10FFFF"}}) {
+    SCOPED_TRACE(c.reference);
+    auto v = refused(replaced(scara, entry, "<joint name=\"j9" + std::string(c.reference) + "\" max_acceleration=\"8\""));
+    ASSERT_FALSE(v.empty());
+    EXPECT_EQ(v[0].field, "urdf");
+    EXPECT_THAT(v[0].description, HasSubstr("line " + std::to_string(line) + ": the character reference"));
+    EXPECT_THAT(v[0].description, HasSubstr(c.says));
+  }
+  auto v = refused(replaced(scara, entry, "<joint name=\"j9&#x110000;\" max_acceleration=\"8\""));
+  ASSERT_FALSE(v.empty());
+  EXPECT_THAT(v[0].description, HasSubstr("\"&#x110000;\""));
+  // ASCII references, and characters beyond ASCII written as themselves, are fine.
+  std::string fine = replaced(scara, "<geotraj description=\"", "<geotraj description=\"&#x41;&#65;&#10;&#9;&amp; \xC3\xA9 ");
+  auto m = planner::robot_from_urdf(fine);
+  ASSERT_TRUE(m) << listed(m.error());
+  EXPECT_THAT(m->description, HasSubstr("AA\n\t& \xC3\xA9"));
+}
+
+// Real robots, as their makers and xacro write them, still load.
+TEST(Urdf, RealDocumentsPassTheBounds) {
+  for (const Document& d : documents()) {
+    SCOPED_TRACE(d.name);
+    EXPECT_TRUE(planner::robot_from_urdf(d.text, chain(d.base, d.tip)));
+    // With what XML allows around the markup: a declaration with an encoding, a DOCTYPE, a
+    // byte-order mark, a space before '>' of a closing tag, CDATA.
+    std::string text = d.text;
+    if (text.starts_with("<?xml")) text.erase(0, text.find("?>") + 2);
+    text = "\xEF\xBB\xBF<?xml version='1.0' encoding=\"UTF-8\" standalone=\"yes\"?>\n<!DOCTYPE robot>\n" + text;
+    text.replace(text.rfind("</robot>"), 8, "<![CDATA[ </a></b> ]]></robot >");
+    auto m = planner::robot_from_urdf(text, chain(d.base, d.tip));
+    EXPECT_TRUE(m) << (m ? std::string() : listed(m.error()));
+  }
 }
 
 // Messages point at the line: the element's own line in the document.

@@ -49,8 +49,8 @@ struct UrdfOptions {
 };
 
 /// What a joint without an acceleration limit carries when none is required: finite and
-/// positive (the model validates), never read by the kinematics.
-inline constexpr double kUnknownAcceleration = 1e300;
+/// positive and within core::kMaxJointLimit (the model validates), never read by the kinematics.
+inline constexpr double kUnknownAcceleration = core::kMaxJointLimit;
 
 /// The model of the chain from the base link to the tip link of the URDF document `urdf`.
 /// Violations name `urdf` (the document: the message says the line and element), `baseLink`

@@ -11,6 +11,13 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+// The largest speed-factor acceleration [1/s] and jerk [1/s^2] the bounds give: from rest to
+// full speed in a microsecond is beyond any cycle, and a lower bound is always safe. A plan
+// that barely moves a limited quantity (a peak rate of 1e-300) would otherwise give a room
+// of 1e300 and, over ramp_s, an infinite jerk that no rate profile can use.
+constexpr double kMaxFactorAcceleration = 1e6;
+constexpr double kMaxFactorJerk = 1e12;
+
 // The smallest multiple of the cycle rate at or above `wanted` [Hz] with at most
 // `max_samples` samples over `duration` [s] (never below the cycle rate).
 double check_rate(double cycle_hz, double wanted_hz, double duration_s, std::size_t max_samples) {
@@ -81,10 +88,12 @@ FactorBounds factor_bounds(const std::vector<LiveRow>& rows, double r_high, doub
       b.jerk_row = i;
     }
   }
+  b.acceleration = std::min(b.acceleration, kMaxFactorAcceleration);
   if (!std::isfinite(b.jerk)) {
     b.jerk = b.acceleration / ramp_s;
     b.jerk_from_ramp = true;
   }
+  b.jerk = std::min(b.jerk, kMaxFactorJerk);
   return b;
 }
 

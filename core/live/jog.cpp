@@ -76,6 +76,7 @@ Jogger::Jogger(const RobotModel& model, JointVector q0, JogOptions options)
   GEOTRAJ_CHECK(validate_jog_options(options_, "").empty());
   GEOTRAJ_CHECK(n_ > 0 && model.dof() <= kMaxJoints && model.limits.size() == model.dof());
   GEOTRAJ_CHECK(q_.size() == n_);
+  GEOTRAJ_CHECK(validate_jog_limits(model, options_, "").empty());
   v_.setZero(n_);
   a_.setZero(n_);
   target_.setZero(n_);
@@ -90,7 +91,6 @@ Jogger::Jogger(const RobotModel& model, JointVector q0, JogOptions options)
     v_max_(j) = l.max_velocity * options_.velocity_scale;
     a_max_(j) = l.max_acceleration;
     j_max_(j) = l.max_jerk ? *l.max_jerk : l.max_acceleration / options_.jerk_ramp_s;
-    GEOTRAJ_CHECK(v_max_(j) > 0.0 && a_max_(j) > 0.0 && j_max_(j) > 0.0 && std::isfinite(j_max_(j)));
     bounded_[i] = model.joints[i].type != JointType::kContinuous;
     q_min_(j) = l.min_position;
     q_max_(j) = l.max_position;
@@ -271,6 +271,38 @@ Violations validate_jog_command(const JogCommand& command, std::size_t dof, std:
   }
   if (command.twist) {
     for (Eigen::Index i = 0; i < 6; ++i) fraction("twist", i, (*command.twist)(i));
+  }
+  return v;
+}
+
+Violations validate_jog_limits(const RobotModel& model, const JogOptions& options, std::string_view field) {
+  Violations v;
+  const auto named = [&](std::size_t i) {
+    return "joint " + std::to_string(i) + (i < model.joints.size() ? " (" + model.joints[i].name + ")" : "");
+  };
+  // The largest jerk bound a ramp may make: the widest ratio of two limits.
+  constexpr double kMaxRampJerk = kMaxJointLimit / kMinJointLimit;
+  for (std::size_t i = 0; i < model.limits.size(); ++i) {
+    const JointLimits& l = model.limits[i];
+    const double v_max = l.max_velocity * options.velocity_scale;
+    if (!(v_max >= kMinJointLimit)) {
+      v.push_back({join(field, "velocityScale"),
+                   number(options.velocity_scale) + " makes " + named(i) + "'s jog speed (maxVelocity " +
+                       number(l.max_velocity) + " times it) " + number(v_max) + ", below " + number(kMinJointLimit) +
+                       ": give a larger scale"});
+      break;
+    }
+  }
+  for (std::size_t i = 0; i < model.limits.size(); ++i) {
+    const JointLimits& l = model.limits[i];
+    if (l.max_jerk) continue;
+    const double j_max = l.max_acceleration / options.jerk_ramp_s;
+    if (!(j_max > 0.0 && j_max <= kMaxRampJerk)) {
+      v.push_back({join(field, "jerkRampS"), number(options.jerk_ramp_s) + " s makes " + named(i) +
+                                                 "'s jerk bound (maxAcceleration over it) " + number(j_max) +
+                                                 ", outside (0, " + number(kMaxRampJerk) + "]"});
+      break;
+    }
   }
   return v;
 }

@@ -121,8 +121,10 @@ struct JogSample {
 class Jogger {
  public:
   /// `model` valid (validate_robot) and outliving the jogger; q0 of model.dof() values within
-  /// the position limits; `options` valid (validate_jog_options). Checked (GEOTRAJ_CHECK):
-  /// the caller's programmer errors. Starts at rest with every target 0.
+  /// the position limits; `options` valid (validate_jog_options) and valid with the model
+  /// (validate_jog_limits: the bounds it derives per joint). Checked (GEOTRAJ_CHECK): the
+  /// caller's programmer errors (a request is refused by those validations first). Starts at
+  /// rest with every target 0.
   Jogger(const RobotModel& model, JointVector q0, JogOptions options);
   ~Jogger();
   Jogger(Jogger&&) noexcept;
@@ -183,5 +185,12 @@ Violations validate_jog_command(const JogCommand& command, std::size_t dof, std:
 /// `cycleRateHz` in (0, 1e5], `velocityScale` in (0, 1], `maxLinearSpeed`, `maxAngularSpeed`,
 /// `singularThreshold` and `jerkRampS` finite and > 0, `damping` finite and >= 0.
 Violations validate_jog_options(const JogOptions& options, std::string_view field);
+
+/// Every problem with jogging `model` (valid) with `options` (valid): the bounds the jogger
+/// derives per joint must stay usable, `velocityScale` (maxVelocity times it at least
+/// kMinJointLimit: a scale of 5e-324 gives 0) and `jerkRampS` (maxAcceleration over it, for a
+/// joint without maxJerk, finite and at most kMaxJointLimit / kMinJointLimit). The first joint
+/// that breaks each is named, with the value and the bound.
+Violations validate_jog_limits(const RobotModel& model, const JogOptions& options, std::string_view field);
 
 }  // namespace geotraj::core

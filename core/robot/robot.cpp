@@ -215,19 +215,26 @@ Violations validate_robot(const RobotModel& model) {
       out.push_back({idx("limits", i, "minPosition"),
                      number(l.min_position) + " is above maxPosition " + number(l.max_position)});
     }
-    if (!(std::isfinite(l.max_velocity) && l.max_velocity > 0.0)) {
-      out.push_back({idx("limits", i, "maxVelocity"), "must be finite and > 0, got " + number(l.max_velocity)});
-    }
-    if (!(std::isfinite(l.max_acceleration) && l.max_acceleration > 0.0)) {
-      out.push_back(
-          {idx("limits", i, "maxAcceleration"), "must be finite and > 0, got " + number(l.max_acceleration)});
-    }
-    if (l.max_jerk && !(std::isfinite(*l.max_jerk) && *l.max_jerk > 0.0)) {
-      out.push_back({idx("limits", i, "maxJerk"), "must be finite and > 0 when given, got " + number(*l.max_jerk)});
-    }
+    const bool prismatic = i < model.joints.size() && model.joints[i].type == JointType::kPrismatic;
+    const auto rate = [&](const char* name, double v, const char* rad_unit, const char* m_unit) {
+      if (auto bad = joint_limit_violation(idx("limits", i, name), v, prismatic ? m_unit : rad_unit)) {
+        out.push_back(std::move(*bad));
+      }
+    };
+    rate("maxVelocity", l.max_velocity, "rad/s", "m/s");
+    rate("maxAcceleration", l.max_acceleration, "rad/s^2", "m/s^2");
+    if (l.max_jerk) rate("maxJerk", *l.max_jerk, "rad/s^3", "m/s^3");
   }
   check_rotation(model.base, "base", out);
   check_rotation(model.tool, "tool", out);
+  for (const auto& [name, X] : {std::pair<const char*, const Eigen::Isometry3d*>{"base", &model.base},
+                                std::pair<const char*, const Eigen::Isometry3d*>{"tool", &model.tool}}) {
+    if (X->translation().allFinite() && X->translation().cwiseAbs().maxCoeff() > kMaxModelMagnitude) {
+      out.push_back({std::string(name) + ".position",
+                     "magnitude must be at most " + number(kMaxModelMagnitude) + " m, got " +
+                         number(X->translation().cwiseAbs().maxCoeff())});
+    }
+  }
   if (!model.home.empty()) {
     if (model.home.size() != model.joints.size()) {
       out.push_back({"home", "has " + std::to_string(model.home.size()) + " values for " +
@@ -245,6 +252,12 @@ Violations validate_robot(const RobotModel& model) {
     }
   }
   return out;
+}
+
+std::optional<FieldViolation> joint_limit_violation(const std::string& field, double value, std::string_view unit) {
+  if (within_joint_limit_range(value)) return std::nullopt;
+  return FieldViolation{field, "must be > 0, in [" + number(kMinJointLimit) + ", " + number(kMaxJointLimit) + "] " +
+                                   std::string(unit) + ", got " + number(value)};
 }
 
 const std::vector<RobotModel>& builtin_robots() {

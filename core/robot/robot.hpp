@@ -91,13 +91,25 @@ inline constexpr std::size_t kMaxJointName = 64;
 /// that no pose, Jacobian or manipulability of 12 joints overflows.
 inline constexpr double kMaxModelMagnitude = 1e6;
 
+/// The range of every joint rate limit (maxVelocity [rad/s or m/s], maxAcceleration
+/// [rad/s^2 or m/s^2], maxJerk [rad/s^3 or m/s^3]), as given and after a request's scaling:
+/// nine orders of magnitude either side of 1, far beyond any arm (the built-in ones use 0.5 to
+/// 1e4), and narrow enough that their products and quotients in the timings and the jog
+/// (v s, a / 0.05 s, v^2 / a, a^3 / j^2, ...) stay finite and normal: an acceleration of
+/// 1e308 or a velocity of 5e-324 is refused, never carried into a computation that overflows.
+inline constexpr double kMinJointLimit = 1e-9;
+inline constexpr double kMaxJointLimit = 1e9;
+
+/// Whether `x` is a usable joint rate limit: in [kMinJointLimit, kMaxJointLimit] (so finite).
+inline bool within_joint_limit_range(double x) { return x >= kMinJointLimit && x <= kMaxJointLimit; }
+
 /// One joint's limits (proto JointLimits).
 struct JointLimits {
   double min_position = 0.0;   ///< [rad or m]
   double max_position = 0.0;   ///< [rad or m], >= min_position
-  double max_velocity = 0.0;   ///< [rad/s or m/s], > 0
-  double max_acceleration = 0.0;  ///< [rad/s^2 or m/s^2], > 0
-  std::optional<double> max_jerk;  ///< [rad/s^3 or m/s^3], > 0; absent: unlimited
+  double max_velocity = 0.0;   ///< [rad/s or m/s], in [kMinJointLimit, kMaxJointLimit]
+  double max_acceleration = 0.0;  ///< [rad/s^2 or m/s^2], in [kMinJointLimit, kMaxJointLimit]
+  std::optional<double> max_jerk;  ///< [rad/s^3 or m/s^3], in that range; absent: unlimited
 };
 
 /// Whether joint value q is within the joint's position limits (always, for a continuous
@@ -147,11 +159,19 @@ void set_dh(RobotModel& model, DhTable table);
 /// Every problem with `model` (field paths relative to the model, proto JSON names):
 /// `joints` (none, or more than kMaxJoints; `links` for a DH model), `limits` (not one per
 /// joint), `links[i].a` ... not finite (a DH model), `joints[i].origin` not finite or not a
-/// rigid transform, `joints[i].axis` not a unit vector, `flange`, `limits[i].minPosition` > maxPosition, `limits[i].maxVelocity` <= 0 or not
-/// finite, `limits[i].maxAcceleration`, `limits[i].maxJerk`, `base.orientation` /
-/// `tool.orientation` not a rotation, `home` of the wrong size or outside the limits.
+/// rigid transform, `joints[i].axis` not a unit vector, `flange`, `limits[i].minPosition` >
+/// maxPosition, `limits[i].maxVelocity`, `limits[i].maxAcceleration`, `limits[i].maxJerk` not
+/// finite or outside [kMinJointLimit, kMaxJointLimit] (joint_limit_violation),
+/// `base.orientation` / `tool.orientation` not a rotation, `base.position` / `tool.position`
+/// beyond kMaxModelMagnitude, `home` of the wrong size or outside the limits.
 /// Empty when the model is usable.
 Violations validate_robot(const RobotModel& model);
+
+/// The problem with one joint rate limit `value` at `field` ("limits[2].maxVelocity"), if any:
+/// not finite, or outside [kMinJointLimit, kMaxJointLimit] in `unit` ("rad/s"); the message
+/// names the value and the bounds. What validate_robot applies to every limit, and the wire
+/// to a request's jointLimits and to the limits its velocityScale and accelerationScale make.
+std::optional<FieldViolation> joint_limit_violation(const std::string& field, double value, std::string_view unit);
 
 /// The built-in models, in a fixed order: "pa10" (Mitsubishi PA-10, 7 DOF, the thesis's
 /// demonstration arm, modified DH), "ur5" (Universal Robots UR5, 6 DOF, standard DH) and the

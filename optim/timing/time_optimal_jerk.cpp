@@ -734,7 +734,16 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
   for (auto& st : starts)
     for (double& b : st.b) b *= (1.0 - kJerkLimitMargin) * (1.0 - kJerkLimitMargin);
   const double first_scale = options.start_scale;
+  // The call's cancellation or deadline (the token) ends the work between any two steps: a
+  // degenerate limit (maxJerk 1e-10 m/s^3) makes a motion of hours whose every sample the
+  // check below visits, round after round.
+  const auto cancelled = [&] { return options.stop.stop_requested() || exact_stoppable.stop.stop_requested(); };
+  const auto stopped = [] {
+    return core::Violations{{"motion", "stopped: the call was cancelled (or its deadline passed) while the "
+                                       "jerk-limited timing ran"}};
+  };
   for (int round = 0;; ++round) {
+    if (cancelled()) return tl::make_unexpected(stopped());
     out.portions.clear();
     std::vector<core::SpeedProfile> profiles;
     for (std::size_t p = 0; p < P; ++p) {
@@ -765,8 +774,10 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
     // Every sample at the cycle rate against the real limits, as plan_time_optimal checks
     // the sweep's; where one breaks a limit, that interval's limits tighten and the NLP runs
     // again from its last result.
+    if (cancelled()) return tl::make_unexpected(stopped());
+    // With the call's token (exact_stoppable): the check stops within 256 samples of it.
     auto check = core::check_time_optimal_samples(path, orientation, out.motion, exact->grids, checked, robot, seed,
-                                                  exact_options);
+                                                  exact_stoppable);
     if (!check) return tl::make_unexpected(check.error());
     out.worst_sample_usage = check->worst_usage;
     out.check_rate_hz = check->check_rate_hz;
@@ -788,6 +799,7 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
   // second grid point (no sample check), against the result.
   double half_duration = 0.0;
   for (std::size_t p = 0; p < P && std::isfinite(half_duration); ++p) {
+    if (cancelled()) return tl::make_unexpected(stopped());
     const auto& grid = exact->grids[p];
     std::vector<core::GridPoint> half;
     JerkTimingOptions ho = options;

@@ -175,7 +175,10 @@ inline core::TimeOptimalOptions jerk_exact_options() {
 /// accelerations at any rate dividing the check rate sees at most the limit: the mean of
 /// the jerk over a period is a mean of the checked ones); maxSpeed everywhere.
 /// Errors: plan_time_optimal's; `motion` when the samples still break a limit after the
-/// last refinement, or the IK fails at a sample.
+/// last refinement, or the IK fails at a sample; `motion` "stopped" once options.stop (or
+/// exact_options.stop) is requested: checked between the steps and every 256 samples of the
+/// sample check, so a degenerate limit (maxJerk 1e-10 m/s^3: a motion of hours) ends at the
+/// call's deadline or cancellation.
 core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
                                                        const core::OrientationPlan& orientation,
                                                        const core::MotionSpec& spec, const core::RobotModel* robot,

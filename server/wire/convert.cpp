@@ -613,24 +613,26 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
 core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog,
                                                   bool motion) {
   core::Violations out;
-  // robot.jointLimits: each named, each value finite and > 0 (applied once the model is known).
+  // robot.jointLimits: each named, each value within [core::kMinJointLimit, core::kMaxJointLimit]
+  // (applied once the model is known).
   std::vector<planner::NamedLimits> named;
   for (int k = 0; k < spec.joint_limits_size(); ++k) {
     const auto& l = spec.joint_limits(k);
     const std::string at = "robot.jointLimits[" + std::to_string(k) + "]";
     if (l.joint().empty()) out.push_back({at + ".joint", "is required: the name of one of the model's joints"});
     planner::NamedLimits limits{l.joint(), std::nullopt, std::nullopt, std::nullopt};
-    const auto take = [&](bool has, double value, const char* field, std::optional<double>& to) {
+    const auto take = [&](bool has, double value, const char* field, const char* unit, std::optional<double>& to) {
       if (!has) return;
-      if (!(std::isfinite(value) && value > 0.0)) {
-        out.push_back({at + "." + field, "must be finite and > 0, got " + core::number(value)});
+      if (auto bad = core::joint_limit_violation(at + "." + field, value, unit)) {
+        out.push_back(std::move(*bad));
       } else {
         to = value;
       }
     };
-    take(l.has_max_velocity(), l.max_velocity(), "maxVelocity", limits.max_velocity);
-    take(l.has_max_acceleration(), l.max_acceleration(), "maxAcceleration", limits.max_acceleration);
-    take(l.has_max_jerk(), l.max_jerk(), "maxJerk", limits.max_jerk);
+    take(l.has_max_velocity(), l.max_velocity(), "maxVelocity", "rad/s or m/s", limits.max_velocity);
+    take(l.has_max_acceleration(), l.max_acceleration(), "maxAcceleration", "rad/s^2 or m/s^2",
+         limits.max_acceleration);
+    take(l.has_max_jerk(), l.max_jerk(), "maxJerk", "rad/s^3 or m/s^3", limits.max_jerk);
     named.push_back(std::move(limits));
   }
   planner::Robot resolved;
@@ -730,6 +732,37 @@ core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, con
       factor(spec.has_acceleration_scale(), spec.acceleration_scale(), "robot.accelerationScale");
   if (out.empty() && (velocity_scale != 1.0 || acceleration_scale != 1.0)) {
     resolved.model = core::with_scaled_limits(std::move(resolved.model), velocity_scale, acceleration_scale);
+    // A scale is a fraction in (0, 1], but the limits it makes must stay within the range
+    // every limit keeps (5e-324 times a limit is 0): the first joint it takes below, named.
+    const auto scaled = [&](double scale, const char* field, const char* what, auto limit_of) {
+      const auto& model = resolved.model;
+      for (std::size_t i = 0; i < model.dof(); ++i) {
+        const std::optional<double> limit = limit_of(model.limits[i]);
+        if (!limit || core::within_joint_limit_range(*limit)) continue;
+        out.push_back({field, core::number(scale) + " makes joint " + std::to_string(i) + " (" +
+                                  model.joints[i].name + ")'s " + what + " " + core::number(*limit) +
+                                  ", outside [" + core::number(core::kMinJointLimit) + ", " +
+                                  core::number(core::kMaxJointLimit) + "]: give a larger scale"});
+        return;
+      }
+    };
+    scaled(velocity_scale, "robot.velocityScale", "maxVelocity",
+           [](const core::JointLimits& l) { return std::optional<double>(l.max_velocity); });
+    scaled(acceleration_scale, "robot.accelerationScale", "maxAcceleration",
+           [](const core::JointLimits& l) { return std::optional<double>(l.max_acceleration); });
+    scaled(acceleration_scale, "robot.accelerationScale", "maxJerk",
+           [](const core::JointLimits& l) { return l.max_jerk; });
+  }
+  if (spec.has_base() || spec.has_tool()) {  // the request's poses over the model's, as validate_robot bounds them
+    for (const auto& [field, X] : {std::pair<const char*, const Eigen::Isometry3d*>{"robot.base", &resolved.model.base},
+                                   std::pair<const char*, const Eigen::Isometry3d*>{"robot.tool", &resolved.model.tool}}) {
+      const double far = X->translation().cwiseAbs().maxCoeff();
+      if (std::isfinite(far) && far > core::kMaxModelMagnitude) {
+        out.push_back({std::string(field) + ".position", "magnitude must be at most " +
+                                                            core::number(core::kMaxModelMagnitude) + " m, got " +
+                                                            core::number(far)});
+      }
+    }
   }
   const std::size_t n = resolved.model.dof();
   if (n > 0) {

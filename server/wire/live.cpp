@@ -112,6 +112,9 @@ core::Expected<JogSettings> jog_settings(const v1::JogStart& start, const RobotC
   if (start.has_deadman_s()) out.deadman_s = start.deadman_s();
   check_batch(start.has_samples_per_batch(), start.samples_per_batch(), "start.samplesPerBatch", violations);
   if (start.has_samples_per_batch()) out.samples_per_batch = start.samples_per_batch();
+  if (violations.empty()) {  // the per-joint bounds the jogger derives (velocityScale x maxVelocity, ...)
+    for (auto& v : core::validate_jog_limits(robot->model, o, "start")) violations.push_back(std::move(v));
+  }
   if (!violations.empty()) return tl::unexpected(std::move(violations));
   out.robot = std::move(*robot);
   return out;

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "core/geometry/path.hpp"
@@ -91,6 +92,20 @@ TEST(FactorBounds, TheFormulasOfTheFileComment) {
   core::LiveRow full = row;
   full.peak_acceleration = 4.0;
   EXPECT_EQ(core::factor_bounds({full}, 1.0, 0.05).acceleration, 0.0);
+}
+
+// A quantity the plan barely moves (a peak rate of 1e-298, rounding's): its room of 1e307 / s
+// once gave, over the 0.05 s ramp, an infinite jerk bound, which the rate profile of every
+// cycle refuses by aborting the process. The bounds are capped, finite, and a change plans.
+TEST(FactorBounds, ABarelyMovingQuantityGivesFiniteBounds) {
+  const core::LiveRow barely{"joint 0", "rad", 1e-298, 0.0, 0.0, 1e9, std::numeric_limits<double>::infinity()};
+  for (const double r : {1.0, 0.5, 0.0}) {
+    const core::FactorBounds b = core::factor_bounds({barely}, r, 0.05);
+    EXPECT_TRUE(std::isfinite(b.acceleration) && b.acceleration > 0.0) << b.acceleration;
+    EXPECT_TRUE(std::isfinite(b.jerk) && b.jerk > 0.0) << b.jerk;
+    const core::StopPrediction stop = core::predict_stop(1.0, 0.0, b);
+    EXPECT_TRUE(std::isfinite(stop.time_s) && stop.time_s > 0.0) << stop.time_s;
+  }
 }
 
 // --- live execution on the PA-10 along path C ------------------------------------------------

@@ -245,6 +245,45 @@ INSTANTIATE_TEST_SUITE_P(BuiltinArms, JogLimits,
 // ---------------------------------------------------------------------------------------
 // Joint jogging
 
+// Regression (issue 28): a velocityScale of 5e-324 made every joint's jog speed 0, and an
+// acceleration of 1e308 an infinite jerk bound (over jerkRampS): the jogger's check aborted the
+// server. validate_jog_limits names them first; at the ends of the limits' range it jogs.
+TEST(Jog, DerivedBoundsAreValidatedAndTheRangesEndsJog) {
+  const RobotModel& pa10 = *core::find_builtin_robot("pa10");
+  JogOptions options;
+  options.velocity_scale = 5e-324;
+  ASSERT_TRUE(core::validate_jog_options(options, "start").empty());  // a fraction in (0, 1]
+  auto v = core::validate_jog_limits(pa10, options, "start");
+  ASSERT_EQ(v.size(), 1u);
+  EXPECT_EQ(v[0].field, "start.velocityScale");
+  EXPECT_NE(v[0].description.find("joint 0 (S1)"), std::string::npos) << v[0].description;
+  options = JogOptions{};
+  options.jerk_ramp_s = 1e-300;
+  v = core::validate_jog_limits(pa10, options, "");
+  ASSERT_EQ(v.size(), 1u);
+  EXPECT_EQ(v[0].field, "jerkRampS");
+  // Every limit at an end of [kMinJointLimit, kMaxJointLimit]: a jog of every joint and its
+  // stop run, every set point finite.
+  for (const double end : {core::kMinJointLimit, core::kMaxJointLimit}) {
+    RobotModel m = pa10;
+    for (auto& l : m.limits) l.max_velocity = l.max_acceleration = end, l.max_jerk = end;
+    ASSERT_TRUE(core::validate_robot(m).empty());
+    JogOptions o;
+    o.cycle_rate_hz = 1000.0;
+    ASSERT_TRUE(core::validate_jog_limits(m, o, "").empty());
+    Jogger jogger(m, core::home_configuration(m), o);
+    JogCommand c;
+    c.joints = JointVector::Ones(7);
+    jogger.command(c);
+    JogSample s;
+    for (int k = 0; k < 200; ++k) {
+      if (k == 100) jogger.stop();
+      jogger.next(s);
+      ASSERT_TRUE(s.q.allFinite() && s.q_dot.allFinite() && s.q_ddot.allFinite()) << end << " cycle " << k;
+    }
+  }
+}
+
 TEST(Jog, JointTargetIsCommandTimesScaledMaxVelocity) {
   const RobotModel& m = pa10();
   JogOptions o = options_at(100.0);

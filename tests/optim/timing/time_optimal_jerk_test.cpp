@@ -10,12 +10,17 @@
 //  - a tiny time budget ends with an honest kTimeLimit; the PA-10 along demo path C with
 //    joint jerk limits, every streamed sample within the joint limits (the sample check and
 //    its re-solves);
-//  - limit_scale tightens the limits at single grid points.
+//  - limit_scale tightens the limits at single grid points;
+//  - a degenerate limit (maxJerk 1e-10 m/s^3: a motion of hours to check sample by sample)
+//    ends when its stop token is requested (the call's deadline or cancellation).
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <random>
+#include <stop_token>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -482,6 +487,38 @@ TEST(JerkTiming, ImpliedRowIsTheDominatedJoint) {
   for (const double j : r1.jerk) worst = std::max(worst, std::abs(0.5 * j) / 4.0);
   EXPECT_LE(worst, 1.0 + 1e-6);
   EXPECT_GT(worst, 0.99);  // joint 1's limit binds
+}
+
+// Regression (issue 28): with a Cartesian maxJerk of 1e-10 m/s^3 the jerk-limited motion of
+// the PA-10 along demo path C lasts hours, and the sample check of its every sample ran on,
+// deaf to the call's stop token, 22 s past a 2 s deadline. The token requested while it
+// plans (as gRPC does at the deadline) now ends it with `motion` "stopped", not a plan.
+TEST(JerkTiming, ADegenerateJerkLimitEndsAtItsStopToken) {
+  auto path = core::build_path(testing::thesis_demo_path('C'));
+  ASSERT_TRUE(path);
+  auto orientation = core::plan_orientation(*path);
+  ASSERT_TRUE(orientation);
+  const core::RobotModel robot = *core::find_builtin_robot("pa10");
+  core::MotionSpec spec;
+  spec.duration_s = 0.0;
+  spec.max_jerk = 1e-10;  // [m/s^3]
+  std::stop_source deadline;
+  JerkTimingOptions opt;
+  opt.time_budget_s = 0.5;
+  opt.stop = deadline.get_token();
+  std::jthread at_deadline([&deadline] {
+    std::this_thread::sleep_for(std::chrono::seconds(1));
+    deadline.request_stop();
+  });
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto plan = plan_time_optimal_jerk(*path, *orientation, spec, &robot, core::home_configuration(robot),
+                                           jerk_exact_options(), opt);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("maxJerk 1e-10: %s after %.2f s\n",
+              plan ? "a plan" : plan.error().front().description.c_str(), seconds);
+  ASSERT_FALSE(plan) << "planned a motion of " << plan->motion.duration_s << " s instead of stopping";
+  EXPECT_EQ(plan.error().front().field, "motion");
+  EXPECT_NE(plan.error().front().description.find("stopped"), std::string::npos) << plan.error().front().description;
 }
 
 }  // namespace geotraj::optim

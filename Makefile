@@ -38,7 +38,7 @@ sanitize: deps
 # the worker pool, health watches, the acceptor, streams (docs/reliability.md). gRPC and
 # protobuf come from Debian uninstrumented; tests/tsan.supp names what is theirs.
 TSAN_TARGETS = server_concurrency_test server_hostile_test server_acceptor_test server_stream_test server_live_test server_web_test geotrajd
-TSAN_TESTS = ^server\.(Concurrency|Workers|HealthWatch|AcceptorTest|HealthState|Cancel|Connections|Deadlines|StreamTest|Live|LiveDrain|LiveTokens|Web)\.
+TSAN_TESTS = ^server\.(Concurrency|Workers|HealthWatch|AcceptorTest|HealthState|Cancel|Connections|Deadlines|StreamTest|Live|LiveDrain|LiveTokens|LiveAdmission|LiveWriteDeadline|Web)\.
 tsan: deps
 	cmake -S . -B $(TSAN_DIR) -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG=-g1 -DGEOTRAJ_TSAN=ON -DGEOTRAJ_BUILD_BENCH=OFF -DGEOTRAJ_NPM_TESTS=OFF $(CMAKE_FLAGS)
 	cmake --build $(TSAN_DIR) -j $(JOBS) --target $(TSAN_TARGETS)

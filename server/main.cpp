@@ -27,8 +27,9 @@ NOT_SERVING, new calls get UNAVAILABLE (for --lame-duck-seconds at least), calls
 may finish for --drain-seconds, then the rest are cancelled and the process exits 0; a
 second signal during the drain cancels them at once.
 
-Refusals name their limit: RESOURCE_EXHAUSTED beyond --max-streams / --max-unary-calls,
-INVALID_ARGUMENT beyond --max-frames, --max-stream-samples, --max-optimize-seconds,
+Refusals name their limit: RESOURCE_EXHAUSTED beyond --max-streams / --max-unary-calls
+(a live call takes a --max-streams slot per 1000 Hz of its rate) and --max-live-rate-hz,
+INVALID_ARGUMENT beyond --max-frames, --max-stream-samples, --max-live-samples, --max-optimize-seconds,
 RESOURCE_EXHAUSTED beyond --max-request-bytes (from gRPC itself) and --max-response-bytes,
 INVALID_ARGUMENT beyond --max-analysis-points; DEADLINE_EXCEEDED after
 --default-deadline-seconds for a call that gives no deadline. Connections beyond
@@ -122,6 +123,26 @@ int main(int argc, char** argv) {
                  "unary calls in flight (plans, analyses, conversions); beyond: RESOURCE_EXHAUSTED")
       ->envname("GEOTRAJ_MAX_UNARY_CALLS")
       ->check(CLI::PositiveNumber)
+      ->capture_default_str()
+      ->group("Limits");
+  app.add_option("--max-live-rate-hz", limits.max_live_rate_hz,
+                 "set points per second of all live calls (Execute, Jog) together; a live call also takes one "
+                 "--max-streams slot per 1000 Hz of its rate; beyond either: RESOURCE_EXHAUSTED")
+      ->envname("GEOTRAJ_MAX_LIVE_RATE_HZ")
+      ->check(CLI::Range(1.0, 1e9))
+      ->capture_default_str()
+      ->group("Limits");
+  app.add_option("--max-live-samples", limits.max_live_samples,
+                 "samples of one Execute plan (duration x cycle rate), checked before it is planned when the "
+                 "request gives its duration; beyond: INVALID_ARGUMENT")
+      ->envname("GEOTRAJ_MAX_LIVE_SAMPLES")
+      ->check(CLI::Range(std::uint64_t{2}, std::uint64_t{1'000'000'000}))
+      ->capture_default_str()
+      ->group("Limits");
+  app.add_option("--pacing-threads", limits.pacing_threads,
+                 "threads that make the live calls' set points, off gRPC's threads (1 on a 2-core machine)")
+      ->envname("GEOTRAJ_PACING_THREADS")
+      ->check(CLI::Range(1, 64))
       ->capture_default_str()
       ->group("Limits");
   app.add_option("--max-request-bytes", options.max_receive_message_bytes, "largest request message [bytes]")

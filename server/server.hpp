@@ -20,6 +20,10 @@
 
 namespace geotraj::server {
 
+/// A live call takes one --max-streams slot per this many Hz of its cycle rate (or part of
+/// it): a 10 kHz Jog takes 10, a 100 Hz one 1.
+inline constexpr double kLiveRateUnitHz = 1000.0;
+
 /// What one call may ask of the server. Each refusal names the limit and its flag.
 struct ServiceLimits {
   /// Streams in flight, health watches included; beyond, RESOURCE_EXHAUSTED (the callback
@@ -30,6 +34,18 @@ struct ServiceLimits {
   int max_health_watches = 16;
   /// Unary calls in flight (plans, analyses, conversions); beyond, RESOURCE_EXHAUSTED.
   int max_unary_calls = 64;
+  /// Set points per second of all live calls (Execute, Jog) together [Hz]: a live call is
+  /// admitted at its cycle rate while the sum of the rates in flight stays within this;
+  /// beyond, RESOURCE_EXHAUSTED naming --max-live-rate-hz. (A live call also takes one
+  /// --max-streams slot per kLiveRateUnitHz of its rate or part of it, at least one.)
+  double max_live_rate_hz = 50'000.0;
+  /// Samples of one Execute plan (its duration times its cycle rate), checked before it is
+  /// planned when the request gives the duration, and before its live pass; beyond,
+  /// INVALID_ARGUMENT naming --max-live-samples. The smaller of it and max_stream_samples holds.
+  std::uint64_t max_live_samples = 1'000'000;
+  /// Threads that make the live calls' set points (off gRPC's threads, at normal priority,
+  /// one batch at a time in the order they fall due).
+  int pacing_threads = 1;
   /// Key frames in one path (ConvertRequest, PlanRequest).
   int max_frames = 1000;
   /// Samples in one motion that is streamed or followed by a robot (IK at every sample).

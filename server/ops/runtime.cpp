@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <thread>
@@ -25,6 +26,13 @@ bool constant_time_equal(std::string_view a, std::string_view b) {
 }
 
 bool token_char(char c) { return c > ' ' && c < 127; }
+
+// A rate [Hz] as a message shows it: whole numbers without a fraction.
+std::string format_hz(double rate) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.6g", rate);
+  return text;
+}
 
 // The scope a method needs.
 std::string_view scope_of(Method method) {
@@ -139,6 +147,7 @@ Runtime::Runtime(ServiceLimits limits, TokenTable tokens, Logger logger)
     : limits_(limits),
       tokens_(std::move(tokens)),
       logger_(std::move(logger)),
+      pacing_(std::max(1, limits.pacing_threads), 0, /*nice=*/0),
       workers_(limits.workers > 0 ? limits.workers : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))) {}
 
 std::optional<grpc::Status> Runtime::begin_watch() {
@@ -150,20 +159,22 @@ std::optional<grpc::Status> Runtime::begin_watch() {
                         "the server has " + std::to_string(limits_.max_health_watches) +
                             " health watches in flight, its limit (geotrajd --max-health-watches): retry later");
   }
-  if (active_streams_.fetch_add(1) >= limits_.max_streams) {
+  if (stream_slots_.fetch_add(1) >= limits_.max_streams) {
     active_watches_.fetch_sub(1);
-    active_streams_.fetch_sub(1);
+    stream_slots_.fetch_sub(1);
     metrics_.rejected("Health.Watch", "capacity");
     return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
                         "the server has " + std::to_string(limits_.max_streams) +
-                            " streams in flight, health watches included, its limit (geotrajd --max-streams): retry later");
+                            " stream slots taken, health watches included, its limit (geotrajd --max-streams): retry later");
   }
+  active_streams_.fetch_add(1);
   return std::nullopt;
 }
 
 void Runtime::end_watch() {
   active_watches_.fetch_sub(1);
   active_streams_.fetch_sub(1);
+  stream_slots_.fetch_sub(1);
 }
 
 Call::Call(Runtime& runtime, grpc::CallbackServerContext& context, Method method)
@@ -206,16 +217,21 @@ void Call::admit(const grpc::CallbackServerContext& context, bool streaming, std
     refusal_ = std::move(denied);
     return;
   }
-  auto& active = streaming ? runtime.active_streams_ : runtime.active_unary_;
+  // Streams take slots of --max-streams (a fast live call more than one, price_live).
+  auto& taken = streaming ? runtime.stream_slots_ : runtime.active_unary_;
   const int cap = streaming ? runtime.limits().max_streams : runtime.limits().max_unary_calls;
-  if (active.fetch_add(1) >= cap) {
-    active.fetch_sub(1);
+  if (taken.fetch_add(1) >= cap) {
+    taken.fetch_sub(1);
     runtime.metrics().rejected(name, "capacity");
     refusal_ = grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                            "the server has " + std::to_string(cap) + (streaming ? " streams" : " unary calls") +
-                                " in flight, its limit (geotrajd " +
+                            "the server has " + std::to_string(cap) + (streaming ? " stream slots taken" : " unary calls in flight") +
+                                ", its limit (geotrajd " +
                                 (streaming ? "--max-streams" : "--max-unary-calls") + "): retry later");
     return;
+  }
+  if (streaming) {
+    runtime.active_streams_.fetch_add(1);
+    slots_ = 1;
   }
   admitted_ = true;
   runtime.metrics().call_started(name, streaming);
@@ -229,6 +245,8 @@ Call::Call(Call&& other) noexcept
       started_(other.started_),
       refusal_(std::move(other.refusal_)),
       admitted_(other.admitted_),
+      slots_(other.slots_),
+      live_rate_hz_(other.live_rate_hz_),
       finished_(other.finished_) {
   other.admitted_ = false;
   other.finished_ = true;
@@ -263,10 +281,58 @@ void Call::finish(const grpc::Status& status, std::uint64_t samples) {
   }
   if (admitted_) {
     runtime_->metrics().call_finished(name, streaming, static_cast<int>(status.error_code()), seconds);
-    (streaming ? runtime_->active_streams_ : runtime_->active_unary_).fetch_sub(1);
+    if (streaming) {
+      runtime_->stream_slots_.fetch_sub(slots_);
+      runtime_->live_rate_hz_.fetch_sub(live_rate_hz_);
+      runtime_->active_streams_.fetch_sub(1);
+    } else {
+      runtime_->active_unary_.fetch_sub(1);
+    }
   } else {
     runtime_->metrics().call_refused(name, static_cast<int>(status.error_code()));
   }
+}
+
+std::optional<grpc::Status> Call::price_live(double rate_hz) {
+  if (!admitted_ || finished_) return std::nullopt;
+  Runtime& runtime = *runtime_;
+  const double rate = std::isfinite(rate_hz) ? std::clamp(rate_hz, 0.0, 1e12) : 1e12;
+  const int slots = static_cast<int>(std::clamp(std::ceil(rate / kLiveRateUnitHz), 1.0, 1e9));
+  const auto hz = static_cast<std::int64_t>(std::ceil(rate));
+  const auto name = method_name(method_);
+  const int more_slots = slots - slots_;
+  if (more_slots > 0) {
+    const int cap = runtime.limits().max_streams;
+    const int before = runtime.stream_slots_.fetch_add(more_slots);
+    if (before + more_slots > cap) {
+      runtime.stream_slots_.fetch_sub(more_slots);
+      runtime.metrics().rejected(name, "live_rate");
+      return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                          "a live call at " + format_hz(rate_hz) + " Hz takes " + std::to_string(slots) +
+                              " of the server's " + std::to_string(cap) + " stream slots (one per " +
+                              format_hz(kLiveRateUnitHz) + " Hz or part of it) and " +
+                              std::to_string(std::max(0, before - slots_)) +
+                              " are taken by other calls (geotrajd --max-streams): retry later or lower the cycle rate");
+    }
+  } else if (more_slots < 0) {
+    runtime.stream_slots_.fetch_add(more_slots);
+  }
+  const std::int64_t more_hz = hz - live_rate_hz_;
+  const double budget = runtime.limits().max_live_rate_hz;
+  const std::int64_t before_hz = runtime.live_rate_hz_.fetch_add(more_hz);
+  if (more_hz > 0 && static_cast<double>(before_hz + more_hz) > budget) {
+    runtime.live_rate_hz_.fetch_sub(more_hz);
+    runtime.stream_slots_.fetch_sub(more_slots);
+    runtime.metrics().rejected(name, "live_rate");
+    return grpc::Status(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                        "the live calls in flight make " + std::to_string(std::max<std::int64_t>(0, before_hz - live_rate_hz_)) +
+                            " set points per second; this call's " + format_hz(rate_hz) +
+                            " Hz would pass the server's budget of " + format_hz(budget) +
+                            " (geotrajd --max-live-rate-hz): retry later or lower the cycle rate");
+  }
+  slots_ = slots;
+  live_rate_hz_ = hz;
+  return std::nullopt;
 }
 
 }  // namespace geotraj::server

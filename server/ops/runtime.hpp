@@ -83,6 +83,9 @@ class Runtime {
   const ServiceLimits& limits() const { return limits_; }
   /// Where long work runs (worker_pool.hpp).
   WorkerPool& workers() { return workers_; }
+  /// Where the live calls make their set points (--pacing-threads, normal priority): never
+  /// on gRPC's threads, so health checks and other calls do not wait behind them.
+  WorkerPool& pacing() { return pacing_; }
   Metrics& metrics() { return metrics_; }
   const Logger& logger() const { return logger_; }
   const TokenTable& tokens() const { return tokens_; }
@@ -100,6 +103,16 @@ class Runtime {
   std::optional<grpc::Status> begin_watch();
   void end_watch();
 
+  /// How the live calls that ended during a drain ended (counted from start_draining on):
+  /// brought to rest (their motion at rest when they ended) or cut mid-motion (the drain
+  /// time over, a second stop signal, the client gone).
+  struct DrainedLive {
+    int at_rest = 0;
+    int cut = 0;
+  };
+  void live_ended_in_drain(bool at_rest) { (at_rest ? live_rested_ : live_cut_).fetch_add(1); }
+  DrainedLive drained_live() const { return {live_rested_.load(), live_cut_.load()}; }
+
  private:
   friend class Call;
   const ServiceLimits limits_;
@@ -110,6 +123,13 @@ class Runtime {
   std::atomic<int> active_streams_{0};
   std::atomic<int> active_unary_{0};
   std::atomic<int> active_watches_{0};  // admitted ones are counted in active_streams_ too
+  // The --max-streams slots taken: one per stream, more for a fast live call.
+  std::atomic<int> stream_slots_{0};
+  // The live calls' cycle rates in flight [Hz, each rounded up] (--max-live-rate-hz).
+  std::atomic<std::int64_t> live_rate_hz_{0};
+  std::atomic<int> live_rested_{0};
+  std::atomic<int> live_cut_{0};
+  WorkerPool pacing_;   // outlives the workers, which hand live calls to it
   WorkerPool workers_;  // last: its threads stop before the rest goes
 };
 
@@ -135,6 +155,12 @@ class Call {
   /// Records the end of the call with its final status; `samples` sent (streams).
   void finish(const grpc::Status& status, std::uint64_t samples = 0);
 
+  /// Prices an admitted live call at its cycle rate `rate_hz` (again when it changes): it
+  /// takes ceil(rate / kLiveRateUnitHz) --max-streams slots (at least the one it was
+  /// admitted with) and its rate of --max-live-rate-hz. nullopt when that fits, else
+  /// RESOURCE_EXHAUSTED naming the flag (the call keeps what it had).
+  std::optional<grpc::Status> price_live(double rate_hz);
+
   const std::string& request_id() const { return request_id_; }
   Runtime& runtime() const { return *runtime_; }
 
@@ -149,6 +175,8 @@ class Call {
   std::chrono::steady_clock::time_point started_;
   std::optional<grpc::Status> refusal_;
   bool admitted_ = false;  // counted in the runtime's calls in flight
+  int slots_ = 0;                // --max-streams slots taken (streams)
+  std::int64_t live_rate_hz_ = 0;  // of --max-live-rate-hz (live calls)
   bool finished_ = false;
 };
 

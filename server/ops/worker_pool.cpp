@@ -9,22 +9,21 @@
 namespace geotraj::server {
 namespace {
 
-constexpr int kWorkerNice = 10;
-
 // Linux gives each thread its own nice value; a thread may always lower its own priority.
-void lower_priority() {
+void lower_priority(int nice) {
+  if (nice <= 0) return;  // as the process
   const auto tid = static_cast<id_t>(::syscall(SYS_gettid));
-  (void)::setpriority(PRIO_PROCESS, tid, kWorkerNice);
+  (void)::setpriority(PRIO_PROCESS, tid, nice);
 }
 
 }  // namespace
 
-WorkerPool::WorkerPool(int threads, int urgent_threads) {
+WorkerPool::WorkerPool(int threads, int urgent_threads, int nice) {
   const int n = std::max(threads, 1);
   const int u = std::max(urgent_threads, 0);
   threads_.reserve(static_cast<std::size_t>(n + u));
-  for (int i = 0; i < n; ++i) threads_.emplace_back(&WorkerPool::run, this, false);
-  for (int i = 0; i < u; ++i) threads_.emplace_back(&WorkerPool::run, this, true);
+  for (int i = 0; i < n; ++i) threads_.emplace_back(&WorkerPool::run, this, false, nice);
+  for (int i = 0; i < u; ++i) threads_.emplace_back(&WorkerPool::run, this, true, nice);
 }
 
 WorkerPool::~WorkerPool() {
@@ -54,8 +53,8 @@ int WorkerPool::busy() const {
   return busy_;
 }
 
-void WorkerPool::run(bool urgent_only) {
-  lower_priority();
+void WorkerPool::run(bool urgent_only, int nice) {
+  lower_priority(nice);
   std::unique_lock lock(mutex_);
   const auto has_work = [this, urgent_only] { return !urgent_.empty() || (!urgent_only && !normal_.empty()); };
   for (;;) {

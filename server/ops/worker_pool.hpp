@@ -20,10 +20,14 @@ namespace geotraj::server {
 /// schedules gRPC's threads (health, stream writes) at once.
 class WorkerPool {
  public:
+  /// The workers' CPU priority (nice): below the rest of the process.
+  static constexpr int kWorkerNice = 10;
+
   /// Starts `threads` workers (at least one) for any task, and `urgent_threads` more that
   /// take urgent tasks only, so that an urgent task (the planning of a stream) never waits
-  /// behind normal ones (long unary plans).
-  explicit WorkerPool(int threads, int urgent_threads = 1);
+  /// behind normal ones (long unary plans); each at the CPU priority `nice` (the live
+  /// calls' pacing threads take 0, the priority of gRPC's threads).
+  explicit WorkerPool(int threads, int urgent_threads = 1, int nice = kWorkerNice);
   /// Runs what is queued, then joins the workers.
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;
@@ -41,7 +45,7 @@ class WorkerPool {
   int busy() const;
 
  private:
-  void run(bool urgent_only);
+  void run(bool urgent_only, int nice);
 
   mutable std::mutex mutex_;
   std::condition_variable wake_;

@@ -21,6 +21,7 @@
 #include <chrono>
 #include <cmath>
 #include <mutex>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -77,6 +78,75 @@ struct Ending {
   grpc::Status status;
 };
 
+// The largest Jog cycle rate JogStart accepts [Hz] (server/wire/live.cpp).
+constexpr double kMaxJogRateHz = 10'000.0;
+
+// The samples one Execute plan may have: --max-live-samples, or --max-stream-samples when lower.
+std::uint64_t live_sample_cap(const ServiceLimits& limits) {
+  return std::min(limits.max_live_samples, limits.max_stream_samples);
+}
+std::string live_sample_flag(const ServiceLimits& limits) {
+  return limits.max_live_samples <= limits.max_stream_samples ? "geotrajd --max-live-samples"
+                                                              : "geotrajd --max-stream-samples";
+}
+
+grpc::Status too_many_samples(double samples, double duration_s, double rate_hz, const ServiceLimits& limits) {
+  return invalid_argument(core::Violations{
+      {"plan.motion.durationS", "the motion has " + core::number(samples) + " samples (" + core::number(duration_s, 6) +
+                                    " s at " + core::number(rate_hz) + " Hz); Execute runs at most " +
+                                    std::to_string(live_sample_cap(limits)) + " per call (" + live_sample_flag(limits) +
+                                    "): shorten it or lower cycleRateHz"}});
+}
+
+// The motion's timing as the request gives it: the first step's for a sequence.
+const v1::MotionSpec& requested_motion(const v1::PlanRequest& plan) {
+  if (plan.sequence_size() > 0 && plan.sequence(0).has_motion()) return plan.sequence(0).motion();
+  return plan.motion();
+}
+
+// The cycle rate the request asks for (100 Hz when not given), when it is one a plan may
+// have; otherwise the planning refuses it, and the plan's rate is priced then.
+std::optional<double> requested_rate(const v1::PlanRequest& plan) {
+  const auto& m = requested_motion(plan);
+  const double rate = m.has_cycle_rate_hz() ? m.cycle_rate_hz() : core::MotionSpec{}.cycle_rate_hz;
+  if (!(rate >= kMinLiveRateHz && rate <= core::kMaxCycleRateHz)) return std::nullopt;
+  return rate;
+}
+
+// A plan whose request gives its duration (a path, a joint move or a line with durationS
+// and no time-optimal timing asked for; not a sequence, whose steps may be blended into one
+// timing) with more samples than a live call may have: refused before it is planned.
+// nullopt when it fits or the planner sets the duration.
+std::optional<grpc::Status> requested_samples(const v1::PlanRequest& plan, const ServiceLimits& limits) {
+  const auto& timing = plan.optimize().timing();
+  if (plan.sequence_size() > 0 || timing.time_optimal() || timing.jerk_limited()) return std::nullopt;
+  const double duration = plan.motion().duration_s();
+  const auto rate = requested_rate(plan);
+  if (!rate || !(duration > 0.0) || !std::isfinite(duration)) return std::nullopt;
+  const double samples = std::floor(duration * *rate) + 1.0;
+  if (samples <= static_cast<double>(live_sample_cap(limits))) return std::nullopt;
+  return too_many_samples(samples, duration, *rate, limits);
+}
+
+// The same for the planned motion (the planner may have chosen its duration).
+std::optional<grpc::Status> planned_samples(const core::Trajectory& trajectory, const ServiceLimits& limits) {
+  const auto count = core::sample_count(trajectory);
+  if (count <= live_sample_cap(limits)) return std::nullopt;
+  return too_many_samples(static_cast<double>(count), core::duration(trajectory),
+                          core::motion_spec(trajectory).cycle_rate_hz, limits);
+}
+
+// A time on the steady clock as gRPC's monotonic time (for grpc::Alarm).
+gpr_timespec monotonic(Clock::time_point due) {
+  const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(due - Clock::now());
+  return gpr_time_add(gpr_now(GPR_CLOCK_MONOTONIC),
+                      gpr_time_from_nanos(std::max<std::int64_t>(0, left.count()), GPR_TIMESPAN));
+}
+
+// The longest a write may stay in flight before the client counts as not reading: its
+// deadman time, at least this [s] (below it, a busy loopback could end a reading client).
+constexpr double kMinWriteDeadlineS = 0.1;
+
 class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer> {
  public:
   LiveReactor(Call call, grpc::CallbackServerContext& context, std::string_view method)
@@ -131,8 +201,12 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
 
   void OnWriteDone(bool ok) override {
     handoff_acquire(this);
+    {
+      const std::lock_guard lock(watch_mutex_);
+      writing_ = false;
+    }
     if (!ok) {
-      End(gone());
+      EndLost();
       return;
     }
     call_.runtime().metrics().samples_streamed(static_cast<std::uint64_t>(batch_.samples_size()));
@@ -143,7 +217,7 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
       End(ending_ ? ending_->status : grpc::Status::OK, reason);
       return;
     }
-    NextWrite();
+    Pace();
   }
 
   void OnCancel() override {
@@ -151,11 +225,21 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
     stop_.request_stop();
     const std::lock_guard lock(alarm_mutex_);
     cancelled_ = true;
-    if (alarm_set_) alarm_.Cancel();
+    if (alarm_set_) alarm_->Cancel();
   }
 
   void OnDone() override {
     handoff_acquire(this);
+    {
+      const std::lock_guard lock(watch_mutex_);
+      done_ = true;
+      if (watch_set_ || watching_) {
+        // The write deadline's callback deletes the reactor (it runs soon: cancelled, or
+        // it is running now).
+        if (watch_set_) watch_alarm_->Cancel();
+        return;
+      }
+    }
     delete this;
   }
 
@@ -175,6 +259,8 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
   virtual void status(v1::LiveStatus& out) = 0;
   /// A stop from now would take at most this long [s].
   virtual double stopping_time() const = 0;
+  /// The motion is at rest (or there is none yet).
+  virtual bool at_rest() const = 0;
   /// The cycle of the first set point: 0 when it is the start (Execute), 1 when it is the
   /// end of the first cycle (Jog); sample k is sent at (k + first_cycle()) / rate.
   virtual std::size_t first_cycle() const { return 0; }
@@ -191,11 +277,26 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
       last_message_ = start_;
       started_ = true;
     }
-    NextWrite();
+    {
+      const std::lock_guard lock(watch_mutex_);
+      write_bound_ = seconds(std::max(deadman_s, kMinWriteDeadlineS));
+    }
+    Pace();
   }
 
   /// Ends the call from the worker (before start: planning errors, cancellation).
   void fail(const grpc::Status& status) { End(status); }
+
+  /// Prices the call at its cycle rate (Call::price_live): true when it fits.
+  bool priced(double rate_hz) {
+    if (auto refused = call_.price_live(rate_hz)) {
+      refused_ = std::move(refused);
+      return false;
+    }
+    return true;
+  }
+  /// The refusal of the last priced() that returned false.
+  const grpc::Status& price_refusal() const { return *refused_; }
 
   /// Stops the motion for `reason` with the final status `status` (the first cause wins).
   void request_stop(std::string reason, grpc::Status status) {
@@ -220,9 +321,48 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
   void End(const grpc::Status& status, const std::string& reason = "") {
     const grpc::Status bounded_status = bounded(status);
     if (!reason.empty()) context_->AddTrailingMetadata("geotraj-stop-reason", reason);
+    if (runtime().draining()) {
+      // The drain's log says how many arms it brought to rest and how many it cut. Once
+      // started, only the write side ends the call, so final_written_ is its own.
+      bool moving = false, rest = false;
+      {
+        const std::lock_guard lock(mutex_);
+        moving = started_;
+        if (moving) rest = final_written_ || at_rest();
+      }
+      if (moving) runtime().live_ended_in_drain(rest);
+    }
     call_.finish(bounded_status, sent_);
     handoff_release(this);
     Finish(bounded_status);
+  }
+
+  // The client is gone, or the write deadline cancelled the call (a client that does not
+  // read: ended with that reason and status).
+  void EndLost() {
+    std::optional<Ending> unread;
+    {
+      const std::lock_guard lock(mutex_);
+      if (unread_) unread = ending_;
+    }
+    if (unread) {
+      call_.runtime().metrics().live_stopped(method_, unread->reason);
+      End(unread->status, unread->reason);
+    } else {
+      End(gone());
+    }
+  }
+
+  // The next step of the write side goes to the pacing threads: samples are never made on
+  // gRPC's threads, so health checks and other calls do not wait behind them. The posted
+  // step holds the write side's turn (no write or wait is in flight meanwhile), so the
+  // reactor cannot finish under it.
+  void Pace() {
+    handoff_release(this);
+    runtime().pacing().submit([this] {
+      handoff_acquire(this);
+      NextWrite();
+    });
   }
 
   // The stops the write side decides each batch: the deadman, a drain, a near deadline.
@@ -242,40 +382,93 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
     }
   }
 
+  // Waits for the next sample's time; the alarm's callback (on gRPC's thread) only posts
+  // the next step. Each wait has its own alarm: a grpc::Alarm must not be set again while
+  // its callback may still run, and the pacing thread sets the next one at once.
   void WaitUntil(Clock::time_point due) {
     {
       const std::lock_guard lock(alarm_mutex_);
       if (!cancelled_) {
         alarm_set_ = true;
+        alarm_ = std::make_unique<grpc::Alarm>();  // the last one's callback may still be returning
         handoff_release(this);
-        const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(due - Clock::now());
-        const gpr_timespec when = gpr_time_add(gpr_now(GPR_CLOCK_MONOTONIC),
-                                               gpr_time_from_nanos(std::max<std::int64_t>(0, left.count()), GPR_TIMESPAN));
-        alarm_.Set(when, [this](bool ok) {
+        alarm_->Set(monotonic(due), [this](bool ok) {
           handoff_acquire(this);
           {
             const std::lock_guard wait(alarm_mutex_);
             alarm_set_ = false;
           }
           if (ok) {
-            NextWrite();
+            Pace();
           } else {
-            End(gone());
+            EndLost();
           }
         });
         return;
       }
     }
-    End(gone());
+    EndLost();
+  }
+
+  // The write deadline: a write in flight longer than write_bound_ is a client that does
+  // not read. watch_mutex_ is held.
+  void ArmWatch(Clock::time_point due) {
+    watch_set_ = true;
+    watch_alarm_ = std::make_unique<grpc::Alarm>();  // the last one's callback may be running (this one)
+    handoff_release(this);
+    watch_alarm_->Set(monotonic(due), [this](bool ok) { OnWatch(ok); });
+  }
+
+  void OnWatch(bool ok) {
+    handoff_acquire(this);
+    bool stalled = false;
+    Clock::duration bound{};
+    {
+      const std::lock_guard lock(watch_mutex_);
+      watch_set_ = false;
+      bound = write_bound_;
+      if (!done_ && ok && writing_) {
+        const auto due = write_began_ + write_bound_;
+        if (Clock::now() < due) {
+          ArmWatch(due);  // another write since this one was set
+        } else {
+          stalled = true;
+          watching_ = true;  // OnDone leaves the reactor to this callback meanwhile
+        }
+      }
+      if (!stalled && !done_) return;
+    }
+    if (stalled) {
+      // The client does not read: it is ended as one that sends nothing (the motion stopped;
+      // its set points cannot reach the robot). The write in flight fails, and OnWriteDone
+      // ends the call with this status.
+      {
+        const std::lock_guard lock(mutex_);
+        unread_ = true;
+        request_stop("unread",
+                     grpc::Status(grpc::StatusCode::ABORTED,
+                                  "the client read no set point for " +
+                                      core::number(std::chrono::duration<double>(bound).count(), 6) +
+                                      " s (the deadman time): the motion was stopped and the call ended"));
+      }
+      handoff_release(this);
+      context_->TryCancel();
+      const std::lock_guard lock(watch_mutex_);
+      watching_ = false;
+      if (!done_) return;
+    }
+    delete this;  // OnDone has run and left it to this callback
   }
 
   void NextWrite() {
+    bool cancelled = false;
     {
       const std::lock_guard lock(alarm_mutex_);
-      if (cancelled_) {
-        End(gone());
-        return;
-      }
+      cancelled = cancelled_;
+    }
+    if (cancelled) {
+      EndLost();
+      return;
     }
     std::optional<Clock::time_point> wait;
     {
@@ -307,6 +500,12 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
     bool own = false;
     out.Clear();
     (void)grpc::SerializationTraits<v1::SampleBatch>::Serialize(batch_, &out, &own);
+    {
+      const std::lock_guard lock(watch_mutex_);
+      writing_ = true;
+      write_began_ = Clock::now();
+      if (!watch_set_ && !watching_) ArmWatch(write_began_ + write_bound_);
+    }
     handoff_release(this);
     StartWrite(&bytes_);
   }
@@ -317,10 +516,12 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
   Clock::time_point deadline_ = Clock::time_point::max();
   std::stop_source stop_;
   grpc::ByteBuffer in_;
+  std::optional<grpc::Status> refused_;  // by priced()
   // Both sides, under mutex_.
   bool first_seen_ = false;
   bool reads_done_ = false;
   bool started_ = false;
+  bool unread_ = false;  // the write deadline ended the call
   Clock::time_point last_message_;
   std::optional<Ending> ending_;
   // The write side.
@@ -336,7 +537,17 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
   std::mutex alarm_mutex_;
   bool cancelled_ = false;
   bool alarm_set_ = false;
-  grpc::Alarm alarm_;
+  std::unique_ptr<grpc::Alarm> alarm_;
+  // The write deadline, under watch_mutex_ (never held while a gRPC operation starts, bar
+  // the watch's own alarm).
+  std::mutex watch_mutex_;
+  bool writing_ = false;
+  Clock::time_point write_began_;
+  Clock::duration write_bound_ = seconds(kDefaultDeadmanS);
+  bool watch_set_ = false;  // its alarm is set and its callback has not run
+  bool watching_ = false;   // its callback is ending a stalled call
+  bool done_ = false;       // OnDone has run
+  std::unique_ptr<grpc::Alarm> watch_alarm_;
 };
 
 // --- Execute --------------------------------------------------------------------------------
@@ -357,6 +568,10 @@ class ExecuteReactor final : public LiveReactor {
     auto settings = execute_settings(request->options());
     if (!settings) return invalid_argument(settings.error());
     settings_ = *settings;
+    // Refused before any planning when the request times the motion itself: too many
+    // samples, or a cycle rate beyond the live budget.
+    if (auto too_long = requested_samples(request->plan(), runtime().limits())) return too_long;
+    if (const auto rate = requested_rate(request->plan()); rate && !priced(*rate)) return price_refusal();
     {
       const std::lock_guard lock(mutex_);
       override_ = settings_.speed_override;
@@ -378,6 +593,16 @@ class ExecuteReactor final : public LiveReactor {
             fail(invalid_argument(core::Violations{
                 {"plan.motion.cycleRateHz", "Execute streams at least " + core::number(kMinLiveRateHz) +
                                                 " set point per second, got " + core::number(motion.cycle_rate_hz) + " Hz"}}));
+            return;
+          }
+          // The plan's own size and rate (a duration or rate the planner chose), before the
+          // live pass's work.
+          if (auto too_long = planned_samples(*plan_->trajectory, runtime().limits())) {
+            fail(*too_long);
+            return;
+          }
+          if (!priced(motion.cycle_rate_hz)) {
+            fail(price_refusal());
             return;
           }
           core::LiveOptions options;
@@ -477,6 +702,12 @@ class ExecuteReactor final : public LiveReactor {
   }
 
   double stopping_time() const override { return live_ ? live_->stopping().time_s : 0.0; }
+  bool at_rest() const override {
+    if (!live_) return true;
+    const core::LiveState state = live_->state();
+    return state == core::LiveState::kPaused || state == core::LiveState::kStopped ||
+           state == core::LiveState::kCompleted;
+  }
 
   ExecutePlanning planning_;
   ExecuteSettings settings_;
@@ -506,11 +737,19 @@ class JogReactor final : public LiveReactor {
       return invalid_argument(core::Violations{
           {"start", "the first message must hold `start` (the robot and the options; later ones the commands)"}});
     }
+    // Priced at the rate asked for before any work (a rate out of range is refused by the
+    // settings below, then).
+    const double asked = request->start().has_cycle_rate_hz() ? request->start().cycle_rate_hz() : 100.0;
+    if (asked >= kMinLiveRateHz && asked <= kMaxJogRateHz && !priced(asked)) return price_refusal();
     runtime().workers().submit(
         [this, request] {
           auto settings = jog_settings(request->start(), *robots_);
           if (!settings) {
             fail(invalid_argument(settings.error()));
+            return;
+          }
+          if (!priced(settings->options.cycle_rate_hz)) {
+            fail(price_refusal());
             return;
           }
           settings_ = std::make_unique<JogSettings>(std::move(*settings));
@@ -587,6 +826,7 @@ class JogReactor final : public LiveReactor {
   }
 
   double stopping_time() const override { return jogger_ ? jogger_->stopping_time() : 0.0; }
+  bool at_rest() const override { return !jogger_ || jogger_->at_rest(); }
   std::size_t first_cycle() const override { return 1; }
 
   const RobotCatalog* robots_;

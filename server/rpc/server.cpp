@@ -6,6 +6,7 @@
 #include <grpcpp/security/server_credentials.h>
 #include <grpcpp/server_builder.h>
 
+#include <cmath>
 #include <csignal>
 #include <fstream>
 #include <sstream>
@@ -172,6 +173,13 @@ tl::expected<std::string, std::string> check_limits(const ServerOptions& options
   if (l.max_health_watches < 0) return tl::unexpected(std::string("--max-health-watches must be >= 0"));
   if (l.max_frames < 2) return tl::unexpected(std::string("--max-frames must be at least 2 (a path has two frames)"));
   if (l.max_stream_samples < 2) return tl::unexpected(std::string("--max-stream-samples must be at least 2"));
+  if (l.max_live_samples < 2) return tl::unexpected(std::string("--max-live-samples must be at least 2"));
+  if (!(l.max_live_rate_hz >= 1.0) || !std::isfinite(l.max_live_rate_hz)) {
+    return tl::unexpected(std::string("--max-live-rate-hz must be a number of at least 1 (one live call at 1 Hz)"));
+  }
+  if (l.pacing_threads < 1 || l.pacing_threads > 64) {
+    return tl::unexpected(std::string("--pacing-threads must be between 1 and 64"));
+  }
   if (!(l.max_optimize_seconds > 0.0)) return tl::unexpected(std::string("--max-optimize-seconds must be > 0"));
   if (l.max_analysis_points < 2) return tl::unexpected(std::string("--max-analysis-points must be at least 2"));
   if (l.max_response_bytes < 1024) return tl::unexpected(std::string("--max-response-bytes must be at least 1024"));
@@ -470,6 +478,16 @@ void stop_server(RunningServer& running, std::chrono::milliseconds drain, std::c
   // within an iteration); a short deadline lets cancelled reactors finish.
   running.server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(200));
   running.server->Wait();
+  // Every live call has ended: say how many arms the drain brought to rest and how many it
+  // cut mid-motion (a drain shorter than a stop, a second signal, a client gone).
+  const Runtime::DrainedLive live = running.runtime->drained_live();
+  if (live.at_rest + live.cut > 0) {
+    running.runtime->logger().log(live.cut > 0 ? LogLevel::kWarning : LogLevel::kInfo,
+                                  live.cut > 0 ? "drain over: live motions cut before they came to rest"
+                                               : "drain over: every live motion brought to rest",
+                                  {{"live_at_rest", static_cast<std::int64_t>(live.at_rest)},
+                                   {"live_cut", static_cast<std::int64_t>(live.cut)}});
+  }
   // The web side's calls have ended with the server's; its connections close.
   if (running.web) running.web->stop();
   if (running.health_server) {

@@ -397,7 +397,13 @@ tl::expected<planner::Plan, grpc::Status> plan_execution(const Abandon& abandon,
                                   "(reportOnly) is for PlanTrajectory and StreamSamples"}}));
   }
   planner::prepare_execution(*input, reserve);
-  auto plan = planner::plan(*input, budget_of(abandon, services), limits_of(services), planner::Purpose::kStream);
+  // A live plan's samples are bounded by --max-live-samples before the robot pass (IK at
+  // every sample), whatever timing set its duration.
+  planner::Limits limits = limits_of(services);
+  if (services.limits.max_live_samples < limits.max_samples) {
+    limits = planner::Limits{services.limits.max_live_samples, "geotrajd --max-live-samples"};
+  }
+  auto plan = planner::plan(*input, budget_of(abandon, services), limits, planner::Purpose::kStream);
   if (!plan) {
     plan.error().violations = core::prefixed(std::move(plan.error().violations), "plan.");
     return tl::unexpected(to_status(plan.error(), abandon));

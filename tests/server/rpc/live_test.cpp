@@ -11,6 +11,9 @@
 #include <optional>
 #include <thread>
 #include <utility>
+#include <vector>
+
+#include <grpc/grpc.h>
 
 #include <gmock/gmock.h>
 
@@ -364,6 +367,273 @@ TEST(LiveDrain, LiveCallsComeToRestBeforeTheServerStops) {
     EXPECT_EQ(r.reason, "drain");
     expect_final_at_rest(r);
   }
+}
+
+// A temporary FILE* for the server's log, read back whole.
+class LogCapture {
+ public:
+  LogCapture() : file_(std::tmpfile()) {}
+  ~LogCapture() { std::fclose(file_); }
+  std::FILE* file() const { return file_; }
+  std::string text() const {
+    std::fflush(file_);
+    std::rewind(file_);
+    std::string out;
+    char buffer[4096];
+    for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, file_)) > 0;) out.append(buffer, n);
+    return out;
+  }
+
+ private:
+  std::FILE* file_;
+};
+
+// A Jog of panda_joint1 at 0.5 rad/s with `acceleration` [rad/s^2] on that joint: a stop
+// from speed takes about 0.5 / acceleration seconds.
+v1::JogRequest slow_braking_jog(double acceleration) {
+  auto first = panda_jog(30.0);
+  auto* limits = first.mutable_start()->mutable_robot()->add_joint_limits();
+  limits->set_joint("panda_joint1");
+  limits->set_max_acceleration(acceleration);
+  return first;
+}
+
+v1::JogRequest joint1_velocity(double velocity) {
+  v1::JogRequest c;
+  auto* v = c.mutable_joints()->mutable_velocities();
+  for (int j = 0; j < 7; ++j) v->Add(j == 0 ? velocity : 0.0);
+  return c;
+}
+
+// The drain's log line: how many arms it brought to rest and how many it cut.
+TEST(LiveDrain, TheLogSaysHowManyArmsCameToRestAndHowManyWereCut) {
+  for (const bool second_signal : {false, true}) {
+    SCOPED_TRACE(second_signal ? "a second stop signal" : "a drain long enough to stop");
+    LogCapture log;
+    server::ServerOptions options;
+    options.log_output = log.file();
+    options.log_level = "warning";  // the drain's line is a warning when it cut an arm, else info
+    if (!second_signal) options.log_level = "info";
+    auto running = start(options);
+    auto stub = stub_to(running.port);
+    std::atomic<int> moving{0};
+    std::vector<std::future<LiveRun>> jogs;
+    for (int i = 0; i < 2; ++i) {
+      jogs.push_back(std::async(std::launch::async, [&] {
+        auto context = short_context(60);
+        return run_live<v1::JogRequest>(stub->Jog(context.get()), *context, slow_braking_jog(0.25),
+                                        [&, counted = false](JogStream& stream, const LiveRun&) mutable {
+                                          if (!std::exchange(counted, true)) {
+                                            stream.Write(joint1_velocity(0.5));
+                                            ++moving;
+                                          }
+                                        });
+      }));
+    }
+    ASSERT_TRUE(eventually([&] { return moving.load() == 2; }));
+    std::this_thread::sleep_for(std::chrono::milliseconds(800));  // at about 0.2 rad/s: a stop of ~0.8 s
+    std::stop_source now;
+    if (second_signal) now.request_stop();
+    server::stop_server(running, std::chrono::seconds(30), std::chrono::milliseconds(0), now.get_token());
+    int at_rest = 0;
+    for (auto& jog : jogs) {
+      const LiveRun r = jog.get();
+      if (r.reason == "drain") ++at_rest;
+    }
+    const std::string text = log.text();
+    if (second_signal) {
+      EXPECT_EQ(at_rest, 0);
+      EXPECT_THAT(text, HasSubstr("live motions cut before they came to rest"));
+      EXPECT_THAT(text, HasSubstr("live_at_rest=0 live_cut=2"));
+    } else {
+      EXPECT_EQ(at_rest, 2);
+      EXPECT_THAT(text, HasSubstr("every live motion brought to rest"));
+      EXPECT_THAT(text, HasSubstr("live_at_rest=2 live_cut=0"));
+    }
+  }
+}
+
+// Live calls are priced by their cycle rate: --max-live-rate-hz bounds the set points per
+// second of all of them, and each takes one --max-streams slot per 1000 Hz.
+class LiveAdmission : public ::testing::Test {
+ protected:
+  void serve(server::ServiceLimits limits) {
+    server::ServerOptions options;
+    options.limits = limits;
+    running_ = start(options);
+    stub_ = stub_to(running_.port);
+  }
+  void TearDown() override { server::stop_server(running_, std::chrono::seconds(5)); }
+
+  // A Jog at `rate_hz` that stops at its first batch: how it ended.
+  grpc::Status jog_once(double rate_hz) {
+    auto first = panda_jog();
+    first.mutable_start()->set_cycle_rate_hz(rate_hz);
+    auto context = short_context(30);
+    return run_live<v1::JogRequest>(stub_->Jog(context.get()), *context, first, [](JogStream& stream, const LiveRun&) {
+             v1::JogRequest stop;
+             stop.mutable_stop();
+             stream.Write(stop);
+           }).status;
+  }
+
+  // A Jog at `rate_hz` held open (its batches read on a thread) until release().
+  struct Held {
+    std::unique_ptr<grpc::ClientContext> context;
+    std::unique_ptr<JogStream> stream;
+    std::thread reader;
+    std::atomic<bool> first{false};
+    grpc::Status status;
+  };
+  std::unique_ptr<Held> hold(double rate_hz) {
+    auto held = std::make_unique<Held>();
+    held->context = short_context(60);
+    held->stream = stub_->Jog(held->context.get());
+    auto first = panda_jog(30.0);
+    first.mutable_start()->set_cycle_rate_hz(rate_hz);
+    held->stream->Write(first);
+    Held* h = held.get();
+    held->reader = std::thread([h] {
+      v1::SampleBatch batch;
+      while (h->stream->Read(&batch)) h->first = true;
+    });
+    EXPECT_TRUE(eventually([h] { return h->first.load(); })) << "the held jog at " << rate_hz << " Hz streams";
+    return held;
+  }
+  void release(Held& held) {
+    v1::JogRequest stop;
+    stop.mutable_stop();
+    held.stream->Write(stop);
+    held.stream->WritesDone();
+    held.reader.join();
+    held.status = held.stream->Finish();
+    EXPECT_TRUE(held.status.ok()) << held.status.error_message();
+  }
+
+  server::RunningServer running_;
+  std::unique_ptr<v1::TrajectoryService::Stub> stub_;
+};
+
+TEST_F(LiveAdmission, AFastJogIsRefusedWhenTheRateBudgetIsFullWhileASlowOneFits) {
+  server::ServiceLimits limits;
+  limits.max_live_rate_hz = 12'000.0;
+  serve(limits);
+  auto fast = hold(10'000.0);
+  const auto refused = jog_once(10'000.0);
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(refused.error_message(), HasSubstr("--max-live-rate-hz"));
+  EXPECT_THAT(refused.error_message(), HasSubstr("10000 set points per second"));
+  const auto slow = jog_once(100.0);
+  EXPECT_TRUE(slow.ok()) << slow.error_message();
+  release(*fast);
+  // Its rate is given back when it ends.
+  const auto again = jog_once(10'000.0);
+  EXPECT_TRUE(again.ok()) << again.error_message();
+  const auto exposition = server::metrics_exposition(running_);
+  EXPECT_EQ(series(exposition, R"(geotraj_rpc_rejected_total{method="Jog",reason="live_rate"})"), 1);
+}
+
+TEST_F(LiveAdmission, AFastJogTakesAStreamSlotPerKilohertz) {
+  server::ServiceLimits limits;
+  limits.max_streams = 12;
+  serve(limits);
+  auto fast = hold(10'000.0);  // 10 of the 12 slots
+  const auto refused = jog_once(2'500.0);  // 3 slots
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(refused.error_message(), HasSubstr("--max-streams"));
+  EXPECT_THAT(refused.error_message(), HasSubstr("takes 3 of the server's 12 stream slots"));
+  const auto fits = jog_once(2'000.0);  // 2 slots
+  EXPECT_TRUE(fits.ok()) << fits.error_message();
+  // An Execute at 10 kHz is priced the same, before it is planned.
+  auto execute = panda_plan();
+  execute.mutable_plan()->mutable_motion()->set_cycle_rate_hz(10'000.0);
+  auto context = short_context(30);
+  const auto run = run_live<v1::ExecuteRequest>(stub_->Execute(context.get()), *context, execute, nullptr);
+  EXPECT_EQ(run.status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(run.status.error_message(), HasSubstr("--max-streams"));
+  release(*fast);
+  const auto again = jog_once(10'000.0);
+  EXPECT_TRUE(again.ok()) << again.error_message();
+}
+
+// A plan's size is checked before it is planned when its request gives the duration, and
+// before the live pass when the planner sets it.
+TEST_F(LiveAdmission, APlanWithTooManySamplesIsRefusedBeforeItIsPlanned) {
+  server::ServiceLimits limits;
+  limits.max_live_samples = 2'000;
+  serve(limits);
+  auto first = panda_plan();
+  first.mutable_plan()->mutable_motion()->set_duration_s(100.0);
+  first.mutable_plan()->mutable_motion()->set_cycle_rate_hz(1000.0);
+  // A path the planner would refuse: the size is checked first, without planning.
+  first.mutable_plan()->mutable_path()->mutable_frames(0)->set_tangent_scale(-1.0);
+  auto context = short_context(30);
+  auto run = run_live<v1::ExecuteRequest>(stub_->Execute(context.get()), *context, first, nullptr);
+  EXPECT_EQ(run.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  const auto violations = bad_request_violations(run.status);
+  EXPECT_THAT(violation_of(violations, "plan.motion.durationS"), HasSubstr("100001 samples"));
+  EXPECT_THAT(violation_of(violations, "plan.motion.durationS"), HasSubstr("--max-live-samples"));
+  EXPECT_TRUE(run.samples.empty());
+
+  // The time-optimal duration (durationS 0) is known once planned: refused before the live pass.
+  auto timed = panda_plan();
+  timed.mutable_plan()->mutable_motion()->set_duration_s(0.0);
+  timed.mutable_plan()->mutable_motion()->set_cycle_rate_hz(1000.0);
+  auto timed_context = short_context(30);
+  run = run_live<v1::ExecuteRequest>(stub_->Execute(timed_context.get()), *timed_context, timed, nullptr);
+  // (The robot's approach makes the plan a sequence: the violation is on plan.sequence.)
+  EXPECT_EQ(run.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << run.status.error_message();
+  EXPECT_THAT(describe(bad_request_violations(run.status)), HasSubstr("at most 2000 per call (geotrajd --max-live-samples)"));
+  EXPECT_TRUE(run.samples.empty());
+
+  // Within the cap: served.
+  auto small = panda_plan();
+  small.mutable_plan()->mutable_motion()->set_cycle_rate_hz(100.0);
+  auto small_context = short_context(60);
+  run = run_live<v1::ExecuteRequest>(stub_->Execute(small_context.get()), *small_context, small,
+                                     [](Stream& stream, const LiveRun&) {
+                                       v1::ExecuteRequest stop;
+                                       stop.mutable_stop();
+                                       stream.Write(stop);
+                                     });
+  EXPECT_TRUE(run.status.ok()) << run.status.error_message();
+}
+
+// A client that sends heartbeats but never reads is ended as one that sends nothing: its
+// write stays in flight past the deadman time, the motion is stopped and the call cancelled.
+TEST(LiveWriteDeadline, AClientThatNeverReadsIsEnded) {
+  auto running = start(server::ServerOptions{});
+  grpc::ChannelArguments args;  // a small receive window, so that the server's writes stall soon
+  args.SetInt(GRPC_ARG_HTTP2_BDP_PROBE, 0);
+  args.SetInt(GRPC_ARG_HTTP2_STREAM_LOOKAHEAD_BYTES, 1024);
+  auto stub = stub_to(running.port, nullptr, args);
+  auto context = short_context(60);
+  auto stream = stub->Jog(context.get());
+  auto first = panda_jog(0.3);
+  first.mutable_start()->set_cycle_rate_hz(10'000.0);
+  ASSERT_TRUE(stream->Write(first));
+  ASSERT_TRUE(stream->Write(joint1_velocity(0.2)));
+  // Heartbeats every 50 ms (well inside the 0.3 s deadman) for at most 30 s, never a read.
+  bool ended = false;
+  for (int i = 0; i < 600 && !ended; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    v1::JogRequest beat;
+    beat.mutable_heartbeat();
+    ended = !stream->Write(beat);
+    if (!ended) {
+      ended = series(server::metrics_exposition(running), R"(geotraj_live_stops_total{method="Jog",reason="unread"})") == 1;
+    }
+  }
+  EXPECT_TRUE(ended) << "the call went on for 30 s without a read";
+  context->TryCancel();
+  (void)stream->Finish();
+  EXPECT_TRUE(eventually([&] {
+    return series(server::metrics_exposition(running), R"(geotraj_live_stops_total{method="Jog",reason="unread"})") == 1 &&
+           series(server::metrics_exposition(running), "geotraj_active_streams") == 0;
+  }));
+  const auto exposition = server::metrics_exposition(running);
+  EXPECT_EQ(series(exposition, R"(geotraj_rpc_calls_total{method="Jog",code="ABORTED"})"), 1);
+  server::stop_server(running, std::chrono::seconds(1));
 }
 
 // Execute and Jog drive a robot: they need the `move` scope.

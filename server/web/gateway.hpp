@@ -3,7 +3,8 @@
 // in-process channel: the page and the scripts that use the API meet the same bearer
 // tokens, limits, admission, deadlines, drain, metrics and logs as gRPC clients, and an
 // answer is the gRPC answer to the same request, written as JSON. HTTP (and TLS) by
-// cpp-httplib; the JSON mapping by protobuf's util/json_util.
+// Boost.Beast and Asio, with a deadline and a size limit on every part of a request
+// (docs/web-api.md); the JSON mapping by protobuf's util/json_util.
 //
 //   POST /v1/convert  ConvertRequest           -> ConvertResponse
 //   POST /v1/plan     PlanRequest              -> PlanResponse
@@ -37,10 +38,10 @@
 
 namespace geotraj::server {
 
-/// Where and how the web side listens. start_server fills it from ServerOptions.
+/// Where and how the web side listens, and what it lets one client take. start_server
+/// fills the first four from ServerOptions; the rest keep their defaults there.
 struct WebOptions {
-  /// HOST:PORT or [IPV6]:PORT; port 0 picks a free port; an empty host means every IPv4
-  /// address.
+  /// HOST:PORT or [IPV6]:PORT; port 0 picks a free port; an empty host means every address.
   std::string address;
   /// The page's files (index.html, app.js, ...). Empty or without index.html: the API
   /// only, and GET / says where the page was looked for.
@@ -48,18 +49,37 @@ struct WebOptions {
   /// The gRPC port's certificates: with them the web side speaks HTTPS (and with a client
   /// CA, asks for client certificates).
   TlsOptions tls;
-  /// Largest request body [bytes] (the JSON of one request); beyond, 413.
+  /// Largest request body [bytes] (the JSON of one request, chunked or not); beyond, 413.
   std::size_t max_request_bytes = 4 * 1024 * 1024;
-  /// Threads that serve connections (each holds one connection while it is open; the
-  /// calls they make wait in the server's admission like any other).
-  int threads = 16;
-  /// Connections that wait for a thread; one beyond them is served by the accepting thread,
-  /// which accepts no other meanwhile (new ones wait in the kernel's backlog).
-  std::size_t max_queued_connections = 64;
-  /// A connection that sends nothing for this long within a request, or takes nothing for
-  /// this long within an answer, is closed; between requests it may wait this long,
-  /// rounded up to whole seconds.
+  /// Threads that make the unary routes' calls (blocking gRPC calls, off the I/O threads);
+  /// a stream takes one only to start.
+  int threads = 8;
+  /// Calls that wait for one of those threads; one beyond them is refused with 503 and
+  /// Retry-After.
+  std::size_t max_queued_calls = 64;
+  /// Threads that read and write the connections (non-blocking).
+  int io_threads = 2;
+  /// Connections open at once; a new one beyond them closes the oldest that is reading a
+  /// request (idle or slow), or is closed itself when every one is busy.
+  std::size_t max_connections = 256;
+  /// A connection that sends nothing for this long within a request, takes nothing for this
+  /// long within a streamed answer, or sends no request for this long after the last, is
+  /// closed.
   std::chrono::milliseconds idle_timeout{5000};
+  /// A request's head (request line and headers) must have arrived within this long of the
+  /// connection (or of the end of the answer before).
+  std::chrono::milliseconds header_timeout{10000};
+  /// A request's head and body must have arrived within this long; an answer of a unary
+  /// route or a file must have been taken within this long.
+  std::chrono::milliseconds request_timeout{30000};
+  /// Largest request head [bytes]; beyond, 431.
+  std::size_t max_header_bytes = 16 * 1024;
+  /// /v1/stream calls in flight from the web port (each counts against the server's
+  /// --max-streams too); beyond, 429.
+  int max_streams = 32;
+  /// Bytes of unary answers made and not yet taken by their clients; while beyond, new
+  /// calls are refused with 503 and Retry-After.
+  std::size_t max_answer_bytes = 256 * 1024 * 1024;
 };
 
 /// The web side of a running server.
@@ -75,8 +95,8 @@ class WebGateway {
 
   /// The bound port (the chosen one when started with port 0).
   int port() const;
-  /// Stops listening and closes the connections once their requests are answered;
-  /// idempotent.
+  /// Stops listening, closes the connections (cancelling their streams; the calls in
+  /// progress end first, the queued ones are dropped); idempotent.
   void stop();
 
  private:

@@ -176,7 +176,7 @@ def check(src):
             fail(f"runtime does not EXPOSE {port}")
     env = " ".join(a for _, a in rt.get("ENV", []))
     for name, value in (("GEOTRAJ_ADDRESS", "0.0.0.0:50051"), ("GEOTRAJ_METRICS_ADDRESS", "0.0.0.0:9090"),
-                        ("GEOTRAJ_WEB_ADDRESS", "0.0.0.0:8080"),
+                        ("GEOTRAJ_WEB_ADDRESS", "127.0.0.1:8080"),
                         ("GEOTRAJ_LOG_FORMAT", "json")):
         if not re.search(rf"\b{name}={re.escape(value)}\b", env):
             fail(f"runtime ENV lacks {name}={value}")

@@ -1,6 +1,6 @@
 // fuzz_web: bytes as what one client sends on a connection to the web side
 // (--web-address) of a server started once in this process: request lines, headers and
-// bodies (several, when the input holds several). cpp-httplib
+// bodies (several, when the input holds several). Boost.Beast
 // parses them, the gateway parses the JSON bodies and calls the service in process. Every
 // input must leave the server serving, and what comes back must be HTTP/1.1 answers whose
 // JSON carries no NaN or Infinity; an error of the API must be a google.rpc.Status in JSON
@@ -8,7 +8,8 @@
 // exception in a handler is answered INTERNAL, and is a bug).
 //
 // The server's limits keep one input short: 2 s per call, 1001 analysis points, 20000
-// streamed samples, 1 s of optimisation, 1 MiB of body, 200 ms of silence in a request.
+// streamed samples, 1 s of optimisation, 1 MiB of body, 200 ms of silence in a request,
+// 1 s for a head and 2 s for a whole request.
 #include <algorithm>
 #include <chrono>
 #include <cstddef>
@@ -67,6 +68,8 @@ Web& web() {
     geotraj::server::WebOptions web_options;
     web_options.address = "127.0.0.1:0";
     web_options.idle_timeout = std::chrono::milliseconds(200);
+    web_options.header_timeout = std::chrono::milliseconds(1000);
+    web_options.request_timeout = std::chrono::milliseconds(2000);
     web_options.max_request_bytes = 1 << 20;
     auto gateway = geotraj::server::WebGateway::start(web_options, w.running.server->InProcessChannel({}));
     if (!gateway) {
@@ -81,8 +84,8 @@ Web& web() {
 
 // Sends `bytes` on a new connection and reads what comes back until the server closes the
 // connection, or has been quiet for `quiet_ms` after answering, or `limit_ms` pass. (No
-// half-close: cpp-httplib takes a client that has shut its writing side for gone and
-// answers nothing.) Empty when nothing came back.
+// half-close: the input may end within a request, which the server then waits on until
+// its deadline, as it does for a live client.) Empty when nothing came back.
 std::string round_trip(std::string_view bytes, int limit_ms, int quiet_ms = 100) {
   const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
   if (fd < 0) return {};

@@ -38,8 +38,11 @@
 #include "core/robot/kinematics.hpp"
 #include "core/robot/robot.hpp"
 #include "planner/robots.hpp"
+#include "tests/support/utf8.hpp"
 
 namespace {
+
+using geotraj::test::well_formed_utf8;
 
 /// The longest name (baseLink, tipLink, a jointLimits joint) the selector reads [bytes].
 constexpr std::size_t kMaxName = 64;
@@ -129,26 +132,6 @@ std::string printable(std::string_view s, std::size_t limit) {
 
 bool finite(double x) { return std::isfinite(x); }
 
-// Well-formed UTF-8 (RFC 3629): what a protobuf string field may carry back to a client.
-bool utf8(std::string_view s) {
-  std::size_t i = 0;
-  while (i < s.size()) {
-    const auto c = static_cast<unsigned char>(s[i]);
-    const std::size_t n = c < 0x80 ? 1 : c < 0xC2 ? 0 : c < 0xE0 ? 2 : c < 0xF0 ? 3 : c < 0xF5 ? 4 : 0;
-    if (n == 0 || i + n > s.size()) return false;
-    std::uint32_t cp = n == 1 ? c : c & (0x7Fu >> n);
-    for (std::size_t k = 1; k < n; ++k) {
-      const auto b = static_cast<unsigned char>(s[i + k]);
-      if ((b & 0xC0) != 0x80) return false;
-      cp = (cp << 6) | (b & 0x3Fu);
-    }
-    const std::uint32_t least[] = {0, 0, 0x80, 0x800, 0x10000};
-    if (cp < least[n] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return false;
-    i += n;
-  }
-  return true;
-}
-
 void check_refusal(const geotraj::core::Violations& violations, const Input& in) {
   if (violations.empty()) fail("refused without a violation", in);
   for (const auto& v : violations) {
@@ -157,7 +140,7 @@ void check_refusal(const geotraj::core::Violations& violations, const Input& in)
            in);
     }
     if (v.description.empty()) fail("a violation of '" + v.field + "' has no description", in);
-    if (!utf8(v.description)) fail("a violation of '" + v.field + "' is not UTF-8: " + printable(v.description, 400), in);
+    if (!well_formed_utf8(v.description)) fail("a violation of '" + v.field + "' is not UTF-8: " + printable(v.description, 400), in);
   }
 }
 
@@ -184,9 +167,9 @@ void check_model(const geotraj::core::RobotModel& model, const Input& in) {
   if (n < 1 || n > kMaxJoints) {
     fail("the model has " + std::to_string(n) + " joints, not 1 to " + std::to_string(kMaxJoints), in);
   }
-  if (!utf8(model.name) || !utf8(model.description)) fail("the model's name or description is not UTF-8", in);
+  if (!well_formed_utf8(model.name) || !well_formed_utf8(model.description)) fail("the model's name or description is not UTF-8", in);
   for (const auto& joint : model.joints) {
-    if (!utf8(joint.name)) fail("a joint name is not UTF-8: " + printable(joint.name, 200), in);
+    if (!well_formed_utf8(joint.name)) fail("a joint name is not UTF-8: " + printable(joint.name, 200), in);
   }
   if (model.limits.size() != n) fail("the model has " + std::to_string(model.limits.size()) + " limits", in);
   if (model.home.size() != n) fail("the model's home has " + std::to_string(model.home.size()) + " values", in);

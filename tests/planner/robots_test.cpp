@@ -20,6 +20,7 @@
 #include "core/robot/ik.hpp"
 #include "core/robot/kinematics.hpp"
 #include "planner/robots.hpp"
+#include "tests/support/utf8.hpp"
 
 namespace geotraj::test {
 namespace {
@@ -445,32 +446,11 @@ TEST(Urdf, HostileDocumentsAreRefusedBeforeTheParsers) {
 
 // --- bounds before the parsers (issue 28) ------------------------------------------------
 
-// Well-formed UTF-8 (RFC 3629), written here independently of the reader's own check: every
-// message goes back to a client in a protobuf string.
-bool utf8(const std::string& s) {
-  std::size_t i = 0;
-  while (i < s.size()) {
-    const auto c = static_cast<unsigned char>(s[i]);
-    const std::size_t n = c < 0x80 ? 1 : c < 0xC2 ? 0 : c < 0xE0 ? 2 : c < 0xF0 ? 3 : c < 0xF5 ? 4 : 0;
-    if (n == 0 || i + n > s.size()) return false;
-    std::uint32_t cp = n == 1 ? c : c & (0x7Fu >> n);
-    for (std::size_t k = 1; k < n; ++k) {
-      const auto b = static_cast<unsigned char>(s[i + k]);
-      if ((b & 0xC0) != 0x80) return false;
-      cp = (cp << 6) | (b & 0x3Fu);
-    }
-    const std::uint32_t least[] = {0, 0, 0x80, 0x800, 0x10000};
-    if (cp < least[n] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return false;
-    i += n;
-  }
-  return true;
-}
-
 core::Violations refused(const std::string& text) {
   auto m = planner::robot_from_urdf(text);
   EXPECT_FALSE(m) << "accepted:\n" << text.substr(0, 300);
   if (m) return {};
-  for (const auto& v : m.error()) EXPECT_TRUE(utf8(v.description)) << "a message is not UTF-8: " << v.field;
+  for (const auto& v : m.error()) EXPECT_TRUE(well_formed_utf8(v.description)) << "a message is not UTF-8: " << v.field;
   return m.error();
 }
 

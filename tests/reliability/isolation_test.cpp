@@ -40,14 +40,7 @@ class PacedReader final : public grpc::ClientReadReactor<v1::SampleBatch> {
   void OnReadDone(bool ok) override {
     if (!ok) return;
     const auto now = std::chrono::steady_clock::now();
-    for (const auto& s : batch_.samples()) {
-      if (lateness_ms_.empty()) {
-        first_arrival_ = now;
-        first_t_ = s.t();
-      }
-      lateness_ms_.push_back(std::chrono::duration<double, std::milli>(now - first_arrival_).count() -
-                             1e3 * (s.t() - first_t_));
-    }
+    for (const auto& s : batch_.samples()) lateness_.arrived(s.t(), now);
     StartRead(&batch_);
   }
   void OnDone(const grpc::Status& status) override {
@@ -56,16 +49,14 @@ class PacedReader final : public grpc::ClientReadReactor<v1::SampleBatch> {
   }
   bool wait() { return done_.wait(std::chrono::seconds(120)); }
   const grpc::Status& status() const { return status_; }
-  const std::vector<double>& lateness_ms() const { return lateness_ms_; }
+  const std::vector<double>& lateness_ms() const { return lateness_.ms(); }
 
  private:
   grpc::ClientContext context_;
   v1::PlanRequest request_;
   v1::SampleBatch batch_;
   grpc::Status status_;
-  std::vector<double> lateness_ms_;
-  std::chrono::steady_clock::time_point first_arrival_;
-  double first_t_ = 0.0;
+  Lateness lateness_;
   Latch done_{1};
 };
 

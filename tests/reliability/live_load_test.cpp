@@ -91,24 +91,15 @@ class LiveLoadTest : public ConfiguredServerTest {
     other_context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(120));
     auto other = other_stub->Jog(&other_context);
     ASSERT_TRUE(other->Write(jog_start(250.0, 1)));
-    std::vector<double> lateness_ms;
+    Lateness lateness;
     std::atomic<bool> stop_other{false};
     std::thread reader([&] {
       v1::SampleBatch batch;
-      std::chrono::steady_clock::time_point first_arrival;
-      double first_t = 0.0;
       auto last_beat = std::chrono::steady_clock::now();
       bool stopped = false;
       while (other->Read(&batch)) {
         const auto now = std::chrono::steady_clock::now();
-        for (const auto& s : batch.samples()) {
-          if (lateness_ms.empty()) {
-            first_arrival = now;
-            first_t = s.t();
-          }
-          lateness_ms.push_back(std::chrono::duration<double, std::milli>(now - first_arrival).count() -
-                                1e3 * (s.t() - first_t));
-        }
+        for (const auto& s : batch.samples()) lateness.arrived(s.t(), now);
         v1::JogRequest message;
         if (stop_other && !stopped) {
           stopped = true;
@@ -167,10 +158,10 @@ class LiveLoadTest : public ConfiguredServerTest {
     std::printf("[ measured ] %s: health, gRPC port: %zu checks, p50 %.2f ms, p99 %.2f ms, max %.2f ms\n", label,
                 health_ms.size(), percentile(health_ms, 0.5), percentile(health_ms, 0.99), percentile(health_ms, 1.0));
     std::printf("[ measured ] %s: another robot's 250 Hz set points (%zu): lateness p50 %.2f ms, p99 %.2f ms, max %.2f ms\n",
-                label, lateness_ms.size(), percentile(lateness_ms, 0.5), percentile(lateness_ms, 0.99),
-                percentile(lateness_ms, 1.0));
+                label, lateness.ms().size(), percentile(lateness.ms(), 0.5), percentile(lateness.ms(), 0.99),
+                percentile(lateness.ms(), 1.0));
     RecordProperty("health_p99_ms", std::to_string(percentile(health_ms, 0.99)));
-    RecordProperty("other_robot_lateness_p99_ms", std::to_string(percentile(lateness_ms, 0.99)));
+    RecordProperty("other_robot_lateness_p99_ms", std::to_string(percentile(lateness.ms(), 0.99)));
     RecordProperty("fast_jogs_streaming", std::to_string(admitted));
 
     EXPECT_EQ(unanswered, 0) << "health checks not answered SERVING within 1 s";

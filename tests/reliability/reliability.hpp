@@ -17,6 +17,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <grpcpp/support/client_callback.h>
 
@@ -195,6 +196,25 @@ inline bool eventually(const std::function<bool()>& condition, std::chrono::stea
   }
   return true;
 }
+
+// How late each set point of a stream arrives [ms]: its arrival after the first one's, less
+// its time t after the first one's (negative when the first one was itself late).
+class Lateness {
+ public:
+  void arrived(double t, std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now()) {
+    if (ms_.empty()) {
+      first_arrival_ = now;
+      first_t_ = t;
+    }
+    ms_.push_back(std::chrono::duration<double, std::milli>(now - first_arrival_).count() - 1e3 * (t - first_t_));
+  }
+  const std::vector<double>& ms() const { return ms_; }
+
+ private:
+  std::vector<double> ms_;
+  std::chrono::steady_clock::time_point first_arrival_;
+  double first_t_ = 0.0;
+};
 
 inline double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

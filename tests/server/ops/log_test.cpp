@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "server/ops/log.hpp"
+#include "tests/server/support/file_capture.hpp"
 
 namespace geotraj::testing {
 namespace {
@@ -23,30 +24,7 @@ using server::LogLevel;
 using ::testing::HasSubstr;
 using ::testing::MatchesRegex;
 
-// A temporary FILE* whose contents can be read back.
-class Capture {
- public:
-  Capture() : file_(std::tmpfile()) {}
-  ~Capture() { std::fclose(file_); }
-  std::FILE* file() const { return file_; }
-  std::string text() const {
-    std::fflush(file_);
-    std::rewind(file_);
-    std::string out;
-    char buffer[4096];
-    for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, file_)) > 0;) out.append(buffer, n);
-    return out;
-  }
-  std::vector<std::string> lines() const {
-    std::vector<std::string> out;
-    std::istringstream in(text());
-    for (std::string line; std::getline(in, line);) out.push_back(line);
-    return out;
-  }
-
- private:
-  std::FILE* file_;
-};
+using Capture = FileCapture;
 
 // POSIX ERE, as gmock's MatchesRegex takes it (no \d). (std::regex is avoided: GCC 12 warns
 // inside it at -O1 with sanitizers, which -Werror turns into errors.)

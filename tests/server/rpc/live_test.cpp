@@ -17,6 +17,7 @@
 
 #include <gmock/gmock.h>
 
+#include "tests/server/support/file_capture.hpp"
 #include "tests/server/support/production_support.hpp"
 
 namespace geotraj::testing {
@@ -369,24 +370,7 @@ TEST(LiveDrain, LiveCallsComeToRestBeforeTheServerStops) {
   }
 }
 
-// A temporary FILE* for the server's log, read back whole.
-class LogCapture {
- public:
-  LogCapture() : file_(std::tmpfile()) {}
-  ~LogCapture() { std::fclose(file_); }
-  std::FILE* file() const { return file_; }
-  std::string text() const {
-    std::fflush(file_);
-    std::rewind(file_);
-    std::string out;
-    char buffer[4096];
-    for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, file_)) > 0;) out.append(buffer, n);
-    return out;
-  }
-
- private:
-  std::FILE* file_;
-};
+using LogCapture = FileCapture;
 
 // A Jog of panda_joint1 at 0.5 rad/s with `acceleration` [rad/s^2] on that joint: a stop
 // from speed takes about 0.5 / acceleration seconds.

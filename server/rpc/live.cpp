@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <mutex>
 #include <memory>
 #include <optional>
@@ -231,12 +232,15 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
   void OnDone() override {
     handoff_acquire(this);
     {
-      const std::lock_guard lock(watch_mutex_);
+      std::unique_lock lock(watch_mutex_);
       done_ = true;
-      if (watch_set_ || watching_) {
-        // The write deadline's callback deletes the reactor (it runs soon: cancelled, or
-        // it is running now).
-        if (watch_set_) watch_alarm_->Cancel();
+      // The write deadline's callback may be cancelling the call: the context (gRPC frees it
+      // once this returns) lives until it has. OnDone never runs inline in TryCancel (a
+      // reactor's OnDone is scheduled, not inlined), so this wait ends.
+      watched_.wait(lock, [this] { return !watching_; });
+      if (watch_set_) {
+        // The write deadline's callback deletes the reactor (it runs soon: cancelled).
+        watch_alarm_->Cancel();
         return;
       }
     }
@@ -433,7 +437,7 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
           ArmWatch(due);  // another write since this one was set
         } else {
           stalled = true;
-          watching_ = true;  // OnDone leaves the reactor to this callback meanwhile
+          watching_ = true;  // OnDone waits until the call is cancelled
         }
       }
       if (!stalled && !done_) return;
@@ -453,9 +457,11 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
       }
       handoff_release(this);
       context_->TryCancel();
+      // OnDone (now or later) deletes the reactor: nothing of it is touched past the unlock.
       const std::lock_guard lock(watch_mutex_);
       watching_ = false;
-      if (!done_) return;
+      watched_.notify_all();
+      return;
     }
     delete this;  // OnDone has run and left it to this callback
   }
@@ -545,7 +551,8 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
   Clock::time_point write_began_;
   Clock::duration write_bound_ = seconds(kDefaultDeadmanS);
   bool watch_set_ = false;  // its alarm is set and its callback has not run
-  bool watching_ = false;   // its callback is ending a stalled call
+  bool watching_ = false;   // its callback is cancelling a stalled call (OnDone waits)
+  std::condition_variable watched_;  // watching_ became false
   bool done_ = false;       // OnDone has run
   std::unique_ptr<grpc::Alarm> watch_alarm_;
 };

@@ -22,6 +22,7 @@
 
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/ssl.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
@@ -69,6 +70,10 @@ constexpr std::size_t kTrimAfterBytes = 1 << 20;
 // what is still read (and thrown away) so that the client reads the answer before the
 // close, rather than a reset that may discard it.
 constexpr std::size_t kLingerBytes = 1 << 20;
+// What the read buffer holds beyond the largest head: a chunk's size line with its
+// extensions, or the trailer, must fit in it (Beast bounds neither, and its buffer would
+// grow with them), and a body passes through it this much at a time.
+constexpr std::size_t kFramingBytes = 64 * 1024;
 constexpr std::chrono::milliseconds kLinger{1000};
 
 const char* const kRoutes = "POST /v1/convert, /v1/plan, /v1/analyze, /v1/fk, /v1/ik, /v1/stream; GET /v1/robots";
@@ -419,7 +424,15 @@ class Session final : public Connection,
                       public std::enable_shared_from_this<Session<Stream>> {
  public:
   Session(Shared& shared, Stream stream, std::string peer)
-      : shared_(shared), stream_(std::move(stream)), peer_(std::move(peer)) {}
+      : shared_(shared),
+        stream_(std::move(stream)),
+        peer_(std::move(peer)),
+        buffer_(shared.options.max_header_bytes + kFramingBytes) {}
+
+  // Starts serving on the connection's strand.
+  void start() {
+    net::dispatch(lowest().get_executor(), [self = this->shared_from_this()] { self->run(); });
+  }
 
   void run() {
     if constexpr (std::is_same_v<Stream, beast::tcp_stream>) {
@@ -466,6 +479,8 @@ class Session final : public Connection,
   void start_request() {
     if (closed_) return;
     phase.store(Phase::reading);
+    head_ = false;
+    http10_ = false;
     parser_.emplace();
     parser_->header_limit(static_cast<std::uint32_t>(shared_.options.max_header_bytes));
     parser_->body_limit(shared_.options.max_request_bytes);
@@ -515,6 +530,14 @@ class Session final : public Connection,
   }
 
   void read_failed(beast::error_code ec) {
+    if (ec == http::error::buffer_overflow && parser_ && parser_->is_header_done()) {
+      // A chunk's size line (with its extensions) or the trailer, longer than the read buffer.
+      auto res = status_answer(grpc::Status(
+          grpc::StatusCode::RESOURCE_EXHAUSTED, "a chunk's size line or the trailer of the request body is longer than " +
+                                                    std::to_string(kFramingBytes) + " bytes"));
+      res.result(http::status::payload_too_large);
+      return finish(std::move(res), true);
+    }
     if (ec == http::error::body_limit) {
       auto res = status_answer(grpc::Status(
           grpc::StatusCode::RESOURCE_EXHAUSTED,
@@ -523,7 +546,7 @@ class Session final : public Connection,
       res.result(http::status::payload_too_large);
       return finish(std::move(res), true);
     }
-    if (ec == http::error::header_limit) {
+    if (ec == http::error::header_limit || ec == http::error::buffer_overflow) {
       auto res = status_answer(grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
                                             "the request's head is larger than " +
                                                 std::to_string(shared_.options.max_header_bytes) + " bytes"));
@@ -558,6 +581,8 @@ class Session final : public Connection,
     request_ = parser_->release();
     parser_.reset();
     keep_alive_ = request_.keep_alive();
+    head_ = request_.method() == http::verb::head;
+    http10_ = request_.version() < 11;
     const std::string_view target(request_.target().data(), request_.target().size());
     const auto path = decoded_path(target);
     if (!path) {
@@ -697,13 +722,15 @@ class Session final : public Connection,
       decorate(head);
       head.set(http::field::content_type, kNdjson);
       if (!request_id.empty()) head.set("X-Request-Id", request_id);
+      // HTTP/1.0 has no chunks: the lines as they are, and the close ends the body.
+      if (http10_) keep_alive_ = false;
       head.keep_alive(keep_alive_);
-      head.chunked(true);
+      head.chunked(!http10_);
       std::ostringstream text;
       text << head.base();
       out = text.str();
     }
-    out += chunk(line);
+    out += http10_ ? line : chunk(line);
     write_chunk(std::move(out), [self = this->shared_from_this()](bool ok) {
       if (!ok || self->closed_) return self->reactor_->abandon();
       self->reading_stream_ = true;
@@ -724,8 +751,11 @@ class Session final : public Connection,
       return finish(std::move(res), false);
     }
     std::string out;
-    if (!status.ok()) out = chunk("{\"error\":" + status_json(status) + "}\n");
-    out += "0\r\n\r\n";
+    if (!status.ok()) {
+      const std::string line = "{\"error\":" + status_json(status) + "}\n";
+      out = http10_ ? line : chunk(line);
+    }
+    if (!http10_) out += "0\r\n\r\n";
     stream_started_ = false;
     write_chunk(std::move(out), [self = this->shared_from_this()](bool ok) {
       if (!ok || !self->keep_alive_) return self->shut();
@@ -762,11 +792,14 @@ class Session final : public Connection,
     }
     std::string relative = path.substr(1);
     if (relative.empty() || relative.back() == '/') relative += "index.html";
-    const std::filesystem::path file = shared_.root / relative;
-    bool refused = relative.find('\\') != std::string::npos;
-    for (const auto& part : std::filesystem::path(relative)) {
+    // Only a path below the root: `root / "/etc/passwd"` would be /etc/passwd (a target
+    // of `//etc/passwd` or `/%2Fetc/passwd`), so an absolute path is refused like `..`.
+    const std::filesystem::path below(relative);
+    bool refused = relative.find('\\') != std::string::npos || below.has_root_name() || below.has_root_directory();
+    for (const auto& part : below) {
       if (part == ".." || part == ".") refused = true;
     }
+    const std::filesystem::path file = shared_.root / below;
     std::error_code ignored;
     if (refused || !std::filesystem::is_regular_file(file, ignored)) {
       return finish(answer(404, "No such file.\n", kText), false);
@@ -816,6 +849,14 @@ class Session final : public Connection,
     phase.store(Phase::writing);
     res.keep_alive(keep_alive_ && !last);
     res.prepare_payload();
+    if (head_) {
+      // HEAD: the answer's head alone, its Content-Length that of the body it leaves out (a
+      // body would be read as the start of the next answer on a kept-alive connection).
+      const auto length = res.body().size();
+      res.body().clear();
+      res.content_length(length);
+      return write_head_only(std::move(res));
+    }
     const std::size_t bytes = res.body().size();
     shared_.answer_bytes.fetch_add(bytes);
     auto out = std::make_shared<Response>(std::move(res));
@@ -872,6 +913,8 @@ class Session final : public Connection,
   std::optional<http::request_parser<http::string_body>> parser_;
   Request request_;
   bool keep_alive_ = true;
+  bool head_ = false;    // the request is a HEAD: answers without their body
+  bool http10_ = false;  // an HTTP/1.0 client: streams without chunks, then the close
   bool closed_ = false;
   Clock::time_point head_deadline_;
   Clock::time_point request_deadline_;
@@ -926,6 +969,7 @@ struct WebGateway::State {
   std::optional<net::executor_work_guard<net::io_context::executor_type>> work;
   std::optional<ssl::context> tls;
   std::optional<tcp::acceptor> acceptor;
+  std::optional<net::steady_timer> retry;  // after a failed accept
   std::vector<std::thread> io_threads;
   int port = 0;
   std::mutex stop_mutex;
@@ -934,10 +978,19 @@ struct WebGateway::State {
   std::mutex connections_mutex;
   std::list<std::weak_ptr<Connection>> connections;
 
+  // On the acceptor's strand (stop() closes it there too).
   void accept() {
     acceptor->async_accept(net::make_strand(io), [this](beast::error_code ec, tcp::socket socket) {
       if (ec == net::error::operation_aborted || !acceptor->is_open()) return;
-      if (!ec) admit(std::move(socket));
+      if (ec) {
+        // Out of descriptors, or the like: try again a little later rather than spin.
+        retry->expires_after(std::chrono::milliseconds(100));
+        retry->async_wait([this](beast::error_code waited) {
+          if (!waited && acceptor->is_open()) accept();
+        });
+        return;
+      }
+      admit(std::move(socket));
       accept();
     });
   }
@@ -958,12 +1011,12 @@ struct WebGateway::State {
           shared, beast::ssl_stream<beast::tcp_stream>(beast::tcp_stream(std::move(socket)), *tls), peer);
       connection = s;
       if (!register_connection(connection)) return;
-      s->run();
+      s->start();
     } else {
       auto s = std::make_shared<Session<beast::tcp_stream>>(shared, beast::tcp_stream(std::move(socket)), peer);
       connection = s;
       if (!register_connection(connection)) return;
-      s->run();
+      s->start();
     }
   }
 
@@ -996,9 +1049,10 @@ void WebGateway::stop() {
   const std::lock_guard lock(s.stop_mutex);
   if (s.stopped) return;
   s.stopped = true;
-  net::post(s.io, [&s] {
+  net::post(s.acceptor->get_executor(), [&s] {
     beast::error_code ignored;
     s.acceptor->close(ignored);
+    s.retry->cancel();
   });
   {
     const std::lock_guard connections_lock(s.connections_mutex);
@@ -1071,7 +1125,8 @@ tl::expected<std::unique_ptr<WebGateway>, std::string> WebGateway::start(const W
   sockaddr_storage bound{};
   socklen_t length = sizeof bound;
   ::getsockname(listening->fd, reinterpret_cast<sockaddr*>(&bound), &length);
-  state->acceptor.emplace(state->io);
+  state->acceptor.emplace(net::make_strand(state->io));
+  state->retry.emplace(state->acceptor->get_executor());
   beast::error_code ec;
   state->acceptor->assign(bound.ss_family == AF_INET6 ? tcp::v6() : tcp::v4(), listening->fd, ec);
   if (ec) {

@@ -716,6 +716,61 @@ TEST(WebLimits, AChunkedBodyBeyondTheLimitIs413) {
   EXPECT_EQ(g.plan(), 200);
 }
 
+TEST(WebLimits, AChunkLineLongerThanTheReadBufferIs413) {
+  // Beast bounds neither a chunk's size line (with extensions) nor the trailer: the read
+  // buffer does, and the answer says so at once rather than after the idle timeout.
+  server::WebOptions web;
+  web.idle_timeout = std::chrono::seconds(60);
+  web.request_timeout = std::chrono::seconds(60);
+  Gateway g(web);
+  for (const std::string& framing : {"1;" + std::string(200 * 1024, 'a'),
+                                    "1\r\na\r\n0\r\nX-Trailer: " + std::string(200 * 1024, 'b')}) {
+    Raw raw(g.port());
+    ASSERT_TRUE(raw.send("POST /v1/plan HTTP/1.1\r\nHost: t\r\nTransfer-Encoding: chunked\r\n\r\n"));
+    (void)raw.send(framing);
+    const std::string answer = raw.read_all(std::chrono::seconds(20));
+    EXPECT_EQ(status_of(answer), 413) << answer.substr(0, 300);
+  }
+  EXPECT_EQ(g.plan(), 200);
+}
+
+TEST(WebLimits, AHeadRequestGetsNoBodyAndTheNextAnswerIsIntact) {
+  // An answer to HEAD without its body, on the API's routes too (a 405, a 404): a body
+  // would be read as the start of the next answer on the kept-alive connection.
+  Gateway g(server::WebOptions{});
+  for (const auto& [path, status] : std::vector<std::pair<std::string, int>>{
+           {"/v1/plan", 405}, {"/v1/nothing", 404}, {"/v1/robots", 405}, {"/", 503}}) {
+    SCOPED_TRACE(path);
+    const std::string answer = round_trip(
+        g.port(), "HEAD " + path +
+                      " HTTP/1.1\r\nHost: t\r\n\r\nGET /v1/robots HTTP/1.1\r\nHost: t\r\nConnection: close\r\n\r\n");
+    const std::size_t first_end = answer.find("\r\n\r\n");
+    ASSERT_NE(first_end, std::string::npos) << answer.substr(0, 300);
+    EXPECT_EQ(status_of(answer), status);
+    EXPECT_NE(header_of(answer, "Content-Length"), "0") << "the length of the body left out";
+    const std::string second = answer.substr(first_end + 4);
+    EXPECT_EQ(status_of(second), 200) << second.substr(0, 300);
+    EXPECT_THAT(body_of(second), HasSubstr("\"robots\""));
+  }
+}
+
+TEST(WebLimits, AnHttp10StreamIsOneLinePerBatchWithoutChunks) {
+  Gateway g(server::WebOptions{});
+  const std::string body = example_text("plan_demo_path_c.json");
+  const std::string answer =
+      round_trip(g.port(), "POST /v1/stream HTTP/1.0\r\nContent-Length: " + std::to_string(body.size()) + "\r\n\r\n" + body);
+  ASSERT_EQ(status_of(answer), 200) << answer.substr(0, 300);
+  EXPECT_EQ(header_of(answer, "Transfer-Encoding"), "");
+  std::istringstream lines(body_of(answer));
+  int batches = 0;
+  for (std::string line; std::getline(lines, line);) {
+    ASSERT_TRUE(line.starts_with("{")) << "not a batch: " << line.substr(0, 80);
+    EXPECT_GT(message_from<v1::SampleBatch>(line).samples_size(), 0);
+    ++batches;
+  }
+  EXPECT_GT(batches, 1);
+}
+
 TEST(WebLimits, AHeadBeyondItsLimitIs431) {
   server::WebOptions web;
   web.max_header_bytes = 4096;
@@ -780,10 +835,16 @@ TEST(WebLimits, ManyRangesNeverAmplifyAndNulPathsAreRefused) {
     EXPECT_EQ(status_of(answer), 400);
     EXPECT_THAT(header_of(answer, "Content-Type"), HasSubstr("text/plain"));
   }
-  for (const char* path : {"/../../etc/passwd", "/%2e%2e/%2e%2e/etc/passwd", "/..%2fapp.js", "/nothing.js"}) {
+  // Nothing outside the root: dot segments, and absolute paths (`root / "/etc/passwd"` is
+  // /etc/passwd), the root's own files named by their absolute path included.
+  const std::string own = "/" + (root / "index.html").string();
+  for (const std::string& path : {std::string("/../../etc/passwd"), std::string("/%2e%2e/%2e%2e/etc/passwd"),
+                                 std::string("/..%2fapp.js"), std::string("/nothing.js"), std::string("//etc/passwd"),
+                                 std::string("/%2Fetc/passwd"), std::string("/%2fetc%2fpasswd"), own}) {
     SCOPED_TRACE(path);
-    answer = round_trip(g.port(), std::string("GET ") + path + " HTTP/1.1\r\nHost: t\r\nConnection: close\r\n\r\n");
-    EXPECT_EQ(status_of(answer), 404);
+    answer = round_trip(g.port(), "GET " + path + " HTTP/1.1\r\nHost: t\r\nConnection: close\r\n\r\n");
+    EXPECT_EQ(status_of(answer), 404) << answer.substr(0, 200);
+    EXPECT_THAT(answer, ::testing::Not(HasSubstr("root:"))) << "a file outside the web root was served";
   }
   std::filesystem::remove_all(root);
 }

@@ -7,7 +7,6 @@
 #include <unistd.h>
 
 namespace geotraj::server {
-namespace {
 
 // Linux gives each thread its own nice value; a thread may always lower its own priority.
 void lower_priority(int nice) {
@@ -15,8 +14,6 @@ void lower_priority(int nice) {
   const auto tid = static_cast<id_t>(::syscall(SYS_gettid));
   (void)::setpriority(PRIO_PROCESS, tid, nice);
 }
-
-}  // namespace
 
 WorkerPool::WorkerPool(int threads, int urgent_threads, int nice) {
   const int n = std::max(threads, 1);

@@ -13,6 +13,9 @@
 
 namespace geotraj::server {
 
+/// Lowers the calling thread's CPU priority to `nice` (nothing when `nice` <= 0).
+void lower_priority(int nice);
+
 /// A fixed set of threads taking tasks in order, the urgent queue first. The queue is not
 /// bounded here: the callers admit work against their caps (Call, runtime.hpp) before they
 /// submit it, so the queue holds at most the calls admitted. The workers run at a lower CPU

@@ -36,6 +36,7 @@
 #include "server/ops/log.hpp"
 #include "server/ops/runtime.hpp"
 #include "server/ops/socket.hpp"
+#include "server/ops/worker_pool.hpp"
 #include "server/wire/status.hpp"
 #include "server/wire/text.hpp"
 
@@ -289,6 +290,7 @@ class CallPool {
 
  private:
   void work() {
+    lower_priority(WorkerPool::kWorkerNice);  // below gRPC's threads, like the workers
     for (;;) {
       std::function<void()> job;
       {

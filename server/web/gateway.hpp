@@ -51,9 +51,11 @@ struct WebOptions {
   TlsOptions tls;
   /// Largest request body [bytes] (the JSON of one request, chunked or not); beyond, 413.
   std::size_t max_request_bytes = 4 * 1024 * 1024;
-  /// Threads that make the unary routes' calls (blocking gRPC calls, off the I/O threads);
-  /// a stream takes one only to start.
-  int threads = 8;
+  /// Threads that make the unary routes' calls (blocking gRPC calls, off the I/O threads)
+  /// and print their answers as JSON; a stream takes one only to start. Few, and at the
+  /// workers' CPU priority: sixteen large analyses at once wait here rather than fill the
+  /// server's workers ahead of every gRPC call, or starve them printing JSON.
+  int threads = 2;
   /// Calls that wait for one of those threads; one beyond them is refused with 503 and
   /// Retry-After.
   std::size_t max_queued_calls = 64;

@@ -60,7 +60,11 @@ struct Jogger::Kinematics {
   Eigen::Vector3d p_WT = Eigen::Vector3d::Zero();
   detail::JointAxes z, o;
   JointJacobian J, J_dot;
-  Eigen::JacobiSVD<JointJacobian> svd;
+  // Of a matrix with both sizes dynamic (bounded, so no allocation): Eigen 3.4's QR
+  // preconditioner asserts (and writes past its workspace) on a 6 x n matrix of fixed rows
+  // when n < 6, an arm of fewer than six joints.
+  Eigen::JacobiSVD<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, 6, static_cast<int>(kMaxJoints)>>
+      svd;
 };
 
 Jogger::~Jogger() = default;

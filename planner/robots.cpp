@@ -171,6 +171,27 @@ std::size_t invalid_utf8(std::string_view text) {
   return std::string_view::npos;
 }
 
+// A link name the caller gave, as an error message may quote it: as it is when it is
+// well-formed UTF-8, else with every byte past ASCII written \xNN (a message goes back to
+// the client in a protobuf string), and at most 256 bytes of it.
+std::string quotable(std::string_view name) {
+  name = name.substr(0, 256);
+  if (invalid_utf8(name) == std::string_view::npos) return std::string(name);
+  std::string out;
+  for (const char ch : name) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c < 0x80) {
+      out.push_back(ch);
+    } else {
+      static constexpr char kHex[] = "0123456789abcdef";
+      out += "\\x";
+      out.push_back(kHex[c >> 4]);
+      out.push_back(kHex[c & 0xF]);
+    }
+  }
+  return out;
+}
+
 // What the markup pre-checks refuse: where (an offset) and what, and whether the document is
 // not XML at all (its message then says so first, as TinyXML's do) or only more than we take.
 struct Refusal {
@@ -513,7 +534,7 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
     for (const auto& l : links) link_names.push_back(l->name);
   }
   if (!base) {
-    v.push_back({"baseLink", "names no link of the URDF ('" + std::string(base_link) + "'); its links: " +
+    v.push_back({"baseLink", "names no link of the URDF ('" + quotable(base_link) + "'); its links: " +
                                  listed(link_names)});
     return tl::unexpected(std::move(v));
   }
@@ -540,7 +561,7 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
   } else {
     tip = model->getLink(std::string(tip_link));
     if (!tip) {
-      v.push_back({"tipLink", "names no link of the URDF ('" + std::string(tip_link) + "'); its links: " +
+      v.push_back({"tipLink", "names no link of the URDF ('" + quotable(tip_link) + "'); its links: " +
                                   listed(link_names)});
       return tl::unexpected(std::move(v));
     }

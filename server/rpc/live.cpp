@@ -145,8 +145,9 @@ gpr_timespec monotonic(Clock::time_point due) {
 }
 
 // The longest a write may stay in flight before the client counts as not reading: its
-// deadman time, at least this [s] (below it, a busy loopback could end a reading client).
-constexpr double kMinWriteDeadlineS = 0.1;
+// deadman time and this much more [s], so that a reading client on a loaded machine (or
+// under the sanitizers) meets its own deadman first, never a cancel.
+constexpr double kWriteGraceS = 1.0;
 
 class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer> {
  public:
@@ -283,7 +284,7 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
     }
     {
       const std::lock_guard lock(watch_mutex_);
-      write_bound_ = seconds(std::max(deadman_s, kMinWriteDeadlineS));
+      write_bound_ = seconds(deadman_s + kWriteGraceS);
     }
     Pace();
   }

@@ -37,6 +37,7 @@
 #include "server/ops/runtime.hpp"
 #include "server/ops/socket.hpp"
 #include "server/ops/worker_pool.hpp"
+#include "server/rpc/tsan.hpp"
 #include "server/wire/status.hpp"
 #include "server/wire/text.hpp"
 
@@ -352,15 +353,20 @@ class StreamReactor final : public grpc::ClientReadReactor<v1::SampleBatch> {
 
   void start(Stub& stub, v1::PlanRequest request, const Request& req, const std::string& peer);
   // The connection sent the last line: the next batch.
-  void next() { StartRead(&batch_); }
+  void next() {
+    handoff_release(this);
+    StartRead(&batch_);
+  }
   // The connection will read no more (it went away, or a write failed).
   void abandon() {
     context_.TryCancel();
+    handoff_release(this);
     RemoveHold();
   }
   void cancel() { context_.TryCancel(); }
 
   void OnReadDone(bool ok) override {
+    handoff_acquire(this);
     if (!ok) {
       RemoveHold();
       return;
@@ -403,11 +409,13 @@ void StreamReactor::start(Stub& stub, v1::PlanRequest request, const Request& re
   }
   stub.async()->StreamSamples(&context_, &request_, this);
   AddHold();
+  handoff_release(this);
   StartRead(&batch_);
   StartCall();
 }
 
 void StreamReactor::OnDone(const grpc::Status& status) {
+  handoff_acquire(this);
   // The connection deletes the reactor on its strand: until then it may still refer to it.
   Shared& shared = shared_;
   shared.streams.fetch_sub(1);

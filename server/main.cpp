@@ -2,8 +2,11 @@
 #include <pthread.h>
 #include <signal.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <stop_token>
@@ -38,6 +41,21 @@ A process ended by a library (not by a signal or a shutdown) exits with status 7
 The web page and its JSON API (--web-address) call the same service in process: the same
 tokens (`Authorization: Bearer TOKEN`), limits, drain and metrics.
 Documentation: docs/deploy.md, docs/reliability.md, docs/web-api.md.)";
+
+// CLI::Range(min, max) for a floating-point flag, that also refuses NaN (which compares
+// false with both bounds, so CLI::Range alone lets it through) and infinities.
+CLI::Validator finite_range(double min, double max) {
+  const CLI::Range range(min, max);
+  return CLI::Validator(
+      [range](std::string& text) -> std::string {
+        double value = 0.0;
+        if (!CLI::detail::lexical_cast(text, value) || !std::isfinite(value)) {
+          return "Value " + text + " is not a finite number";
+        }
+        return range(text);
+      },
+      range.get_description());
+}
 
 // share/geotraj/web beside the directory of this binary: <prefix>/share/geotraj/web for
 // <prefix>/bin/geotrajd, and <build>/share/geotraj/web (where the build writes the page) for
@@ -105,6 +123,61 @@ int main(int argc, char** argv) {
       ->envname("GEOTRAJ_WEB_ROOT")
       ->group("Listening");
 
+  // The web port's limits.
+  auto& web = options.web_limits;
+  double web_idle_s = std::chrono::duration<double>(web.idle_timeout).count();
+  double web_header_s = std::chrono::duration<double>(web.header_timeout).count();
+  double web_request_s = std::chrono::duration<double>(web.request_timeout).count();
+  app.add_option("--web-threads", web.threads,
+                 "threads that make the web port's calls and print their JSON (at the workers' priority)")
+      ->envname("GEOTRAJ_WEB_THREADS")
+      ->check(CLI::Range(1, 256))
+      ->capture_default_str()
+      ->group("Web port");
+  app.add_option("--web-max-queued-calls", web.max_queued_calls,
+                 "web calls waiting for one of those threads; beyond: 503 with Retry-After")
+      ->envname("GEOTRAJ_WEB_MAX_QUEUED_CALLS")
+      ->check(CLI::Range(std::size_t{0}, std::size_t{100'000}))
+      ->capture_default_str()
+      ->group("Web port");
+  app.add_option("--web-max-connections", web.max_connections,
+                 "HTTP connections open at once; a new one beyond closes the oldest idle or slow one, or itself")
+      ->envname("GEOTRAJ_WEB_MAX_CONNECTIONS")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{100'000}))
+      ->capture_default_str()
+      ->group("Web port");
+  app.add_option("--web-max-streams", web.max_streams,
+                 "/v1/stream calls in flight (each also takes its --max-streams slots); beyond: 429")
+      ->envname("GEOTRAJ_WEB_MAX_STREAMS")
+      ->check(CLI::Range(0, 100'000))
+      ->capture_default_str()
+      ->group("Web port");
+  app.add_option("--web-max-answer-bytes", web.max_answer_bytes,
+                 "bytes of answers made and not yet taken by their clients; while beyond: 503 with Retry-After")
+      ->envname("GEOTRAJ_WEB_MAX_ANSWER_BYTES")
+      ->check(CLI::Range(std::size_t{1} << 20, std::size_t{1} << 36))
+      ->capture_default_str()
+      ->group("Web port");
+  app.add_option("--web-idle-timeout-seconds", web_idle_s,
+                 "a connection silent this long within a request, not reading a stream, or idle between requests is "
+                 "closed [s]")
+      ->envname("GEOTRAJ_WEB_IDLE_TIMEOUT_SECONDS")
+      ->check(finite_range(0.01, 86400.0))
+      ->capture_default_str()
+      ->group("Web port");
+  app.add_option("--web-header-timeout-seconds", web_header_s,
+                 "a request's line and headers must arrive within this [s]; beyond, the connection is closed")
+      ->envname("GEOTRAJ_WEB_HEADER_TIMEOUT_SECONDS")
+      ->check(finite_range(0.01, 86400.0))
+      ->capture_default_str()
+      ->group("Web port");
+  app.add_option("--web-request-timeout-seconds", web_request_s,
+                 "a request must arrive, and a unary answer or file be taken, within this [s]; beyond, the connection is closed")
+      ->envname("GEOTRAJ_WEB_REQUEST_TIMEOUT_SECONDS")
+      ->check(finite_range(0.01, 86400.0))
+      ->capture_default_str()
+      ->group("Web port");
+
   // Limits.
   auto& limits = options.limits;
   app.add_option("--max-streams", limits.max_streams, "streams in flight; beyond: RESOURCE_EXHAUSTED")
@@ -129,7 +202,7 @@ int main(int argc, char** argv) {
                  "set points per second of all live calls (Execute, Jog) together; a live call also takes one "
                  "--max-streams slot per 1000 Hz of its rate; beyond either: RESOURCE_EXHAUSTED")
       ->envname("GEOTRAJ_MAX_LIVE_RATE_HZ")
-      ->check(CLI::Range(1.0, 1e9))
+      ->check(finite_range(1.0, 1e9))
       ->capture_default_str()
       ->group("Limits");
   app.add_option("--max-live-samples", limits.max_live_samples,
@@ -164,7 +237,7 @@ int main(int argc, char** argv) {
   app.add_option("--max-optimize-seconds", limits.max_optimize_seconds,
                  "time one call may optimise [s] (largest optimize.timeBudgetS)")
       ->envname("GEOTRAJ_MAX_OPTIMIZE_SECONDS")
-      ->check(CLI::Range(0.001, 3600.0))
+      ->check(finite_range(0.001, 3600.0))
       ->capture_default_str()
       ->group("Limits");
   app.add_option("--max-analysis-points", limits.max_analysis_points,
@@ -182,7 +255,7 @@ int main(int argc, char** argv) {
   app.add_option("--default-deadline-seconds", limits.default_deadline_s,
                  "deadline of a call that carries none (and of a stream's planning) [s]; a client's earlier one wins")
       ->envname("GEOTRAJ_DEFAULT_DEADLINE_SECONDS")
-      ->check(CLI::Range(0.001, 86400.0))
+      ->check(finite_range(0.001, 86400.0))
       ->capture_default_str()
       ->group("Limits");
   app.add_option("--workers", limits.workers,
@@ -197,26 +270,26 @@ int main(int argc, char** argv) {
   auto& connections = options.connections;
   app.add_option("--keepalive-seconds", connections.keepalive_s, "ping a connection idle this long [s]")
       ->envname("GEOTRAJ_KEEPALIVE_SECONDS")
-      ->check(CLI::Range(1.0, 86400.0))
+      ->check(finite_range(1.0, 86400.0))
       ->capture_default_str()
       ->group("Connections");
   app.add_option("--keepalive-timeout-seconds", connections.keepalive_timeout_s,
                  "close a connection whose ping is unanswered this long [s]")
       ->envname("GEOTRAJ_KEEPALIVE_TIMEOUT_SECONDS")
-      ->check(CLI::Range(1.0, 3600.0))
+      ->check(finite_range(1.0, 3600.0))
       ->capture_default_str()
       ->group("Connections");
   app.add_option("--max-connection-age-seconds", connections.max_connection_age_s,
                  "ask clients to reconnect after this long, so they spread over new replicas [s]; 0: never")
       ->envname("GEOTRAJ_MAX_CONNECTION_AGE_SECONDS")
-      ->check(CLI::Range(0.0, 1e7))
+      ->check(finite_range(0.0, 1e7))
       ->capture_default_str()
       ->group("Connections");
   app.add_option("--max-connection-age-grace-seconds", connections.max_connection_age_grace_s,
                  "calls in flight on an aged connection may finish within this [s]; keep it longer than the longest "
                  "real-time stream")
       ->envname("GEOTRAJ_MAX_CONNECTION_AGE_GRACE_SECONDS")
-      ->check(CLI::Range(0.0, 1e7))
+      ->check(finite_range(0.0, 1e7))
       ->capture_default_str()
       ->group("Connections");
   app.add_option("--max-connections", connections.max_connections,
@@ -229,20 +302,20 @@ int main(int argc, char** argv) {
   app.add_option("--handshake-timeout-seconds", connections.handshake_timeout_s,
                  "close a connection that has not sent the HTTP/2 preface (or finished TLS) within this [s]")
       ->envname("GEOTRAJ_HANDSHAKE_TIMEOUT_SECONDS")
-      ->check(CLI::Range(0.1, 3600.0))
+      ->check(finite_range(0.1, 3600.0))
       ->capture_default_str()
       ->group("Connections");
   app.add_option("--max-connection-idle-seconds", connections.max_connection_idle_s,
                  "close a connection with no call for this long (GOAWAY; clients reconnect when needed) [s]; 0: never")
       ->envname("GEOTRAJ_MAX_CONNECTION_IDLE_SECONDS")
-      ->check(CLI::Range(0.0, 1e7))
+      ->check(finite_range(0.0, 1e7))
       ->capture_default_str()
       ->group("Connections");
   app.add_option("--drain-seconds,--shutdown-grace", drain_s,
                  "after SIGTERM/SIGINT, calls in flight may finish this long [s]; keep Kubernetes' "
                  "terminationGracePeriodSeconds longer")
       ->envname("GEOTRAJ_DRAIN_SECONDS")
-      ->check(CLI::Range(0.0, 86400.0))
+      ->check(finite_range(0.0, 86400.0))
       ->capture_default_str()
       ->group("Connections");
 
@@ -250,7 +323,7 @@ int main(int argc, char** argv) {
                  "after SIGTERM/SIGINT, refuse new calls (UNAVAILABLE, retried elsewhere by clients) for at least "
                  "this long [s] even when none is in flight, so clients see NOT_SERVING before connections close")
       ->envname("GEOTRAJ_LAME_DUCK_SECONDS")
-      ->check(CLI::Range(0.0, 3600.0))
+      ->check(finite_range(0.0, 3600.0))
       ->capture_default_str()
       ->group("Connections");
 
@@ -273,6 +346,12 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->group("Models");
   CLI11_PARSE(app, argc, argv);
+  const auto to_ms = [](double seconds) {
+    return std::chrono::milliseconds(static_cast<std::int64_t>(std::llround(seconds * 1000.0)));
+  };
+  web.idle_timeout = std::max(std::chrono::milliseconds(10), to_ms(web_idle_s));
+  web.header_timeout = std::max(std::chrono::milliseconds(10), to_ms(web_header_s));
+  web.request_timeout = std::max(std::chrono::milliseconds(10), to_ms(web_request_s));
   if (options.web_root.empty() && !options.web_address.empty()) options.web_root = default_web_root();
   if (const char* token = std::getenv("GEOTRAJ_AUTH_TOKEN")) options.auth_token = token;
 

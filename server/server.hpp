@@ -5,6 +5,7 @@
 #pragma once
 
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <memory>
@@ -95,6 +96,42 @@ struct ConnectionOptions {
   int max_connections = 4096;
 };
 
+/// What the web port (ServerOptions::web_address) lets its clients take: threads,
+/// connections, streams, time and memory. Each has a geotrajd flag (--web-...).
+struct WebLimits {
+  /// Threads that make the unary routes' calls (blocking gRPC calls, off the I/O threads)
+  /// and print their answers as JSON; a stream takes one only to start. Few, and at the
+  /// workers' CPU priority: sixteen large analyses at once wait here rather than fill the
+  /// server's workers ahead of every gRPC call, or starve them printing JSON.
+  int threads = 2;
+  /// Calls that wait for one of those threads; one beyond them is refused with 503 and
+  /// Retry-After.
+  std::size_t max_queued_calls = 64;
+  /// Threads that read and write the connections (non-blocking).
+  int io_threads = 2;
+  /// Connections open at once; a new one beyond them closes the oldest that is reading a
+  /// request (idle or slow), or is closed itself when every one is busy.
+  std::size_t max_connections = 256;
+  /// A connection that sends nothing for this long within a request, takes nothing for this
+  /// long within a streamed answer, or sends no request for this long after the last, is
+  /// closed.
+  std::chrono::milliseconds idle_timeout{5000};
+  /// A request's head (request line and headers) must have arrived within this long of the
+  /// connection (or of the end of the answer before).
+  std::chrono::milliseconds header_timeout{10000};
+  /// A request's head and body must have arrived within this long; an answer of a unary
+  /// route or a file must have been taken within this long.
+  std::chrono::milliseconds request_timeout{30000};
+  /// Largest request head [bytes]; beyond, 431.
+  std::size_t max_header_bytes = 16 * 1024;
+  /// /v1/stream calls in flight from the web port (each counts against the server's
+  /// --max-streams too); beyond, 429.
+  int max_streams = 32;
+  /// Bytes of unary answers made and not yet taken by their clients; while beyond, new
+  /// calls are refused with 503 and Retry-After.
+  std::size_t max_answer_bytes = 256 * 1024 * 1024;
+};
+
 /// What the server listens on and accepts.
 struct ServerOptions {
   /// Listening address HOST:PORT; port 0 picks a free port. Empty: no listening port,
@@ -114,6 +151,8 @@ struct ServerOptions {
   std::string web_address;
   /// The page's files (index.html, app.js, ...); empty: the API only.
   std::string web_root;
+  /// What the web port lets its clients take.
+  WebLimits web_limits;
   /// Largest request message [bytes].
   int max_receive_message_bytes = 4 * 1024 * 1024;
   ServiceLimits limits;

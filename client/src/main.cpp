@@ -1,5 +1,6 @@
 // geotraj: the command-line client of the geotraj gRPC API.
 #include <cctype>
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
@@ -10,6 +11,20 @@
 #include "commands.hpp"
 #include "connection.hpp"
 #include "planner/robots.hpp"
+
+namespace {
+
+// CLI11's number checks (PositiveNumber, Range) compare, and NaN compares false with
+// everything: a floating-point flag is first checked finite (no NaN, no infinity).
+const CLI::Validator kFinite(
+    [](std::string& text) -> std::string {
+      double value = 0.0;
+      if (!CLI::detail::lexical_cast(text, value) || !std::isfinite(value)) return "Value " + text + " is not a finite number";
+      return {};
+    },
+    "", "FINITE");
+
+}  // namespace
 
 int main(int argc, char** argv) {
   geotraj::cli::CallOptions options;
@@ -34,7 +49,7 @@ int main(int argc, char** argv) {
                  "deadline of the call [s]; default: 60 for every call but `stream`, `execute` and `jog`, which have "
                  "none (a motion may last longer than any fixed deadline)")
       ->envname("GEOTRAJ_TIMEOUT")
-      ->check(CLI::PositiveNumber);
+      ->check(kFinite)->check(CLI::PositiveNumber);
   app.add_flag("--json", options.json, "print the response in the proto JSON mapping instead of a table");
   const auto request_arg = [&](CLI::App* sub, const char* type) {
     sub->add_option("request", options.input, std::string(type) + " in the proto JSON mapping: a file, or - for stdin")
@@ -46,20 +61,20 @@ int main(int argc, char** argv) {
                     "lowest-degree (path.unspecified)");
     sub->add_option("--max-curvature", options.optimize.max_curvature,
                     "warn of bends tighter than this curvature [1/m] (path.maxCurvature)")
-        ->check(CLI::PositiveNumber);
+        ->check(kFinite)->check(CLI::PositiveNumber);
     sub->add_option("--optimize-tangent-scales", options.optimize.tangent_scales,
                     "optimise the tangent scales: bending-energy, peak-curvature, peak-torsion or arc-length");
     sub->add_option("--length-weight", options.optimize.length_weight,
                     "bending-energy: weight of the arc length [1/m^2]; default E0 / L0 of the request, 0 for the "
                     "energy alone (optimize.tangentScales.lengthWeight)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(kFinite)->check(CLI::NonNegativeNumber);
     sub->add_option("--optimize-breakpoints", options.optimize.breakpoints,
                     "optimise the trapezoid breakpoints: peak-torsion, peak-curvature or peak-derivatives");
     sub->add_flag("--time-optimal", options.optimize.time_optimal,
                   "the fastest timing within the robot's joint limits and the Cartesian limits given");
     sub->add_flag("--jerk-limited", options.optimize.jerk_limited, "time-optimal with jerk limits as well (Ipopt)");
     sub->add_option("--optimize-budget", options.optimize.budget_s, "wall-clock budget of the optimisers [s]")
-        ->check(CLI::PositiveNumber);
+        ->check(kFinite)->check(CLI::PositiveNumber);
     sub->add_option("--velocity-scale", options.optimize.velocity_scale,
                     "fraction of the robot's joint velocity limits to use, in (0, 1] (robot.velocityScale)");
     sub->add_option("--acceleration-scale", options.optimize.acceleration_scale,
@@ -110,14 +125,14 @@ int main(int argc, char** argv) {
   request_arg(execute, "a PlanRequest with `motion`");
   optimize_flags(execute);
   execute->add_option("--override", live.override_percent, "the speed override at the start [%] (default 100)")
-      ->check(CLI::Range(0.0, 100.0));
+      ->check(kFinite)->check(CLI::Range(0.0, 100.0));
   execute->add_option("--deadman", live.deadman_s,
                       "the deadman time [s] (default 1): the server stops the motion when no message came for this "
                       "long; a heartbeat goes every deadman / 4")
-      ->check(CLI::PositiveNumber);
+      ->check(kFinite)->check(CLI::PositiveNumber);
   execute->add_option("--acceleration-reserve", live.reserve,
                       "the fraction of the acceleration a time-optimal plan leaves for speed changes (default 0.1)")
-      ->check(CLI::Range(0.0, 0.9));
+      ->check(kFinite)->check(CLI::Range(0.0, 0.9));
   execute->add_option("--script", live.script,
                       "timed commands, one per line: TIME override PCT | pause | resume | stop (TIME [s] from the "
                       "motion's start; # comments); - for stdin");
@@ -132,18 +147,18 @@ int main(int argc, char** argv) {
                   "where the robot is: joint values [rad or m], joint 0 first, comma-separated (default: the model's "
                   "home)")
       ->delimiter(',');
-  jog->add_option("--rate", live.rate_hz, "set points per second [Hz] (default 100)")->check(CLI::PositiveNumber);
+  jog->add_option("--rate", live.rate_hz, "set points per second [Hz] (default 100)")->check(kFinite)->check(CLI::PositiveNumber);
   jog->add_option("--velocity-scale", live.velocity_scale,
                   "what a joint command of 1 means, as a fraction of each joint's maximum velocity, in (0, 1] "
                   "(default 0.25)")
-      ->check(CLI::PositiveNumber);
+      ->check(kFinite)->check(CLI::PositiveNumber);
   jog->add_option("--max-linear-speed", live.max_linear_speed, "the tool's speed at a twist of 1 [m/s] (default 0.25)")
-      ->check(CLI::PositiveNumber);
+      ->check(kFinite)->check(CLI::PositiveNumber);
   jog->add_option("--max-angular-speed", live.max_angular_speed,
                   "the tool's angular speed at a twist of 1 [rad/s] (default 0.5)")
-      ->check(CLI::PositiveNumber);
+      ->check(kFinite)->check(CLI::PositiveNumber);
   jog->add_option("--deadman", live.deadman_s, "the deadman time [s] (default 1); a heartbeat goes every deadman / 4")
-      ->check(CLI::PositiveNumber);
+      ->check(kFinite)->check(CLI::PositiveNumber);
   jog->add_option("--script", live.script,
                   "timed commands, one per line: TIME joints V0 V1 ... | twist world|tool VX VY VZ WX WY WZ | stop "
                   "(each value in [-1, 1]; TIME [s] from the motion's start; # comments); - for stdin")

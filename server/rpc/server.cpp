@@ -403,15 +403,17 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
                             "\": give --tls-cert and --tls-key, or --plaintext to accept unencrypted connections on a "
                             "non-loopback address");
     }
-    // cpp-httplib writes to sockets without MSG_NOSIGNAL: a page closed mid-answer must
-    // give EPIPE, not SIGPIPE's end of the process.
+    // A page closed mid-answer must give EPIPE, not end the process by SIGPIPE (Asio sends
+    // with MSG_NOSIGNAL; this covers any write that does not).
     std::signal(SIGPIPE, SIG_IGN);
     grpc::ChannelArguments channel;
     channel.SetMaxReceiveMessageSize(-1);  // answers are bounded by the service (--max-response-bytes)
-    WebOptions web{.address = options.web_address,
-                   .root = options.web_root,
-                   .tls = options.tls,
-                   .max_request_bytes = static_cast<std::size_t>(std::max(0, options.max_receive_message_bytes))};
+    WebOptions web;
+    static_cast<WebLimits&>(web) = options.web_limits;
+    web.address = options.web_address;
+    web.root = options.web_root;
+    web.tls = options.tls;
+    web.max_request_bytes = static_cast<std::size_t>(std::max(0, options.max_receive_message_bytes));
     auto gateway = WebGateway::start(web, running.server->InProcessChannel(channel));
     if (!gateway) return tl::unexpected(gateway.error());
     running.web = std::move(*gateway);

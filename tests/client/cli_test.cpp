@@ -78,6 +78,23 @@ TEST(Cli, UnreadableRequestExitsWithUsageError) {
   EXPECT_THAT(run.out, HasSubstr("geotraj.v1.PlanRequest"));
 }
 
+// CLI11's number checks compare, and NaN compares false with every bound: each
+// floating-point flag is refused by name when it is not finite.
+TEST(Cli, NonFiniteFlagValuesAreRefusedByName) {
+  for (const std::string flag : {"--timeout nan", "--timeout inf", "--timeout -nan"}) {
+    const CliRun run = run_cli(flag + " robots", /*merge_stderr=*/true);
+    EXPECT_NE(run.exit_code, 0) << flag;
+    EXPECT_THAT(run.out, HasSubstr("--timeout")) << flag;
+    EXPECT_THAT(run.out, HasSubstr("not a finite number")) << flag;
+  }
+  for (const std::string args : {"execute --deadman nan x.json", "execute --override nan x.json",
+                                 "jog --rate nan --script -", "plan --optimize-budget inf x.json"}) {
+    const CliRun run = run_cli(args, /*merge_stderr=*/true);
+    EXPECT_NE(run.exit_code, 0) << args;
+    EXPECT_THAT(run.out, HasSubstr("not a finite number")) << args;
+  }
+}
+
 // --- robots ---------------------------------------------------------------------------------
 
 TEST(Cli, RobotsListsTheBuiltInModels) {

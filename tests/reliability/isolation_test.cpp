@@ -27,8 +27,7 @@ double percentile(std::vector<double> values, double p) {
   return values[i];
 }
 
-// A stream reader that records each sample's lateness: its arrival after the stream's first
-// sample, less its own time t after the first sample's [ms].
+// A stream reader that records each sample's lateness (see Lateness).
 class PacedReader final : public grpc::ClientReadReactor<v1::SampleBatch> {
  public:
   PacedReader(v1::TrajectoryService::Stub& stub, const v1::PlanRequest& request) : request_(request) {
@@ -49,7 +48,7 @@ class PacedReader final : public grpc::ClientReadReactor<v1::SampleBatch> {
   }
   bool wait() { return done_.wait(std::chrono::seconds(120)); }
   const grpc::Status& status() const { return status_; }
-  const std::vector<double>& lateness_ms() const { return lateness_.ms(); }
+  std::vector<double> lateness_ms() const { return lateness_.ms(); }
 
  private:
   grpc::ClientContext context_;
@@ -132,7 +131,7 @@ TEST_F(IsolationTest, HealthAndPacingHoldWith64OptimisationsInFlight) {
   EXPECT_EQ(unanswered, 0) << "health checks not answered SERVING within 1 s";
   const auto queued = metric(server::metrics_exposition(running_), "geotraj_queued_calls").value_or(-1);
 
-  const auto& late = stream->lateness_ms();
+  const auto late = stream->lateness_ms();
   std::printf("[ measured ] %d optimisations in flight (%.0f still queued at the end of the window)\n",
               kOptimisations, queued);
   std::printf("[ measured ] health, gRPC port: %zu checks, p50 %.2f ms, p99 %.2f ms, max %.2f ms\n",

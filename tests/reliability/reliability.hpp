@@ -6,6 +6,7 @@
 #include <malloc.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -197,21 +198,31 @@ inline bool eventually(const std::function<bool()>& condition, std::chrono::stea
   return true;
 }
 
-// How late each set point of a stream arrives [ms]: its arrival after the first one's, less
-// its time t after the first one's (negative when the first one was itself late).
+// How late each set point of a stream arrives [ms]: its arrival less its time t, measured
+// from the earliest such offset of the stream (the set point that came soonest after its
+// time defines "on time"), so every value is >= 0 and a late first set point does not make
+// the others look early.
 class Lateness {
  public:
   void arrived(double t, std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now()) {
-    if (ms_.empty()) {
+    if (offsets_ms_.empty()) {
       first_arrival_ = now;
       first_t_ = t;
     }
-    ms_.push_back(std::chrono::duration<double, std::milli>(now - first_arrival_).count() - 1e3 * (t - first_t_));
+    offsets_ms_.push_back(std::chrono::duration<double, std::milli>(now - first_arrival_).count() -
+                          1e3 * (t - first_t_));
   }
-  const std::vector<double>& ms() const { return ms_; }
+  std::vector<double> ms() const {
+    if (offsets_ms_.empty()) return {};
+    const double earliest = *std::min_element(offsets_ms_.begin(), offsets_ms_.end());
+    std::vector<double> late;
+    late.reserve(offsets_ms_.size());
+    for (const double o : offsets_ms_) late.push_back(o - earliest);
+    return late;
+  }
 
  private:
-  std::vector<double> ms_;
+  std::vector<double> offsets_ms_;
   std::chrono::steady_clock::time_point first_arrival_;
   double first_t_ = 0.0;
 };

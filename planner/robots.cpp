@@ -126,8 +126,8 @@ std::string joint_kind(int type) {
 //    bytes each), and at most kMaxUrdfMarkup elements, attributes, comments and other markup
 //    in all (a parser's object each, twice: a robot has a few thousand).
 // What passes, TinyXML and urdfdom parse in time and memory linear in the size, at bounded
-// depth: robot_from_urdf has no deadline to check, its worst case is bounded instead (at the
-// 16 MiB limit about 0.5 s of CPU; docs/kinematics.md, "Bring your own URDF").
+// depth (at the 16 MiB limit about 0.5 s of CPU in all; docs/kinematics.md, "Bring your own
+// URDF"), and robot_from_urdf checks the caller's deadline between those stages.
 constexpr std::size_t kMaxUrdfBytes = 16u << 20;
 constexpr std::size_t kMaxUrdfDepth = 64;
 constexpr std::size_t kMaxUrdfAttributes = 64;
@@ -472,16 +472,23 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
     v.push_back({"urdf", "has " + std::to_string(text.size()) + " bytes; at most " + std::to_string(kMaxUrdfBytes)});
     return tl::unexpected(std::move(v));
   }
+  // Between the stages below: the call's deadline or cancellation.
+  const auto given_up = [] {
+    return core::Violations{{"urdf", "was not read whole: the call's deadline passed or it was cancelled"}};
+  };
+  if (options.stop_at.reached()) return tl::unexpected(given_up());
   if (const std::size_t at = invalid_utf8(text); at != std::string_view::npos) {
     v.push_back({"urdf", "is not UTF-8: " + line_at(text, at) + ", byte " + std::to_string(at)});
     return tl::unexpected(std::move(v));
   }
   for (const auto& check : {forbidden_control, bad_reference, check_markup}) {
+    if (options.stop_at.reached()) return tl::unexpected(given_up());
     if (const std::optional<Refusal> r = check(text)) {
       v.push_back({"urdf", (r->malformed ? "is not well-formed XML: " : "") + line_at(text, r->at) + ": " + r->what});
       return tl::unexpected(std::move(v));
     }
   }
+  if (options.stop_at.reached()) return tl::unexpected(given_up());
   std::string xml(text);
   xml.append(4, '\0');  // whatever a parser reads past the end of a character is ours
   // The document first, for the line of whatever is wrong (urdfdom says what, not where).
@@ -499,12 +506,15 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
     return tl::unexpected(std::move(v));
   }
 
+  if (options.stop_at.reached()) return tl::unexpected(given_up());
   check_link_tree(robot, v);
   if (!v.empty()) return tl::unexpected(std::move(v));
+  if (options.stop_at.reached()) return tl::unexpected(given_up());
 
   install_capture();
   Capture::buffer().clear();
   const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
+  if (options.stop_at.reached()) return tl::unexpected(given_up());
   if (!model) {
     std::string message = Capture::buffer();
     if (message.empty()) message = "urdfdom refused the document";

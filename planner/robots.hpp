@@ -21,7 +21,9 @@
 // Every error names the element and its line ("line 12, joint 'elbow': ...").
 #pragma once
 
+#include <chrono>
 #include <optional>
+#include <stop_token>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -38,6 +40,14 @@ struct NamedLimits {
   std::optional<double> max_velocity, max_acceleration, max_jerk;
 };
 
+/// When work on a request gives up: once `deadline` passes or `stop` is requested (the
+/// call's deadline and cancellation).
+struct StopAt {
+  std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max();
+  std::stop_token stop;
+  bool reached() const { return stop.stop_requested() || std::chrono::steady_clock::now() >= deadline; }
+};
+
 struct UrdfOptions {
   std::string base_link;  ///< empty: the <geotraj> block's base_link, else the root
   std::string tip_link;   ///< empty: the block's tip_link, else the only leaf below the base
@@ -46,6 +56,10 @@ struct UrdfOptions {
   /// False for kinematics only (ComputeForwardKinematics, ComputeInverseKinematics): such a
   /// joint gets kUnknownAcceleration, which no kinematics call reads.
   bool require_accelerations = true;
+  /// Checked before each stage of the parse (each linear in the document's size, at most about
+  /// 0.2 s at the 16 MiB limit): once reached, the parse ends with a violation of `urdf` that
+  /// says so (the caller reports its deadline or cancellation instead).
+  StopAt stop_at;
 };
 
 /// What a joint without an acceleration limit carries when none is required: finite and

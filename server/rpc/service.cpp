@@ -85,6 +85,9 @@ class Abandon {
   /// Requested when the call is cancelled (empty for work no client waits for).
   const std::stop_token& stop() const { return stop_; }
 
+  /// The deadline and cancellation, for the parse of a request's URDF.
+  planner::StopAt stop_at() const { return planner::StopAt{deadline(), stop_}; }
+
   /// When the caller stops waiting, on the steady clock (the RPC's deadline).
   std::chrono::steady_clock::time_point deadline() const {
     const auto left = deadline_ - std::chrono::system_clock::now();
@@ -98,6 +101,13 @@ class Abandon {
   double default_s_ = 0.0;  // > 0 when deadline_ is the server's default
   std::stop_token stop_;
 };
+
+// The status of a request that did not convert: its deadline or cancellation when that is
+// what stopped the conversion (a URDF's parse gives up on them), else INVALID_ARGUMENT.
+grpc::Status not_converted(const Abandon& abandon, core::Violations violations) {
+  if (auto stop = abandon.check()) return *stop;
+  return invalid_argument(std::move(violations));
+}
 
 // What the work of one call needs from the service: its robots, its limits, its metrics.
 struct Services {
@@ -214,8 +224,8 @@ tl::expected<planner::Plan, grpc::Status> plan_call(const Abandon& abandon, cons
                                                     const v1::PlanRequest& request, RequestUse use,
                                                     planner::Purpose purpose) {
   if (auto stop = abandon.check()) return tl::unexpected(*stop);
-  auto input = request_from_proto(request, services.robots, services.limits, use);
-  if (!input) return tl::unexpected(invalid_argument(input.error()));
+  auto input = request_from_proto(request, services.robots, services.limits, use, abandon.stop_at());
+  if (!input) return tl::unexpected(not_converted(abandon, std::move(input.error())));
   auto plan = planner::plan(*input, budget_of(abandon, services), limits_of(services), purpose);
   if (!plan) return tl::unexpected(to_status(plan.error(), abandon));
   return std::move(*plan);
@@ -389,8 +399,8 @@ tl::expected<planner::Plan, grpc::Status> plan_stream(const Abandon& abandon, co
 tl::expected<planner::Plan, grpc::Status> plan_execution(const Abandon& abandon, const Services& services,
                                                          const v1::PlanRequest& request, double reserve) {
   if (auto stop = abandon.check()) return tl::unexpected(*stop);
-  auto input = request_from_proto(request, services.robots, services.limits, RequestUse::kStream);
-  if (!input) return tl::unexpected(invalid_argument(core::prefixed(std::move(input.error()), "plan.")));
+  auto input = request_from_proto(request, services.robots, services.limits, RequestUse::kStream, abandon.stop_at());
+  if (!input) return tl::unexpected(not_converted(abandon, core::prefixed(std::move(input.error()), "plan.")));
   if (input->robot && input->robot->report_only) {
     return tl::unexpected(invalid_argument(core::Violations{
         {"plan.robot.reportOnly", "Execute drives the robot, within its limits: a plan that may break them "
@@ -415,8 +425,8 @@ tl::expected<planner::Plan, grpc::Status> plan_execution(const Abandon& abandon,
 grpc::Status analyze_path(const Abandon& abandon, const Services& services, const v1::PlanRequest& request,
                           v1::PathProfile& profile) {
   if (auto stop = abandon.check()) return *stop;
-  auto input = request_from_proto(request, services.robots, services.limits, RequestUse::kAnalyze);
-  if (!input) return invalid_argument(input.error());
+  auto input = request_from_proto(request, services.robots, services.limits, RequestUse::kAnalyze, abandon.stop_at());
+  if (!input) return not_converted(abandon, std::move(input.error()));
   auto analysis = planner::analyze(*input, analysis_points(request), budget_of(abandon, services));
   if (!analysis) return to_status(analysis.error(), abandon);
   to_proto(analysis->path, analysis->points, profile);
@@ -427,8 +437,8 @@ grpc::Status analyze_path(const Abandon& abandon, const Services& services, cons
 grpc::Status forward_kinematics(const Abandon& abandon, const Services& services,
                                 const v1::ForwardKinematicsRequest& request, v1::ForwardKinematicsResponse& response) {
   if (auto stop = abandon.check()) return *stop;
-  auto input = forward_request_from_proto(request, services.robots);
-  if (!input) return invalid_argument(input.error());
+  auto input = forward_request_from_proto(request, services.robots, abandon.stop_at());
+  if (!input) return not_converted(abandon, std::move(input.error()));
   to_proto(planner::forward_kinematics(*input), response);
   return grpc::Status::OK;
 }
@@ -437,8 +447,8 @@ grpc::Status forward_kinematics(const Abandon& abandon, const Services& services
 grpc::Status inverse_kinematics(const Abandon& abandon, const Services& services,
                                 const v1::InverseKinematicsRequest& request, v1::InverseKinematicsResponse& response) {
   if (auto stop = abandon.check()) return *stop;
-  auto input = inverse_request_from_proto(request, services.robots);
-  if (!input) return invalid_argument(input.error());
+  auto input = inverse_request_from_proto(request, services.robots, abandon.stop_at());
+  if (!input) return not_converted(abandon, std::move(input.error()));
   auto answer = planner::inverse_kinematics(*input, budget_of(abandon, services));
   if (!answer) return to_status(answer.error(), abandon);
   to_proto(*answer, response);

@@ -611,7 +611,7 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
 }
 
 core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog,
-                                                  bool motion) {
+                                                  bool motion, const planner::StopAt& stop_at) {
   core::Violations out;
   // robot.jointLimits: each named, each value within [core::kMinJointLimit, core::kMaxJointLimit]
   // (applied once the model is known).
@@ -659,7 +659,7 @@ core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, con
       break;
     }
     case v1::RobotSpec::kUrdf: {
-      planner::UrdfOptions options{spec.base_link(), spec.tip_link(), named, motion};
+      planner::UrdfOptions options{spec.base_link(), spec.tip_link(), named, motion, stop_at};
       auto model = planner::robot_from_urdf(spec.urdf(), options);
       if (model) {
         resolved.model = std::move(*model);
@@ -1153,14 +1153,16 @@ core::FieldViolation in_step(core::FieldViolation v, int i, const v1::SequenceSt
 }  // namespace
 
 core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
-                                                     const ServiceLimits& limits, RequestUse use);
+                                                     const ServiceLimits& limits, RequestUse use,
+                                                     const planner::StopAt& stop_at);
 
 namespace {
 
 // PlanRequest.sequence: each step converted as a request of its own (the request's robot,
 // motion unless the step gives one, optimize for paths), every violation named from the root.
 core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
-                                                     const ServiceLimits& limits, RequestUse use) {
+                                                     const ServiceLimits& limits, RequestUse use,
+                                                     const planner::StopAt& stop_at) {
   core::Violations violations;
   if (use == RequestUse::kAnalyze) {
     return tl::unexpected(core::Violations{
@@ -1224,7 +1226,7 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
                                               : "give exactly one of `path`, `jointMove` and `linearMove`"});
       continue;
     }
-    auto converted = request_from_proto(sub, catalog, limits, use);
+    auto converted = request_from_proto(sub, catalog, limits, use, stop_at);
     if (!converted) {
       for (auto& v : converted.error()) {
         auto named = in_step(std::move(v), i, step);
@@ -1251,8 +1253,9 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
 }  // namespace
 
 core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
-                                                     const ServiceLimits& limits, RequestUse use) {
-  if (request.sequence_size() > 0) return sequence_from_proto(request, catalog, limits, use);
+                                                     const ServiceLimits& limits, RequestUse use,
+                                                     const planner::StopAt& stop_at) {
+  if (request.sequence_size() > 0) return sequence_from_proto(request, catalog, limits, use, stop_at);
   planner::Request out;
   const bool moves = request.has_joint_move() || request.has_linear_move();
   if (!request.has_motion()) {
@@ -1305,7 +1308,7 @@ core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& reque
     violations = joined(std::move(violations), motion.error());
   }
   if (request.has_robot()) {
-    if (auto resolved = robot_from_request(request.robot(), catalog)) {
+    if (auto resolved = robot_from_request(request.robot(), catalog, true, stop_at)) {
       out.robot = std::make_shared<const planner::Robot>(std::move(*resolved));
     } else {
       violations = joined(std::move(violations), resolved.error());

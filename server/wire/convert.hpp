@@ -26,6 +26,7 @@
 #include "optim/breakpoints/breakpoints.hpp"
 #include "optim/tangent_scales/tangent_scales.hpp"
 #include "planner/planner.hpp"
+#include "planner/robots.hpp"
 #include "server/server.hpp"
 
 namespace geotraj::server {
@@ -117,9 +118,10 @@ inline constexpr double kDefaultBranchTolerance = 1e-3;
 /// `robot.model...`, `robot.base.orientation`, `robot.initialJoints` size or limits,
 /// `robot.branchTolerance`, `robot.urdf`, `robot.jointLimits[k]...`); the field is `robot` in
 /// every request that has one. `motion`: false for the kinematics calls, which read no
-/// acceleration limit (a URDF without them is accepted there).
+/// acceleration limit (a URDF without them is accepted there). A URDF's parse gives up once
+/// `stop_at` is reached (planner::UrdfOptions), with a violation of `robot.urdf`.
 core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog,
-                                                  bool motion = true);
+                                                  bool motion = true, const planner::StopAt& stop_at = {});
 
 /// PlanTrajectory's joint-space report.
 void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out);
@@ -181,9 +183,10 @@ enum class RequestUse {
 /// A PlanRequest as the planner's request, converted once for `use`: the geometry (a path, or
 /// a move with its robot), the motion, the robot and the optimisers, or every violation of the
 /// request together (field paths absolute), within the server's `limits` (key frames,
-/// analysis points, optimize.timeBudgetS).
+/// analysis points, optimize.timeBudgetS). A robot's URDF is parsed within `stop_at`.
 core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
-                                                     const ServiceLimits& limits, RequestUse use);
+                                                     const ServiceLimits& limits, RequestUse use,
+                                                     const planner::StopAt& stop_at = {});
 
 /// The optimisers' reports.
 void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out);

@@ -14,13 +14,13 @@ namespace {
 
 // The request's robot, resolved, or its violations appended to `out`.
 std::shared_ptr<const planner::Robot> robot_of(bool has_robot, const v1::RobotSpec& spec, const RobotCatalog& catalog,
-                                               core::Violations& out) {
+                                               const planner::StopAt& stop_at, core::Violations& out) {
   if (!has_robot) {
     out.push_back({"robot", "is required: `name` of a built-in model (see ListRobots), an inline `model` or a `urdf` "
                             "document"});
     return nullptr;
   }
-  auto robot = robot_from_request(spec, catalog, /*motion=*/false);
+  auto robot = robot_from_request(spec, catalog, /*motion=*/false, stop_at);
   if (!robot) {
     out.insert(out.end(), robot.error().begin(), robot.error().end());
     return nullptr;
@@ -40,10 +40,11 @@ void set_solution(const planner::IkSolution& s, v1::IkSolution& out) {
 }  // namespace
 
 core::Expected<planner::ForwardRequest> forward_request_from_proto(const v1::ForwardKinematicsRequest& request,
-                                                                   const RobotCatalog& catalog) {
+                                                                   const RobotCatalog& catalog,
+                                                                   const planner::StopAt& stop_at) {
   core::Violations out;
   planner::ForwardRequest converted;
-  converted.robot = robot_of(request.has_robot(), request.robot(), catalog, out);
+  converted.robot = robot_of(request.has_robot(), request.robot(), catalog, stop_at, out);
   if (converted.robot) {
     const std::size_t n = converted.robot->model.dof();
     if (static_cast<std::size_t>(request.joints_size()) != n) {
@@ -67,10 +68,11 @@ core::Expected<planner::ForwardRequest> forward_request_from_proto(const v1::For
 }
 
 core::Expected<planner::InverseRequest> inverse_request_from_proto(const v1::InverseKinematicsRequest& request,
-                                                                   const RobotCatalog& catalog) {
+                                                                   const RobotCatalog& catalog,
+                                                                   const planner::StopAt& stop_at) {
   core::Violations out;
   planner::InverseRequest converted;
-  converted.robot = robot_of(request.has_robot(), request.robot(), catalog, out);
+  converted.robot = robot_of(request.has_robot(), request.robot(), catalog, stop_at, out);
   if (!request.has_target()) {
     out.push_back({"target", "is required: the tool pose in W to reach (position [m], orientation)"});
   } else {

@@ -6,6 +6,7 @@
 #include "core/error.hpp"
 #include "geotraj/v1/geotraj.pb.h"
 #include "planner/kinematics.hpp"
+#include "planner/robots.hpp"
 #include "server/wire/convert.hpp"
 
 namespace geotraj::server {
@@ -19,15 +20,18 @@ inline constexpr std::uint32_t kMaxIkSolutions = 1000;
 inline constexpr double kMaxTargetCoordinate = 1e6;
 
 /// A ForwardKinematicsRequest converted, or every violation: `robot` (required; as in a
-/// PlanRequest), `joints` (one per joint, finite, magnitude at most 1e6).
+/// PlanRequest; a URDF parsed within `stop_at`), `joints` (one per joint, finite, magnitude
+/// at most 1e6).
 core::Expected<planner::ForwardRequest> forward_request_from_proto(const v1::ForwardKinematicsRequest& request,
-                                                                   const RobotCatalog& catalog);
+                                                                   const RobotCatalog& catalog,
+                                                                   const planner::StopAt& stop_at = {});
 
 /// An InverseKinematicsRequest converted, or every violation: `robot`, `target` (required;
 /// a position within 1e6 m of the origin, a unit quaternion), `restarts`, `maxSolutions`, `positionTolerance`,
 /// `orientationTolerance` (their ranges in the proto).
 core::Expected<planner::InverseRequest> inverse_request_from_proto(const v1::InverseKinematicsRequest& request,
-                                                                   const RobotCatalog& catalog);
+                                                                   const RobotCatalog& catalog,
+                                                                   const planner::StopAt& stop_at = {});
 
 void to_proto(const planner::Forward& forward, v1::ForwardKinematicsResponse& out);
 void to_proto(const planner::Inverse& inverse, v1::InverseKinematicsResponse& out);

@@ -3,6 +3,7 @@
 // URDF specification's formulas: no urdfdom, no geotraj chain); the Panda and the UR5e agree
 // with their makers' DH tables; continuous and fixed joints, base and tip links; and every
 // kind of bad document is refused with the element and line it is about.
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -11,6 +12,7 @@
 #include <numbers>
 #include <random>
 #include <sstream>
+#include <stop_token>
 #include <string>
 
 #include <gmock/gmock.h>
@@ -599,6 +601,31 @@ TEST(Urdf, RealDocumentsPassTheBounds) {
     auto m = planner::robot_from_urdf(text, chain(d.base, d.tip));
     EXPECT_TRUE(m) << (m ? std::string() : listed(m.error()));
   }
+}
+
+// The parse gives up between its stages once the call's deadline has passed or the call
+// was cancelled: a valid document is then refused with a violation of `urdf` that says so,
+// and is read whole with time left.
+TEST(Urdf, TheParseStopsAtTheDeadlineOrOnCancellation) {
+  const std::string text(planner::builtin_urdf("ur5e"));
+  ASSERT_FALSE(text.empty());
+  planner::UrdfOptions late;
+  late.stop_at.deadline = std::chrono::steady_clock::now() - std::chrono::milliseconds(1);
+  auto m = planner::robot_from_urdf(text, late);
+  ASSERT_FALSE(m);
+  ASSERT_EQ(m.error().size(), 1u);
+  EXPECT_EQ(m.error()[0].field, "urdf");
+  EXPECT_THAT(m.error()[0].description, HasSubstr("deadline passed or it was cancelled"));
+
+  std::stop_source cancel;
+  cancel.request_stop();
+  planner::UrdfOptions cancelled;
+  cancelled.stop_at.stop = cancel.get_token();
+  EXPECT_FALSE(planner::robot_from_urdf(text, cancelled));
+
+  planner::UrdfOptions in_time;
+  in_time.stop_at.deadline = std::chrono::steady_clock::now() + std::chrono::hours(1);
+  EXPECT_TRUE(planner::robot_from_urdf(text, in_time));
 }
 
 // Messages point at the line: the element's own line in the document.

@@ -1150,13 +1150,12 @@ core::FieldViolation in_step(core::FieldViolation v, int i, const v1::SequenceSt
   return v;
 }
 
-}  // namespace
-
-core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
-                                                     const ServiceLimits& limits, RequestUse use,
-                                                     const planner::StopAt& stop_at);
-
-namespace {
+// One path, move or line (a request's, or a sequence step's); `robot`, when given, is the
+// request's robot already resolved (a sequence resolves it once for all its steps).
+core::Expected<planner::Request> single_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
+                                                   const ServiceLimits& limits, RequestUse use,
+                                                   const planner::StopAt& stop_at,
+                                                   std::shared_ptr<const planner::Robot> robot);
 
 // PlanRequest.sequence: each step converted as a request of its own (the request's robot,
 // motion unless the step gives one, optimize for paths), every violation named from the root.
@@ -1176,6 +1175,14 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
                                           std::to_string(kMaxSequenceSteps) + " are planned in one request"});
   }
   if (!violations.empty()) return tl::unexpected(std::move(violations));
+  // The robot, once for every step (a URDF is read once, not once a step); the steps of a
+  // sequence whose robot does not resolve are not checked.
+  std::shared_ptr<const planner::Robot> robot;
+  if (request.has_robot()) {
+    auto resolved = robot_from_request(request.robot(), catalog, true, stop_at);
+    if (!resolved) return tl::unexpected(std::move(resolved.error()));
+    robot = std::make_shared<const planner::Robot>(std::move(*resolved));
+  }
   planner::Request out;
   bool any_path = false;
   for (int i = 0; i < request.sequence_size(); ++i) {
@@ -1226,7 +1233,7 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
                                               : "give exactly one of `path`, `jointMove` and `linearMove`"});
       continue;
     }
-    auto converted = request_from_proto(sub, catalog, limits, use, stop_at);
+    auto converted = single_from_proto(sub, catalog, limits, use, stop_at, robot);
     if (!converted) {
       for (auto& v : converted.error()) {
         auto named = in_step(std::move(v), i, step);
@@ -1250,12 +1257,10 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
   return out;
 }
 
-}  // namespace
-
-core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
-                                                     const ServiceLimits& limits, RequestUse use,
-                                                     const planner::StopAt& stop_at) {
-  if (request.sequence_size() > 0) return sequence_from_proto(request, catalog, limits, use, stop_at);
+core::Expected<planner::Request> single_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
+                                                   const ServiceLimits& limits, RequestUse use,
+                                                   const planner::StopAt& stop_at,
+                                                   std::shared_ptr<const planner::Robot> robot) {
   planner::Request out;
   const bool moves = request.has_joint_move() || request.has_linear_move();
   if (!request.has_motion()) {
@@ -1307,7 +1312,9 @@ core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& reque
   } else {
     violations = joined(std::move(violations), motion.error());
   }
-  if (request.has_robot()) {
+  if (robot) {
+    out.robot = std::move(robot);
+  } else if (request.has_robot()) {
     if (auto resolved = robot_from_request(request.robot(), catalog, true, stop_at)) {
       out.robot = std::make_shared<const planner::Robot>(std::move(*resolved));
     } else {
@@ -1345,6 +1352,15 @@ core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& reque
   auto converted = path_request(request, limits, std::move(out));
   if (violations.empty()) return converted;
   return tl::unexpected(converted ? std::move(violations) : joined(std::move(converted.error()), violations));
+}
+
+}  // namespace
+
+core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
+                                                     const ServiceLimits& limits, RequestUse use,
+                                                     const planner::StopAt& stop_at) {
+  if (request.sequence_size() > 0) return sequence_from_proto(request, catalog, limits, use, stop_at);
+  return single_from_proto(request, catalog, limits, use, stop_at, nullptr);
 }
 
 void to_proto(const planner::OptimizerReports& reports, v1::OptimizationReport& out) {

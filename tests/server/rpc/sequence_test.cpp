@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>
 #include <gmock/gmock.h>
 
+#include "planner/robots.hpp"
 #include "tests/server/support/test_server.hpp"
 
 namespace geotraj::testing {
@@ -126,6 +127,31 @@ TEST_F(SequenceTest, PickAndPlaceStreamsOneContinuousMotionWithinTheJointLimits)
   EXPECT_NEAR(std::abs(samples.back().orientation().y()), 1.0, 1e-9);
   EXPECT_TRUE(response.robot().feasible());
   EXPECT_TRUE(response.robot().violations().empty());
+}
+
+// A sequence's robot given as a URDF document is read once for all its steps: the same
+// pick-and-place on the UR5e's URDF plans and streams; a document that does not parse is
+// one violation of robot.urdf, not one a step.
+TEST_F(SequenceTest, ARobotGivenAsUrdfServesEveryStep) {
+  auto request = example<v1::PlanRequest>("sequence_ur5.json");
+  const std::string urdf(planner::builtin_urdf("ur5e"));
+  ASSERT_FALSE(urdf.empty());
+  request.mutable_robot()->clear_name();
+  request.mutable_robot()->set_urdf(urdf);
+  const auto response = plan_ok(request);
+  EXPECT_EQ(response.steps_size(), 4);
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_EQ(samples.size(), response.motion().sample_count());
+
+  request.mutable_robot()->set_urdf(urdf.substr(0, urdf.size() / 2));
+  v1::PlanResponse refused;
+  status = plan(request, refused);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+  const auto violations = bad_request_violations(status);
+  ASSERT_EQ(violations.size(), 1u) << describe(violations);
+  EXPECT_EQ(violations[0].field, "robot.urdf");
 }
 
 TEST_F(SequenceTest, AGivenStartElsewhereIsNamed) {

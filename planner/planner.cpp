@@ -457,10 +457,18 @@ Error in_step(Error error, std::size_t i, const Step& step) {
     return error;
   }
   const std::string prefix = "sequence[" + std::to_string(i) + "].";
+  // A motion field is the step's when its own motion gives it ("motion" alone: it has one).
+  const auto own_motion_field = [&step](const std::string& field) {
+    if (!step.own_motion) return false;
+    if (field == "motion") return true;
+    const std::string name = field.substr(7, field.find_first_of(".[", 7) - 7);  // after "motion."
+    return std::find(step.own_motion_fields.begin(), step.own_motion_fields.end(), name) !=
+           step.own_motion_fields.end();
+  };
   for (auto& v : error.violations) {
-    const bool motion = v.field.rfind("motion", 0) == 0;
+    const bool motion = v.field == "motion" || v.field.rfind("motion.", 0) == 0;
     const bool own = v.field.rfind("path", 0) == 0 || v.field.rfind("jointMove", 0) == 0 ||
-                     v.field.rfind("linearMove", 0) == 0 || (motion && step.own_motion);
+                     v.field.rfind("linearMove", 0) == 0 || (motion && own_motion_field(v.field));
     if (own) {
       v.field = prefix + v.field;
     } else {

@@ -94,6 +94,9 @@ struct Step {
   Geometry geometry;
   core::MotionSpec motion;
   bool own_motion = false;   ///< sequence[i].motion was given (else the request's motion)
+  /// The fields sequence[i].motion gives (API names: "maxSpeed", ...); the others come from
+  /// the request's motion, and a violation of one of them is named there.
+  std::vector<std::string> own_motion_fields;
   /// A move's start was given (jointMove.start, linearMove.start): it must be where the
   /// previous step ends. Not given: it is that end (the wire's placeholder is replaced).
   bool start_given = false;

@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 
+#include "core/planning/corner_blend.hpp"
 #include "google/rpc/error_details.pb.h"
 #include "google/rpc/status.pb.h"
 #include "server/status_codes.hpp"
@@ -80,6 +81,14 @@ void print_steps(const v1::PlanResponse& response, std::ostream& out) {
     if (s.kind() == "path") out << "  max error" << num(s.closed_loop().max_error(), 1);
     out << '\n';
     for (const auto& c : s.corners()) {
+      if (c.corner() <= core::kSmoothJunction) {  // tangent-continuous: the curvature blended
+        std::snprintf(buf, sizeof buf,
+                      "       junction after step %u: tangent-continuous, its curvature blended (segment %u) within "
+                      "%.4g m of the route (tolerance %.4g m), replacing %.4g m before and %.4g m after\n",
+                      c.after_step(), c.segment(), c.deviation(), c.tolerance(), c.cut_before(), c.cut_after());
+        out << buf;
+        continue;
+      }
       std::snprintf(buf, sizeof buf,
                     "       corner after step %u: turns %.4g deg, blend (segment %u) within %.4g m of the route "
                     "(tolerance %.4g m), replacing %.4g m before and %.4g m after\n",

@@ -62,6 +62,12 @@ using BlendPiece = std::variant<BlendLine, PathSpec>;
 /// for a blend within a tolerance (the blend would be a hairpin).
 inline constexpr double kMaxBlendedCorner = 170.0 * 3.14159265358979323846 / 180.0;
 
+/// Largest turn [rad] of a junction that is not a corner: pieces whose tangents agree within
+/// it meet tangent-continuously. Their blend rounds no corner: between collinear lines it is
+/// straight (and reports do not list it); between a line and a path it makes the curvature
+/// continuous (reported as such, not as a turn).
+inline constexpr double kSmoothJunction = 1e-6;
+
 /// One blended corner, between piece `after` and piece `after + 1`.
 struct CornerBlend {
   std::size_t after = 0;

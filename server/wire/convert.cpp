@@ -1140,14 +1140,50 @@ core::Expected<planner::Request> path_request(const v1::PlanRequest& request, co
 
 constexpr int kMaxSequenceSteps = 64;
 
+// The fields a step's own motion gives, by their API names ("maxSpeed", ...).
+std::vector<std::string> given_motion_fields(const v1::SequenceStep& step) {
+  std::vector<const google::protobuf::FieldDescriptor*> fields;
+  if (step.has_motion()) v1::MotionSpec::GetReflection()->ListFields(step.motion(), &fields);
+  std::vector<std::string> names;
+  for (const auto* f : fields) names.push_back(f->camelcase_name());
+  return names;
+}
+
+// Whether a step's own motion gives the field `field` names ("motion.maxSpeed"; "motion"
+// alone: the step has a motion), so that a violation is named where the user wrote it.
+bool step_gives(const v1::SequenceStep& step, std::string_view field) {
+  if (!step.has_motion()) return false;
+  if (field == "motion") return true;
+  field.remove_prefix(std::string_view("motion.").size());
+  const auto given = given_motion_fields(step);
+  return std::find(given.begin(), given.end(), field.substr(0, field.find_first_of(".["))) != given.end();
+}
+
 // A violation of a step's own request, named from the root: the step's fields under
-// `sequence[i].` (its motion only when it gives one), the request's as they are.
+// `sequence[i].` (a motion field only when the step's motion gives it; else the request's
+// `motion`, which it took the field from), the request's as they are.
 core::FieldViolation in_step(core::FieldViolation v, int i, const v1::SequenceStep& step) {
-  const auto starts = [&v](const char* prefix) { return v.field.rfind(prefix, 0) == 0; };
-  if (starts("path") || starts("jointMove") || starts("linearMove") || (starts("motion") && step.has_motion())) {
+  const auto starts = [&v](std::string_view prefix) {
+    return v.field.rfind(prefix, 0) == 0 && (v.field.size() == prefix.size() || v.field[prefix.size()] == '.' ||
+                                             v.field[prefix.size()] == '[');
+  };
+  if (starts("path") || starts("jointMove") || starts("linearMove") || (starts("motion") && step_gives(step, v.field))) {
     v.field = "sequence[" + std::to_string(i) + "]." + v.field;
   }
   return v;
+}
+
+// The rate a step streams at and the field that set it: the step's motion, else the
+// request's, else core::MotionSpec's default.
+std::pair<double, std::string> step_rate(const v1::PlanRequest& request, int i) {
+  const auto& step = request.sequence(i);
+  if (step.has_motion() && step.motion().has_cycle_rate_hz()) {
+    return {step.motion().cycle_rate_hz(), "sequence[" + std::to_string(i) + "].motion.cycleRateHz"};
+  }
+  if (request.has_motion() && request.motion().has_cycle_rate_hz()) {
+    return {request.motion().cycle_rate_hz(), "motion.cycleRateHz"};
+  }
+  return {core::MotionSpec{}.cycle_rate_hz, "the default"};
 }
 
 // One path, move or line (a request's, or a sequence step's); `robot`, when given, is the
@@ -1185,6 +1221,7 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
   }
   planner::Request out;
   bool any_path = false;
+  bool first_rate_named = false;
   for (int i = 0; i < request.sequence_size(); ++i) {
     const auto& step = request.sequence(i);
     const std::string field = "sequence[" + std::to_string(i) + "]";
@@ -1194,7 +1231,10 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
     }
     v1::PlanRequest sub;
     if (request.has_robot()) *sub.mutable_robot() = request.robot();
-    *sub.mutable_motion() = step.has_motion() ? step.motion() : request.motion();
+    // The step's motion over the request's: every field the step does not give, the
+    // request's motion gives.
+    *sub.mutable_motion() = request.motion();
+    if (step.has_motion()) sub.mutable_motion()->MergeFrom(step.motion());
     sub.set_pacing(request.pacing());
     if (request.has_samples_per_batch()) sub.set_samples_per_batch(request.samples_per_batch());
     bool start_given = false;
@@ -1227,6 +1267,19 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
         violations.push_back({field + ".blendTolerance", "the last step has no corner after it to blend"});
       }
     }
+    if (const auto [rate, source] = step_rate(request, i); i > 0 && rate != step_rate(request, 0).first) {
+      const auto [first_rate, first_source] = step_rate(request, 0);
+      // Named on the field the user gave: this step's, else (once) the first step's.
+      const bool own = source.starts_with("sequence[");
+      if (own || !first_rate_named) {
+        violations.push_back({own ? source : first_source,
+                              "is " + core::number(own ? rate : first_rate) +
+                                  " Hz; every step of a sequence streams at one rate, " +
+                                  core::number(own ? first_rate : rate) + " Hz (" + (own ? first_source : source) +
+                                  ")"});
+        first_rate_named = first_rate_named || !own;
+      }
+    }
     const int kinds = int(step.has_path()) + int(step.has_joint_move()) + int(step.has_linear_move());
     if (kinds != 1) {
       violations.push_back({field, kinds == 0 ? "is empty: give a `path`, a `jointMove` or a `linearMove`"
@@ -1248,7 +1301,8 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
     if (!out.optimize) out.optimize = converted->optimize;
     if (!out.motion) out.motion = converted->motion;
     out.sequence.push_back(
-        planner::Step{std::move(converted->geometry), *converted->motion, step.has_motion(), start_given, blend, {}});
+        planner::Step{std::move(converted->geometry), *converted->motion, step.has_motion(), given_motion_fields(step),
+                      start_given, blend, {}});
   }
   if (request.has_optimize() && !any_path) {
     violations.push_back({"optimize", "applies to the paths of a sequence, and this one has none"});
@@ -1401,6 +1455,8 @@ void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanRespons
       out.set_last_index(static_cast<std::uint32_t>(s.last_index));
       out.set_kind(s.kind);
       for (const auto& c : s.corners) {
+        // Collinear lines: no corner, and their blend is the line itself.
+        if (c.corner <= core::kSmoothJunction && c.deviation <= 1e-9) continue;
         auto& corner = *out.add_corners();
         corner.set_after_step(static_cast<std::uint32_t>(s.index + c.after));
         corner.set_segment(static_cast<std::uint32_t>(c.segment));

@@ -154,6 +154,49 @@ TEST_F(SequenceTest, ARobotGivenAsUrdfServesEveryStep) {
   EXPECT_EQ(violations[0].field, "robot.urdf");
 }
 
+// A step's own motion takes every field it does not give from the request's motion: a step
+// that gives only its duration streams at the request's cycleRateHz (250 Hz here), and a
+// violation is named on the field the user wrote (the request's motion or the step's).
+TEST_F(SequenceTest, AStepsMotionTakesTheFieldsItDoesNotGiveFromTheRequests) {
+  auto request = example<v1::PlanRequest>("sequence_ur5.json");
+  request.mutable_motion()->set_cycle_rate_hz(250);
+  request.mutable_sequence(1)->mutable_motion()->clear_cycle_rate_hz();  // durationS 1.5 only
+  const auto response = plan_ok(request);
+  ASSERT_EQ(response.steps_size(), 4);
+  EXPECT_NEAR(response.steps(1).duration_s(), 1.5, 1e-12);
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  for (std::size_t k = 1; k + 1 < samples.size(); ++k) {
+    ASSERT_NEAR(samples[k].t() - samples[k - 1].t(), 1.0 / 250.0, 1e-9) << "sample " << k;
+  }
+
+  // A bad maxSpeed in the request's motion, taken by step 1: named motion.maxSpeed.
+  request.mutable_motion()->set_max_speed(-1.0);
+  v1::PlanResponse refused;
+  status = plan(request, refused);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+  auto violations = bad_request_violations(status);
+  EXPECT_FALSE(violation_of(violations, "motion.maxSpeed").empty()) << describe(violations);
+  EXPECT_TRUE(violation_of(violations, "sequence[1].motion.maxSpeed").empty()) << describe(violations);
+  // The same given by step 1 itself: named there.
+  request.mutable_motion()->set_max_speed(0.25);
+  request.mutable_sequence(1)->mutable_motion()->set_max_speed(-1.0);
+  status = plan(request, refused);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+  violations = bad_request_violations(status);
+  EXPECT_FALSE(violation_of(violations, "sequence[1].motion.maxSpeed").empty()) << describe(violations);
+
+  // Two rates: named on the step's own field, the other rate's field quoted.
+  request.mutable_sequence(1)->mutable_motion()->set_max_speed(0.25);
+  request.mutable_sequence(1)->mutable_motion()->set_cycle_rate_hz(500);
+  status = plan(request, refused);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+  violations = bad_request_violations(status);
+  EXPECT_THAT(violation_of(violations, "sequence[1].motion.cycleRateHz"),
+              HasSubstr("one rate, 250 Hz (motion.cycleRateHz)"));
+}
+
 TEST_F(SequenceTest, AGivenStartElsewhereIsNamed) {
   auto request = example<v1::PlanRequest>("sequence_ur5.json");
   auto* start = request.mutable_sequence(1)->mutable_linear_move()->mutable_start();
@@ -295,6 +338,33 @@ v1::PlanRequest blended_s_curve(double duration) {
 // own acceleration is continuous, so a jump could only come from the geometry: a G1 arc's
 // curvature steps from 0 to 1/r and the centripetal acceleration with it), the curvature 0
 // on both sides of every cut frame, and every joint within its limits by finite differences.
+// A junction where the lines go on in the same direction is no corner: a blended chain down
+// z in two lines (then across) lists only the real corner, and streams through the
+// tangent-continuous junction without resting.
+TEST_F(SequenceTest, ATangentContinuousJunctionIsNotACorner) {
+  auto request = example<v1::PlanRequest>("sequence_blended_ur5.json");
+  ASSERT_EQ(request.sequence_size(), 4);
+  // Step 1 goes down to z 0.3 (blended into step 2); step 2 now goes on down to z 0.25,
+  // step 3 across from there.
+  auto* down = request.mutable_sequence(2)->mutable_linear_move()->mutable_goal()->mutable_position();
+  down->set_x(-0.3);
+  down->set_y(-0.25);
+  down->set_z(0.25);
+  request.mutable_sequence(2)->set_blend_tolerance(0.02);
+  auto* across = request.mutable_sequence(3)->mutable_linear_move()->mutable_goal()->mutable_position();
+  across->set_x(-0.1);
+  across->set_y(-0.45);
+  across->set_z(0.25);
+  request.mutable_sequence(3)->clear_blend_tolerance();
+  const auto response = plan_ok(request);
+  ASSERT_EQ(response.steps_size(), 2);
+  const auto& chain = response.steps(1);
+  EXPECT_EQ(chain.kind(), "blended");
+  ASSERT_EQ(chain.corners_size(), 1) << "only the turn from down to across";
+  EXPECT_EQ(chain.corners(0).after_step(), 2u);
+  EXPECT_NEAR(chain.corners(0).corner(), M_PI / 2, 1e-9);
+}
+
 TEST_F(SequenceTest, BlendedCornersStayWithinTheToleranceAndKeepTheAccelerationContinuous) {
   auto request = blended_s_curve(4.0);
   const auto response = plan_ok(request);

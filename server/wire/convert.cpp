@@ -1220,7 +1220,7 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
     robot = std::make_shared<const planner::Robot>(std::move(*resolved));
   }
   planner::Request out;
-  bool any_path = false;
+  bool any_path = false, any_line = false;
   bool first_rate_named = false;
   for (int i = 0; i < request.sequence_size(); ++i) {
     const auto& step = request.sequence(i);
@@ -1249,6 +1249,7 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
     }
     if (step.has_linear_move()) {
       *sub.mutable_linear_move() = step.linear_move();
+      any_line = true;
       if (request.has_optimize()) {  // its timing (a line has no shape to optimise)
         *sub.mutable_optimize()->mutable_timing() = request.optimize().timing();
         if (request.optimize().has_time_budget_s()) sub.mutable_optimize()->set_time_budget_s(request.optimize().time_budget_s());
@@ -1304,8 +1305,14 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
         planner::Step{std::move(converted->geometry), *converted->motion, step.has_motion(), given_motion_fields(step),
                       start_given, blend, {}});
   }
-  if (request.has_optimize() && !any_path) {
-    violations.push_back({"optimize", "applies to the paths of a sequence, and this one has none"});
+  // optimize.timing times the paths and lines (a blended chain of lines included); the
+  // shape optimisers need a path.
+  if (request.has_optimize() && !any_path && !any_line) {
+    violations.push_back({"optimize", "applies to the paths and lines of a sequence, and this one has neither"});
+  } else if (request.has_optimize() && !any_path &&
+             (request.optimize().has_tangent_scales() || request.optimize().has_breakpoints())) {
+    violations.push_back({request.optimize().has_tangent_scales() ? "optimize.tangentScales" : "optimize.breakpoints",
+                          "shapes the paths of a sequence, and this one has none (optimize.timing times its lines)"});
   }
   if (!violations.empty()) return tl::unexpected(std::move(violations));
   return out;

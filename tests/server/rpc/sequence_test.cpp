@@ -365,6 +365,43 @@ TEST_F(SequenceTest, ATangentContinuousJunctionIsNotACorner) {
   EXPECT_NEAR(chain.corners(0).corner(), M_PI / 2, 1e-9);
 }
 
+// optimize.timing times a sequence of lines, a blended chain of them included: accepted, and
+// the chain's timing reported; the shape optimisers still need a path.
+TEST_F(SequenceTest, OptimizeTimingTimesABlendedChainOfLines) {
+  auto request = example<v1::PlanRequest>("sequence_blended_ur5.json");
+  request.mutable_optimize()->mutable_timing()->set_time_optimal(true);
+  const auto response = plan_ok(request);
+  ASSERT_EQ(response.steps_size(), 2);
+  EXPECT_EQ(response.steps(1).kind(), "blended");
+  EXPECT_TRUE(response.steps(1).optimization().has_timing()) << response.steps(1).DebugString();
+
+  // Jerk-limited, with joint jerk limits given for the UR5 (its model has none).
+  auto jerk = request;
+  jerk.mutable_optimize()->mutable_timing()->set_jerk_limited(true);
+  const auto all = [&] {
+    v1::ListRobotsResponse r;
+    EXPECT_TRUE(stub_->ListRobots(context().get(), v1::ListRobotsRequest{}, &r).ok());
+    return r;
+  }();
+  const v1::RobotModel* ur5 = model(all, "ur5");
+  ASSERT_NE(ur5, nullptr);
+  for (const auto& link : ur5->links()) {
+    auto* l = jerk.mutable_robot()->add_joint_limits();
+    l->set_joint(link.name());
+    l->set_max_jerk(50.0);
+  }
+  const auto jerk_response = plan_ok(jerk);
+  ASSERT_EQ(jerk_response.steps_size(), 2);
+  EXPECT_GE(jerk_response.motion().duration_s(), response.motion().duration_s() - 1e-9)
+      << "jerk limits cannot make it faster";
+
+  request.mutable_optimize()->mutable_tangent_scales()->set_objective(v1::TANGENT_SCALE_OBJECTIVE_BENDING_ENERGY);
+  v1::PlanResponse refused;
+  const auto status = plan(request, refused);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+  EXPECT_THAT(violation_of(bad_request_violations(status), "optimize.tangentScales"), HasSubstr("has none"));
+}
+
 TEST_F(SequenceTest, BlendedCornersStayWithinTheToleranceAndKeepTheAccelerationContinuous) {
   auto request = blended_s_curve(4.0);
   const auto response = plan_ok(request);

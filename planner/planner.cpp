@@ -821,7 +821,7 @@ std::optional<Expected<Request>> with_approach(const Request& request) {
   approach.motion = *request.motion;
   approach.motion.duration_s = 0.0;  // as fast as the joint limits (and a line's Cartesian ones) allow
   // The room for live speed changes (reserve_room), unless the request's motion has it already.
-  if (!request.motion_reserved) approach.motion.speed_scale *= std::sqrt(1.0 - request.reserve);
+  if (!request.motion_reserved) approach.motion.acceleration_scale *= 1.0 - request.reserve;
   // Within the jerks too where the model gives them (a double S; a trapezoid's jerk is unbounded).
   const auto& limits = robot->model.limits;
   if (std::any_of(limits.begin(), limits.end(), [](const core::JointLimits& l) { return l.max_jerk.has_value(); })) {
@@ -863,19 +863,19 @@ void prepare_execution(Request& request, double reserve) {
 }
 
 void reserve_room(Request& request, double reserve) {
-  const double factor = std::sqrt(1.0 - std::clamp(reserve, 0.0, 0.99));
+  const double factor = 1.0 - std::clamp(reserve, 0.0, 0.99);  // of every acceleration and jerk limit
   request.reserve = reserve;
   const bool robot = request.robot != nullptr;
   const bool time_optimal = request.optimize && request.optimize->time_optimal;
   const bool jerk_limited = request.optimize && request.optimize->jerk_limited;
   if (request.motion && time_optimally_timed(*request.motion, robot, time_optimal, jerk_limited)) {
-    request.motion->speed_scale *= factor;
+    request.motion->acceleration_scale *= factor;
     request.motion_reserved = true;
   }
   for (Step& step : request.sequence) {
     const bool path = std::holds_alternative<core::PathSpec>(step.geometry);
     if (time_optimally_timed(step.motion, robot, path && time_optimal, path && jerk_limited)) {
-      step.motion.speed_scale *= factor;
+      step.motion.acceleration_scale *= factor;
     }
   }
 }

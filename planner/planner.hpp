@@ -128,9 +128,11 @@ struct Request {
 
 /// Leaves `reserve` (in [0, 0.99]) of every acceleration free, for live speed changes, in the
 /// motions the limits time (time_optimally_timed: time-optimal paths, minimum-time moves,
-/// and robot.approach): their speedScale times sqrt(1 - reserve), so that their velocities
-/// use at most that factor of the limits, accelerations its square (1 - reserve) and jerks
-/// its cube. A motion with a durationS keeps the room it has. A step of a sequence that takes
+/// and robot.approach): their acceleration and jerk limits (joint and Cartesian) times
+/// 1 - reserve (core::MotionSpec::acceleration_scale); their velocity limits unchanged, so a
+/// motion whose pace a speed limit sets (a process speed: welding, dispensing) cruises at
+/// it, and only its speed-ups and slow-downs take longer. A motion with a durationS keeps
+/// the room it has. A step of a sequence that takes
 /// the request's motion (own_motion false) holds a copy of it, scaled with the others.
 void reserve_room(Request& request, double reserve);
 

@@ -142,6 +142,8 @@ Violations validate_motion(const MotionSpec& spec) {
     v.push_back({"motion.timeParameterization", "unknown time parameterization " + std::to_string(tp)});
   if (!finite_positive(spec.speed_scale) || spec.speed_scale > 1.0)
     v.push_back({"motion.speedScale", "must be in (0, 1], got " + number(spec.speed_scale)});
+  if (!finite_positive(spec.acceleration_scale) || spec.acceleration_scale > 1.0)
+    v.push_back({"motion.accelerationScale", "must be in (0, 1], got " + number(spec.acceleration_scale)});
   const auto check_limit = [&](const char* field, const std::optional<double>& x, const char* unit) {
     if (x && !finite_positive(*x))
       v.push_back({field, std::string("must be finite and > 0 ") + unit + " when given, got " + number(*x)});

@@ -56,6 +56,11 @@ struct MotionSpec {
   /// Multiplies every speed (speedScale), in (0, 1]: the duration is divided by it, the
   /// minimum-time limits become v_max s, a_max s^2, j_max s^3 (the same motion, slower).
   double speed_scale = 1.0;
+  /// Multiplies every acceleration and jerk limit of a minimum-time timing (joint and
+  /// Cartesian), in (0, 1], the velocity limits unchanged: Execute's acceleration reserve
+  /// (planner::reserve_room), so that a motion whose pace a speed limit sets keeps it. Not
+  /// on the wire.
+  double acceleration_scale = 1.0;
   std::optional<double> max_speed;         ///< [m/s] (maxSpeed), > 0
   std::optional<double> max_acceleration;  ///< [m/s^2] (maxAcceleration), > 0: tangential and centripetal
   std::optional<double> max_jerk;          ///< [m/s^3] (maxJerk), > 0: tangential

@@ -138,13 +138,13 @@ Expected<JointMovePlan> plan_joint_move(const RobotModel& model, const JointMove
       moving = true;
       const JointLimits& lim = model.limits[i];
       const double v_i = std::min(kHuge, lim.max_velocity * scale / d);
-      const double a_i = std::min(kHuge, lim.max_acceleration * scale * scale / d);
+      const double a_i = std::min(kHuge, lim.max_acceleration * scale * scale * motion.acceleration_scale / d);
       v_x = std::min(v_x, v_i);
       a_x = std::min(a_x, a_i);
       double j_i = kHuge;
       if (lim.max_jerk) {
         jerk_limited = true;
-        j_i = std::min(kHuge, *lim.max_jerk * scale * scale * scale / d);
+        j_i = std::min(kHuge, *lim.max_jerk * scale * scale * scale * motion.acceleration_scale / d);
         j_x = std::min(j_x, j_i);
       }
       // This joint's own minimum time (its profile of x), to name the slowest joint.
@@ -268,18 +268,19 @@ Expected<LinearMovePlan> plan_linear_move(const LinearMoveSpec& spec, const Moti
                                       : "is 0 for a move whose start and goal poses coincide") +
              ": give a duration; maxSpeed, maxAcceleration and maxJerk bound the translation only"}});
   } else {
-    double v_lim = *motion.max_speed * scale, a_lim = *motion.max_acceleration * scale * scale;
+    const double reserve = motion.acceleration_scale;  // Execute's room for speed changes
+    double v_lim = *motion.max_speed * scale, a_lim = *motion.max_acceleration * scale * scale * reserve;
     // The tool turns at theta / L per metre (6.2): its angular limits cap the line's speed
     // and acceleration at omega_max L / theta and alpha_max L / theta.
     if (plan.theta > 0.0 && motion.max_angular_speed) {
       v_lim = std::min(v_lim, *motion.max_angular_speed * scale * plan.length / plan.theta);
     }
     if (plan.theta > 0.0 && motion.max_angular_acceleration) {
-      a_lim = std::min(a_lim, *motion.max_angular_acceleration * scale * scale * plan.length / plan.theta);
+      a_lim = std::min(a_lim, *motion.max_angular_acceleration * scale * scale * reserve * plan.length / plan.theta);
     }
     profile = motion.profile == ProfileShape::kTrapezoidal
                   ? min_time_trapezoid(plan.length, v_lim, a_lim)
-                  : min_time_double_s(plan.length, v_lim, a_lim, *motion.max_jerk * scale * scale * scale);
+                  : min_time_double_s(plan.length, v_lim, a_lim, *motion.max_jerk * scale * scale * scale * reserve);
   }
   if (!profile) return tl::make_unexpected(prefixed(profile.error(), "motion."));
   plan.profile = std::move(*profile);

@@ -313,19 +313,20 @@ Expected<TimeOptimalSolution> solve_time_optimal(const std::vector<GridPoint>& g
 TimeOptimalLimits time_optimal_limits(const MotionSpec& spec, const RobotModel* robot) {
   TimeOptimalLimits lim;
   const double sc = spec.speed_scale;
+  const double ac = sc * sc * spec.acceleration_scale;  // accelerations: the time scaling's s^2, the reserve
   if (robot) {
     const Eigen::Index n = static_cast<Eigen::Index>(robot->dof());
     lim.joint_velocity.resize(n);
     lim.joint_acceleration.resize(n);
     for (Eigen::Index j = 0; j < n; ++j) {
       lim.joint_velocity(j) = robot->limits[static_cast<std::size_t>(j)].max_velocity * sc;
-      lim.joint_acceleration(j) = robot->limits[static_cast<std::size_t>(j)].max_acceleration * sc * sc;
+      lim.joint_acceleration(j) = robot->limits[static_cast<std::size_t>(j)].max_acceleration * ac;
     }
   }
   if (spec.max_speed) lim.speed = *spec.max_speed * sc;
-  if (spec.max_acceleration) lim.tangential = lim.centripetal = *spec.max_acceleration * sc * sc;
+  if (spec.max_acceleration) lim.tangential = lim.centripetal = *spec.max_acceleration * ac;
   if (spec.max_angular_speed) lim.angular_speed = *spec.max_angular_speed * sc;
-  if (spec.max_angular_acceleration) lim.angular_acceleration = *spec.max_angular_acceleration * sc * sc;
+  if (spec.max_angular_acceleration) lim.angular_acceleration = *spec.max_angular_acceleration * ac;
   return lim;
 }
 

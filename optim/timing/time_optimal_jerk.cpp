@@ -693,7 +693,7 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
   if (!exact_stoppable.stop.stop_possible()) exact_stoppable.stop = options.stop;
   auto exact = core::plan_time_optimal(path, orientation, spec, robot, seed, exact_stoppable);
   if (!exact) return tl::make_unexpected(exact.error());
-  const double sc = spec.speed_scale, sc3 = sc * sc * sc;
+  const double sc = spec.speed_scale, sc3 = sc * sc * sc * spec.acceleration_scale;  // and the reserve
   if (robot && options.joint_jerk.size() == 0) {
     const auto n = static_cast<Eigen::Index>(robot->dof());
     options.joint_jerk = core::JointVector::Constant(n, kInf);

@@ -300,6 +300,14 @@ core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& requ
     default: spec.time_parameterization = core::TimeParameterization::kArcLength; break;  // ARC_LENGTH, UNSPECIFIED
   }
   if (m.has_speed_scale()) spec.speed_scale = m.speed_scale();
+  if (m.has_acceleration_scale()) {
+    spec.acceleration_scale = m.acceleration_scale();
+    if (m.duration_s() > 0.0) {
+      return tl::unexpected(core::Violations{
+          {"motion.accelerationScale", "scales the limits of a timing by the limits (durationS 0): a motion with a "
+                                       "durationS is timed by it instead"}});
+    }
+  }
   if (m.has_max_speed()) spec.max_speed = m.max_speed();
   if (m.has_max_acceleration()) spec.max_acceleration = m.max_acceleration();
   if (m.has_max_jerk()) spec.max_jerk = m.max_jerk();

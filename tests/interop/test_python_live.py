@@ -264,8 +264,8 @@ class Live(unittest.TestCase):
             self.assertEqual(call.batches[-1].live.state, state, what)
 
     def dense_path(self, request, plan_duration):
-        """The request streamed by StreamSamples at 10 kHz with the room Execute leaves (speed
-        scale sqrt(1 - 0.1), the default reserve): the same path, timed alike. Its duration is
+        """The request streamed by StreamSamples at 10 kHz with the room Execute leaves
+        (accelerationScale 1 - 0.1, the default reserve): the same path, timed alike. Its duration is
         Execute's within one cycle of the request's rate: the steps of a sequence (here the
         approach, then the path) each end on the cycle grid, and a time-optimal timing is
         checked on a grid that follows the rate (1e-5 of the duration apart). Positions [m]
@@ -273,7 +273,7 @@ class Live(unittest.TestCase):
         dense = pb.PlanRequest()
         dense.CopyFrom(request)
         dense.motion.cycle_rate_hz = DENSE_RATE
-        dense.motion.speed_scale = math.sqrt(1.0 - 0.1)
+        dense.motion.acceleration_scale = 1.0 - 0.1
         plan = self.stub.PlanTrajectory(dense, timeout=60)
         self.assertAlmostEqual(plan.motion.duration_s, plan_duration, delta=1.0 / request.motion.cycle_rate_hz,
                                msg="Execute's plan and StreamSamples' differ")

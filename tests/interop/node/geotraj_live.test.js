@@ -35,8 +35,9 @@ const EXAMPLE = path.join(repo, 'client', 'node', 'geotraj_live.js');
 const NODE_MODULES = path.resolve(path.dirname(require.resolve('@grpc/grpc-js/package.json')), '..', '..');
 
 
-// The acceleration reserve every Execute here asks for: a plan timed by the limits is made at
-// speedScale sqrt(1 - reserve) (ExecuteOptions.accelerationReserve).
+// The acceleration reserve every Execute here asks for: a plan timed by the limits is made
+// within 1 - reserve of every acceleration and jerk limit (MotionSpec.accelerationScale,
+// ExecuteOptions.accelerationReserve).
 const RESERVE = 0.1;
 // Slack of the checks by finite differences: velocities are exact (the mean value theorem),
 // second differences average the acceleration over two periods, and so on.
@@ -210,7 +211,7 @@ describe('geotrajd live calls (Execute, Jog) from @grpc/grpc-js', () => {
     const key = JSON.stringify(request);
     if (!references.has(key)) {
       const scaled = structuredClone(request);
-      scaled.motion.speedScale = (scaled.motion.speedScale || 1) * Math.sqrt(1 - RESERVE);
+      scaled.motion.accelerationScale = (scaled.motion.accelerationScale || 1) * (1 - RESERVE);
       // Execute times a path jerk-limited for a robot with jerk limits (the Panda's).
       if (scaled.path) scaled.optimize = { ...(scaled.optimize || {}), timing: { jerkLimited: true } };
       const samples = await streamAll(client, scaled);

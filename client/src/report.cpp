@@ -220,13 +220,13 @@ void print_table(const v1::OptimizationReport& report, std::ostream& out) {
                     t.check_rate_hz(), t.worst_limit_usage(), t.refinements(), t.duration_grid_error_s());
       out << row;
     }
-    if (t.binding_size() > 0) out << "  which limit binds where:\n";
+    if (t.binding_size() > 0) out << "  the most used limit, stretch by stretch (binding: at 100 %):\n";
     for (const auto& b : t.binding()) {
       char row[240];
-      std::snprintf(row, sizeof row, "  s %7.4f .. %7.4f m  t %7.3f .. %7.3f s  %-34s joint %u  %.4g of %.4g\n",
+      std::snprintf(row, sizeof row, "  s %7.4f .. %7.4f m  t %7.3f .. %7.3f s  %-34s joint %u  %.4g of %.4g%s\n",
                     b.s_start(), b.s_end(), b.t_start(), b.t_end(),
                     short_enum(v1::BindingKind_Name(b.kind()), "BINDING_KIND_").c_str(), b.joint(), b.value(),
-                    b.limit());
+                    b.limit(), b.usage() >= 0.999 ? "  binding" : "");
       out << row;
     }
   }
@@ -269,9 +269,10 @@ void print_table(const v1::RobotReport& robot, std::ostream& out) {
   if (robot.binding_size() > 0) out << "the most used limit, stretch by stretch:\n";
   for (const auto& b : robot.binding()) {
     char row[200];
-    std::snprintf(row, sizeof row, "  t %8.3f .. %8.3f s  %-20s joint %u  peak %.4g of limit %.4g (%.1f%%)\n",
+    // "binding" only of a limit used whole (it sets the pace there).
+    std::snprintf(row, sizeof row, "  t %8.3f .. %8.3f s  %-20s joint %u  peak %.4g of limit %.4g (%.1f%%)%s\n",
                   b.t_start(), b.t_end(), short_enum(v1::BindingKind_Name(b.kind()), "BINDING_KIND_").c_str(),
-                  b.joint(), b.value(), b.limit(), 100.0 * b.usage());
+                  b.joint(), b.value(), b.limit(), 100.0 * b.usage(), b.usage() >= 0.999 ? "  binding" : "");
     out << row;
   }
 }

@@ -333,6 +333,15 @@ describe('the operator page in chromium', () => {
     const stretches = await page.$eval(sel('plot-binding'), (e) => Number(e.dataset.stretches || 0));
     assert.ok(stretches > 0, 'no binding stretch shown');
     assert.match(await page.$eval(sel('binding-stretch-0'), (e) => e.textContent), /joint \d|speed|acceleration/);
+    // "binding" is said of a limit at 100 % only: a time-optimal plan has one, and no stretch
+    // below 99.9 % is called so.
+    const items = await page.$$eval(`${sel('plot-binding')} [data-testid^="binding-stretch-"]`,
+      (l) => l.map((e) => e.textContent));
+    assert.ok(items.some((t) => t.endsWith(', binding')), `no stretch at 100 %: ${items}`);
+    for (const t of items) {
+      const usage = Number(/ at ([0-9.e+-]+) %/.exec(t)?.[1]);  // 4 digits shown
+      if (Math.abs(usage - 99.9) > 0.01) assert.equal(t.endsWith(', binding'), usage >= 99.9, t);
+    }
     assert.ok(await dataValue('plan-time-optimal') > 0);
     await streamed();
     assert.ok(await page.$eval(sel('plot-joint-positions'), (e) => Number(e.dataset.series)) === 7);

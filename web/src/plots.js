@@ -232,10 +232,10 @@ export class Plots {
   // names; duration [s].
   setBinding(stretches, duration, names = [], source = '') {
     const card = this.binding;
-    card.replaceChildren(el('div', 'plot-title', 'Binding limits along the motion'));
+    card.replaceChildren(el('div', 'plot-title', 'Most used limits along the motion'));
     if (!stretches || !stretches.length) {
       card.append(el('div', 'plot-empty',
-        'no binding report: a plan with a robot (or time-optimal timing) reports which limit sets the pace where'));
+        'no limit report: a plan with a robot (or time-optimal timing) reports which limit is most used where'));
       card.dataset.stretches = '0';
       return;
     }
@@ -285,12 +285,13 @@ export class Plots {
     add('text', { x: left + plotW / 2, y: height - 2, 'text-anchor': 'middle', class: 'axis-label' }, 'time t [s]');
     card.append(svg);
     const legend = el('div', 'plot-note',
-      `${source}: the limit that sets the pace on each stretch; opacity = usage (value / limit).`);
+      `${source}: the most used limit on each stretch, "binding" where it is at 100 % (it sets the pace there); ` +
+      'opacity = usage (value / limit).');
     card.append(legend);
     const list = el('ol', 'binding-list');
     stretches.forEach((b, i) => {
       const item = el('li', '', `${fmt(b.tStart)}-${fmt(b.tEnd)} s: ${describe(b)} at ${fmt((b.usage ?? 0) * 100)} % ` +
-        `(${fmt(b.value)} of ${fmt(b.limit)})`);
+        `(${fmt(b.value)} of ${fmt(b.limit)})${isBinding(b) ? ', binding' : ''}`);
       item.setAttribute('data-testid', `binding-stretch-${i}`);
       list.append(item);
     });
@@ -310,6 +311,13 @@ const KIND_NAMES = {
   BINDING_KIND_ANGULAR_SPEED: 'angular speed',
   BINDING_KIND_ANGULAR_ACCELERATION: 'angular acceleration',
 };
+
+// A limit binds (sets the pace) only where it is used whole: usage 1 to the planner's
+// checking tolerance.
+export const BINDING_USAGE = 0.999;
+export function isBinding(b) {
+  return (b.usage ?? 0) >= BINDING_USAGE;
+}
 
 export function bindingName(b, names = []) {
   const kind = KIND_NAMES[b.kind] || b.kind || 'unspecified';

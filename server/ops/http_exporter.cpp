@@ -5,6 +5,7 @@
 #include <httplib.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cerrno>
 #include <string_view>
 #include <system_error>
@@ -38,6 +39,7 @@ struct Connection {
   std::string in;
   std::string out;
   std::size_t sent = 0;
+  std::uint64_t round = 0;  // the poll round that accepted it
 };
 
 // RFC 9110 tchar: what a method and a header name are made of.
@@ -266,6 +268,31 @@ void HttpExporter::run() {
     c.state = Connection::State::kWriting;
     write_some(c);
   };
+  // Reads what the socket has; a whole request head is answered at once.
+  const auto read_some = [this, &close_connection, &respond](Connection& c) {
+    char buffer[4096];
+    for (;;) {
+      const ssize_t n = ::recv(c.fd, buffer, sizeof buffer, 0);
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;
+      if (n <= 0) {  // end of stream or reset: nothing left to answer
+        close_connection(c);
+        break;
+      }
+      if (c.state == Connection::State::kLingering) continue;  // discard leftovers
+      c.in.append(buffer, static_cast<std::size_t>(n));
+      const std::size_t end = head_end(c.in);
+      if (end != std::string::npos && end <= kMaxHead) {
+        respond(c, routes_.answer(std::string_view(c.in).substr(0, end)));
+        break;
+      }
+      if (c.in.size() > kMaxHead) {
+        respond(c, routes_.answer(c.in));  // 400: no end within the limit
+        break;
+      }
+    }
+  };
+  std::uint64_t round = 0;  // poll rounds: a connection is read in the round after its accept
 
   for (;;) {
     const auto now = Clock::now();
@@ -297,28 +324,9 @@ void HttpExporter::run() {
         write_some(c);
         continue;
       }
-      char buffer[4096];
-      for (;;) {
-        const ssize_t n = ::recv(c.fd, buffer, sizeof buffer, 0);
-        if (n < 0 && errno == EINTR) continue;
-        if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;
-        if (n <= 0) {  // end of stream or reset: nothing left to answer
-          close_connection(c);
-          break;
-        }
-        if (c.state == Connection::State::kLingering) continue;  // discard leftovers
-        c.in.append(buffer, static_cast<std::size_t>(n));
-        const std::size_t end = head_end(c.in);
-        if (end != std::string::npos && end <= kMaxHead) {
-          respond(c, routes_.answer(std::string_view(c.in).substr(0, end)));
-          break;
-        }
-        if (c.in.size() > kMaxHead) {
-          respond(c, routes_.answer(c.in));  // 400: no end within the limit
-          break;
-        }
-      }
+      read_some(c);
     }
+    ++round;
 
     // New connections.
     if (fds[1].revents != 0) {
@@ -329,15 +337,29 @@ void HttpExporter::run() {
           if (errno != EAGAIN && errno != EWOULDBLOCK) accept_paused_until = Clock::now() + std::chrono::milliseconds(100);
           break;
         }
-        std::erase_if(connections, [](const Connection& c) { return c.fd < 0; });
-        if (connections.size() >= max_connections) {
-          // Full: the oldest connection makes room (connections are kept in arrival order).
-          close_connection(connections.front());
-          connections.erase(connections.begin());
-        }
         Connection c;
         c.fd = fd;
         c.deadline = Clock::now() + options_.timeout;
+        c.round = round;
+        read_some(c);  // a client that sent its request with the connection is answered now
+        if (c.fd < 0) continue;
+        std::erase_if(connections, [](const Connection& k) { return k.fd < 0; });
+        if (connections.size() >= max_connections) {
+          // Full: the oldest connection still reading a request, and polled at least once
+          // since its accept (not one of this burst, whose request may be on its way), makes
+          // room (connections are kept in arrival order); with none, the answers in flight
+          // keep their slots and the new connection is closed (after its answer, when it
+          // sent its request with the connection and the socket took the answer whole).
+          const auto oldest = std::find_if(connections.begin(), connections.end(), [round](const Connection& k) {
+            return k.state == Connection::State::kReading && k.round < round;
+          });
+          if (oldest == connections.end()) {
+            close_connection(c);
+            continue;
+          }
+          close_connection(*oldest);
+          connections.erase(oldest);
+        }
         connections.push_back(std::move(c));
       }
     }

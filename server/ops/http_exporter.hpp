@@ -27,8 +27,11 @@ struct HttpExporterOptions {
   /// A connection must deliver its request and take its response within this time: well
   /// below Prometheus's 10 s scrape timeout, so that clients that trickle bytes go first.
   std::chrono::milliseconds timeout{2000};
-  /// Connections served at once. A new one beyond them closes the oldest: a scrape is never
-  /// kept waiting in the backlog behind clients that hold connections and send nothing.
+  /// Connections served at once. A request sent with its connection is answered at its
+  /// accept; a new connection beyond them closes the oldest that is still reading a request
+  /// and has been polled once (a scrape is never kept waiting in the backlog behind clients
+  /// that hold connections and send nothing, nor closed by a burst of new ones before its
+  /// request is read), or is closed itself when every slot holds an answer in flight.
   std::size_t max_connections = 512;
 };
 

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+#include <variant>
 
 #include "core/format.hpp"
 
@@ -33,9 +35,44 @@ double tangential(const TrajectorySample& x) {
   return speed > 0.0 ? x.tool.a_WT.dot(x.tool.v_WT) / speed : x.tool.a_WT.norm();
 }
 
+// The Cartesian limits a step's plan keeps, and so live execution with it: a path's and a
+// straight line's own motion spec; none for a joint move (its tool goes where the joints
+// take it, at whatever Cartesian rates their limits give).
+const MotionSpec* kept_cartesian(const PathMotion& m) { return &m.timing.spec; }
+const MotionSpec* kept_cartesian(const LinearMovePlan& m) { return &m.spec; }
+const MotionSpec* kept_cartesian(const JointMovePlan&) { return nullptr; }
+const MotionSpec* kept_cartesian(const SequenceMotion&) { return nullptr; }  // per step, below
+const MotionSpec* kept_cartesian(const StepMotion& m) {
+  return std::visit([](const auto& step) { return kept_cartesian(step); }, m);
+}
+
+// Where a step's tool rows are among the rows (kNoRow: the step keeps no such limit).
+constexpr std::size_t kNoRow = static_cast<std::size_t>(-1);
+struct ToolRows {
+  std::size_t tangential = kNoRow;
+  std::size_t angular = kNoRow;
+};
+
+// Appends the tool rows of a step whose plan keeps `spec`'s Cartesian limits (`where`
+// names the step in a sequence).
+ToolRows add_tool_rows(const MotionSpec* spec, const std::string& where, std::vector<LiveRow>& rows) {
+  ToolRows out;
+  if (spec == nullptr) return out;
+  if (spec->max_acceleration || spec->max_jerk) {
+    out.tangential = rows.size();
+    rows.push_back({"tool tangential" + where, "m", 0, 0, 0, spec->max_acceleration.value_or(kInf),
+                    spec->max_jerk.value_or(kInf)});
+  }
+  if (spec->max_angular_acceleration) {
+    out.angular = rows.size();
+    rows.push_back({"tool angular" + where, "rad", 0, 0, 0, *spec->max_angular_acceleration, kInf});
+  }
+  return out;
+}
+
 }  // namespace
 
-LiveLimits live_limits(const MotionSpec& motion, const RobotModel* robot) {
+LiveLimits live_limits(const RobotModel* robot) {
   LiveLimits out;
   if (robot != nullptr) {
     const auto n = static_cast<Eigen::Index>(robot->limits.size());
@@ -47,9 +84,6 @@ LiveLimits live_limits(const MotionSpec& motion, const RobotModel* robot) {
       out.jerk[j] = l.max_jerk.value_or(kInf);
     }
   }
-  out.tangential_acceleration = motion.max_acceleration.value_or(kInf);
-  out.path_jerk = motion.max_jerk.value_or(kInf);
-  out.angular_acceleration = motion.max_angular_acceleration.value_or(kInf);
   return out;
 }
 
@@ -127,9 +161,18 @@ Expected<LiveExecution> LiveExecution::start(const Trajectory& trajectory, const
     row.max_jerk = limits.jerk[static_cast<Eigen::Index>(j)];
     rows.push_back(row);
   }
-  rows.push_back({"tool tangential", "m", 0, 0, 0, limits.tangential_acceleration, limits.path_jerk});
-  rows.push_back({"tool angular", "rad", 0, 0, 0, limits.angular_acceleration, kInf});
-  const std::size_t tool = dof, angular = dof + 1;
+  // The tool's rows, per step: each step keeps its own plan's Cartesian limits.
+  const auto* sequence = std::get_if<SequenceMotion>(&trajectory);
+  std::vector<ToolRows> tool_rows;
+  if (sequence != nullptr) {
+    for (std::size_t i = 0; i < sequence->steps.size(); ++i) {
+      const std::size_t shown = i < sequence->step_index.size() ? sequence->step_index[i] : i;
+      tool_rows.push_back(add_tool_rows(kept_cartesian(sequence->steps[i]), " in step " + std::to_string(shown), rows));
+    }
+  } else {
+    const MotionSpec* spec = std::visit([](const auto& motion) { return kept_cartesian(motion); }, trajectory);
+    tool_rows.push_back(add_tool_rows(spec, "", rows));
+  }
 
   const double rate = check_rate(cycle_rate_hz, options.check_rate_hz, live.duration_, options.max_check_samples);
   const double h = 1.0 / rate;
@@ -137,6 +180,7 @@ Expected<LiveExecution> LiveExecution::start(const Trajectory& trajectory, const
   TrajectorySample x;
   JointVector previous_q_ddot = JointVector::Zero(static_cast<Eigen::Index>(dof));
   double previous_tangential = 0.0;
+  std::size_t previous_step = 0;
   const auto n = static_cast<std::size_t>(std::ceil(live.duration_ * rate - 1e-9));
   for (std::size_t k = 0; k <= n; ++k) {
     const double t = std::min(live.duration_, static_cast<double>(k) * h);
@@ -156,13 +200,25 @@ Expected<LiveExecution> LiveExecution::start(const Trajectory& trajectory, const
       if (k > 0) row.peak_jerk = std::max(row.peak_jerk, std::abs(x.joints.q_ddot[j] - previous_q_ddot[j]) / h);
       previous_q_ddot[j] = x.joints.q_ddot[j];
     }
+    // The step that holds t, as the sampler finds it (a step starts at its start time).
+    std::size_t step = 0;
+    if (sequence != nullptr) {
+      while (step + 1 < sequence->steps.size() && t >= sequence->start_times[step + 1]) ++step;
+    }
     const double a_t = tangential(x);
-    rows[tool].peak_rate = std::max(rows[tool].peak_rate, x.tool.v_WT.norm());
-    rows[tool].peak_acceleration = std::max(rows[tool].peak_acceleration, std::abs(a_t));
-    if (k > 0) rows[tool].peak_jerk = std::max(rows[tool].peak_jerk, std::abs(a_t - previous_tangential) / h);
+    if (const std::size_t i = tool_rows[step].tangential; i != kNoRow) {
+      rows[i].peak_rate = std::max(rows[i].peak_rate, x.tool.v_WT.norm());
+      rows[i].peak_acceleration = std::max(rows[i].peak_acceleration, std::abs(a_t));
+      if (k > 0 && step == previous_step) {
+        rows[i].peak_jerk = std::max(rows[i].peak_jerk, std::abs(a_t - previous_tangential) / h);
+      }
+    }
     previous_tangential = a_t;
-    rows[angular].peak_rate = std::max(rows[angular].peak_rate, x.tool.omega_WT.norm());
-    rows[angular].peak_acceleration = std::max(rows[angular].peak_acceleration, x.tool.alpha_WT.norm());
+    previous_step = step;
+    if (const std::size_t i = tool_rows[step].angular; i != kNoRow) {
+      rows[i].peak_rate = std::max(rows[i].peak_rate, x.tool.omega_WT.norm());
+      rows[i].peak_acceleration = std::max(rows[i].peak_acceleration, x.tool.alpha_WT.norm());
+    }
   }
   // Between two check samples a rate can pass the larger of its two values by at most its
   // acceleration times h / 2. Accelerations are taken at the check rate as measured (a

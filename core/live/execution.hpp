@@ -50,22 +50,24 @@
 
 namespace geotraj::core {
 
-/// The limits live execution keeps. A limit at +infinity is not imposed.
+/// The joint limits live execution keeps. A limit at +infinity is not imposed. The
+/// Cartesian limits are each step's own (LiveExecution::start): a path's and a straight
+/// line's maxAcceleration, maxJerk and maxAngularAcceleration hold on that step; a joint
+/// move (a robot.approach's included) keeps none, as its plan does.
 struct LiveLimits {
   JointVector acceleration;  ///< per joint [rad/s^2 or m/s^2]; empty without a robot
   JointVector jerk;          ///< per joint [rad/s^3 or m/s^3]; +infinity where not given
-  double tangential_acceleration = std::numeric_limits<double>::infinity();  ///< |s_ddot| [m/s^2]
-  double path_jerk = std::numeric_limits<double>::infinity();                ///< |s_dddot| [m/s^3]
-  double angular_acceleration = std::numeric_limits<double>::infinity();     ///< |alpha| [rad/s^2]
 };
 
-/// The robot's own limits (unscaled: speedScale slows the plan, not the robot) and the
-/// motion's Cartesian ones (maxAcceleration, maxJerk, maxAngularAcceleration).
-LiveLimits live_limits(const MotionSpec& motion, const RobotModel* robot);
+/// The robot's own limits (unscaled: speedScale slows the plan, not the robot); empty
+/// without a robot.
+LiveLimits live_limits(const RobotModel* robot);
 
 /// One limited quantity of the plan: its peaks per unit of plan time and its limits.
 struct LiveRow {
-  std::string name;  ///< "joint 1 (panda_joint2)" (from 0), "tool tangential", "tool angular"
+  /// "joint 1 (panda_joint2)" (from 0), "tool tangential", "tool angular" (in a sequence
+  /// "tool tangential in step 1": the step's index in the request, from 0)
+  std::string name;
   std::string unit;  ///< of the quantity: "rad", "m"
   double peak_rate = 0.0;          ///< V = max |x'|
   double peak_acceleration = 0.0;  ///< A = max |x''|

@@ -594,7 +594,7 @@ class ExecuteReactor final : public LiveReactor {
           plan_ = std::make_unique<planner::Plan>(std::move(*planned));
           const planner::Robot* robot = plan_->robot.get();
           const core::RobotModel* model = robot ? &robot->model : nullptr;
-          // The cycle rate and Cartesian limits of the plan (of its first step: a sequence's
+          // The cycle rate of the plan (of its first step: a sequence's
           // steps share one cycle rate).
           const core::MotionSpec& motion = core::motion_spec(*plan_->trajectory);
           if (!(motion.cycle_rate_hz >= kMinLiveRateHz)) {
@@ -616,7 +616,7 @@ class ExecuteReactor final : public LiveReactor {
           core::LiveOptions options;
           options.stop = stop_token();  // a cancelled call (or its deadline) ends the pass
           auto live = core::LiveExecution::start(*plan_->trajectory, model, robot ? robot->seed : core::JointVector(),
-                                                 core::live_limits(motion, model), motion.cycle_rate_hz, options);
+                                                 core::live_limits(model), motion.cycle_rate_hz, options);
           if (!live && stop_token().stop_requested()) {
             fail(gone());
             return;

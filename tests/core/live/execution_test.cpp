@@ -140,7 +140,7 @@ struct Pa10C {
   }
 
   core::Expected<core::LiveExecution> start() const {
-    return core::LiveExecution::start(trajectory, robot, seed, core::live_limits(spec, robot), spec.cycle_rate_hz);
+    return core::LiveExecution::start(trajectory, robot, seed, core::live_limits(robot), spec.cycle_rate_hz);
   }
 };
 
@@ -340,7 +340,7 @@ TEST(LiveExecution, APlanBreakingAJerkLimitIsRefused) {
   core::RobotModel jerky = *slow.robot;
   for (auto& l : jerky.limits) l.max_jerk = 50.0;
   auto refused = core::LiveExecution::start(slow.trajectory, &jerky, slow.seed,
-                                            core::live_limits(slow.spec, &jerky), slow.spec.cycle_rate_hz);
+                                            core::live_limits(&jerky), slow.spec.cycle_rate_hz);
   ASSERT_FALSE(refused);
   EXPECT_NE(refused.error()[0].description.find("jerk"), std::string::npos) << refused.error()[0].description;
   EXPECT_NE(refused.error()[0].description.find("joint"), std::string::npos) << refused.error()[0].description;
@@ -351,7 +351,7 @@ TEST(LiveExecution, APlanBreakingAJerkLimitIsRefused) {
 TEST(LiveExecution, ASaturatingPlanIsRefusedNamingTheLimit) {
   const Pa10C full(0.0);
   auto refused = core::LiveExecution::start(full.trajectory, full.robot, full.seed,
-                                            core::live_limits(full.spec, full.robot), 100.0);
+                                            core::live_limits(full.robot), 100.0);
   ASSERT_FALSE(refused);
   EXPECT_EQ(refused.error()[0].field, "motion");
   EXPECT_NE(refused.error()[0].description.find("acceleration limit"), std::string::npos)

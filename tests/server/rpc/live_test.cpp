@@ -151,6 +151,38 @@ TEST_F(Live, TheReserveKeepsTheSpeedALimitSets) {
   EXPECT_LE(peak, 0.15 * (1.0 + 1e-6));
 }
 
+// A path's Cartesian limits hold on the path, not on the joint move of its approach (whose
+// plan does not keep them): with maxAcceleration 5 m/s^2 the Panda's path C plans within
+// every limit, and Execute runs it (it was refused: "the plan uses 225.3 % of the tool
+// tangential acceleration limit", measured on the approach's 12.9 m/s^2). A stop on the path
+// keeps the tool's tangential acceleration within the limit, by differences of the speed.
+TEST_F(Live, APathsCartesianLimitsHoldOnThePathNotOnItsJointApproach) {
+  auto first = panda_plan();
+  first.mutable_plan()->mutable_motion()->set_max_acceleration(5.0);
+  bool sent = false;
+  const auto run = execute(first, [&](Stream& stream, const LiveRun& r) {
+    const auto& last = r.samples.back();
+    if (!sent && last.step() == 1 && last.speed() > 0.3) {
+      sent = true;
+      v1::ExecuteRequest stop;
+      stop.mutable_stop();
+      stream.Write(stop);
+    }
+  });
+  ASSERT_TRUE(run.status.ok()) << run.status.error_message();
+  ASSERT_TRUE(sent) << "the path never reached 0.3 m/s";
+  EXPECT_EQ(run.reason, "stopped");
+  expect_final_at_rest(run);
+  double peak = 0.0;
+  for (std::size_t k = 1; k < run.samples.size(); ++k) {
+    const auto& a = run.samples[k - 1];
+    const auto& b = run.samples[k];
+    if (a.step() != 1 || b.step() != 1) continue;
+    peak = std::max(peak, std::abs(b.speed() - a.speed()) / (b.t() - a.t()));
+  }
+  EXPECT_GT(peak, 1.0) << "the path accelerates";
+  EXPECT_LE(peak, 5.0 * (1.0 + 1e-3));
+}
 TEST_F(Live, AStopEndsOnThePathAtRest) {
   bool sent = false;
   double stop_bound = 0.0, stop_time = 0.0;

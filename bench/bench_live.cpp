@@ -97,7 +97,7 @@ const LivePlan& live_plan(long arm, double cycle_hz) {
 }
 
 core::LiveExecution start(const LivePlan& p) {
-  auto live = core::LiveExecution::start(*p.plan.trajectory, p.model, p.seed, core::live_limits(p.motion, p.model),
+  auto live = core::LiveExecution::start(*p.plan.trajectory, p.model, p.seed, core::live_limits(p.model),
                                          p.motion.cycle_rate_hz);
   if (!live) throw std::runtime_error(live.error().front().description);
   return std::move(*live);

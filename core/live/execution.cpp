@@ -109,7 +109,10 @@ FactorBounds factor_bounds(const std::vector<LiveRow>& rows, double r_high, doub
       b.acceleration_row = i;
     }
   }
-  if (!std::isfinite(b.acceleration)) b.acceleration = 1.0 / ramp_s;  // nothing limits: a 1 s ramp-up
+  if (!std::isfinite(b.acceleration)) {  // nothing limits: rest to full speed in ramp_s
+    b.acceleration = 1.0 / ramp_s;
+    b.acceleration_from_ramp = true;
+  }
   // The speed factor's jerk: what the jerk room leaves after the acceleration term.
   b.jerk = kInf;
   for (std::size_t i = 0; i < rows.size(); ++i) {
@@ -240,6 +243,7 @@ Expected<LiveExecution> LiveExecution::start(const Trajectory& trajectory, const
   const FactorBounds worst = live.bounds(1.0);
   const StopPrediction stop = predict_stop(1.0, 0.0, worst);
   if (!(stop.time_s <= options.max_stop_time_s)) {
+    GEOTRAJ_CHECK(!worst.acceleration_from_ramp);  // a ramp's stop is finite and short
     const LiveRow& row = rows[worst.acceleration_row];
     return tl::unexpected(Violations{
         {"motion", "at full speed the plan uses " + number(100.0 * row.peak_acceleration / row.max_acceleration, 4) +

@@ -82,6 +82,9 @@ struct FactorBounds {
   double jerk = 0.0;          ///< |r_ddot| <= [1/s^2]
   std::size_t acceleration_row = 0;  ///< index into the rows of the binding quantity
   std::size_t jerk_row = 0;
+  /// No moving quantity has an acceleration limit (a path without a robot or Cartesian
+  /// limits): acceleration = 1 / ramp, and acceleration_row names nothing.
+  bool acceleration_from_ramp = false;
   bool jerk_from_ramp = false;  ///< no quantity has a jerk limit: jerk = acceleration / ramp
 };
 

@@ -183,6 +183,21 @@ TEST_F(Live, APathsCartesianLimitsHoldOnThePathNotOnItsJointApproach) {
   EXPECT_GT(peak, 1.0) << "the path accelerates";
   EXPECT_LE(peak, 5.0 * (1.0 + 1e-3));
 }
+// A path without a robot or Cartesian limits has no limited quantity: Execute runs it, its
+// speed changes ramping over LiveOptions::ramp_s, and says so (the server crashed naming the
+// binding row of an empty table).
+TEST_F(Live, APathWithNothingLimitedIsExecuted) {
+  v1::ExecuteRequest first;
+  *first.mutable_plan() = example<v1::PlanRequest>("plan_demo_path_a.json");
+  first.mutable_plan()->mutable_motion()->set_duration_s(1.0);
+  first.mutable_options()->set_deadman_s(2.0);
+  const auto run = execute(first);
+  ASSERT_TRUE(run.status.ok()) << run.status.error_message();
+  EXPECT_EQ(run.reason, "completed");
+  EXPECT_THAT(run.last.binding(), HasSubstr("no limit"));
+  EXPECT_NEAR(run.samples.back().plan_time(), 1.0, 1e-12);
+}
+
 TEST_F(Live, AStopEndsOnThePathAtRest) {
   bool sent = false;
   double stop_bound = 0.0, stop_time = 0.0;

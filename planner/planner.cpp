@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <utility>
 
@@ -156,16 +157,33 @@ Expected<core::MotionPlan> time_optimal_timing(const core::Path& path, const cor
   return plan;
 }
 
-// The goal joints of a joint move to a pose: the IK solution nearest the start, every
-// branch searched; out of reach, kUnattainable on `jointMove.goalPose` with the distance.
-Expected<core::JointMoveSpec> resolve(const JointMoveToPose& move, const Robot& robot, const Budget& budget) {
-  core::JointMoveSpec spec{move.start, {}};
+// The smallest distance of q to a position limit [rad or m] and the joint it is at.
+std::pair<double, std::size_t> limit_margin(const core::RobotModel& model, const core::JointVector& q) {
+  std::pair<double, std::size_t> out{std::numeric_limits<double>::infinity(), 0};
+  for (std::size_t j = 0; j < model.dof(); ++j) {
+    const core::JointLimits& l = model.limits[j];
+    const double qj = q(static_cast<Eigen::Index>(j));
+    const double m = std::min(qj - l.min_position, l.max_position - qj);
+    if (m < out.first) out = {m, j};
+  }
+  return out;
+}
+
+// The goal joints of a joint move to a pose, every branch searched, chosen as
+// `move.choice` says, and the choice in words (StepReport::goal_choice); out of reach,
+// kUnattainable on `jointMove.goalPose` with the distance.
+struct ChosenGoal {
+  core::JointMoveSpec spec;
+  std::string choice;
+};
+Expected<ChosenGoal> resolve(const JointMoveToPose& move, const Robot& robot, const Budget& budget) {
+  ChosenGoal out{core::JointMoveSpec{move.start, {}}, {}};
   const auto n = static_cast<Eigen::Index>(robot.model.dof());
-  if (static_cast<Eigen::Index>(move.start.size()) != n) return spec;  // plan_joint_move names it
+  if (static_cast<Eigen::Index>(move.start.size()) != n) return out;  // plan_joint_move names it
   const core::JointVector start = Eigen::Map<const Eigen::VectorXd>(move.start.data(), n);
   core::IkSearchOptions options;
   options.all_solutions = true;
-  options.max_solutions = 1;  // the nearest the start
+  options.max_solutions = move.choice == GoalChoice::kNearest ? 1 : 64;  // nearest the start first
   options.stopped = [&budget] { return budget.stop_requested() || budget.expired(); };
   const core::IkSearchResult found = core::search_ik(robot.model, move.goal, start, options);
   if (found.stopped) {
@@ -177,9 +195,38 @@ Expected<core::JointMoveSpec> resolve(const JointMoveToPose& move, const Robot& 
                                   core::number(found.closest.position_error, 6) + " m and " +
                                   core::number(found.closest.orientation_error, 6) + " rad away")}));
   }
-  const core::JointVector& goal = found.solutions.front().q;
-  spec.goal.assign(goal.data(), goal.data() + goal.size());
-  return spec;
+  std::size_t best = 0;
+  auto margin = limit_margin(robot.model, found.solutions.front().q);
+  const auto nearest = margin;
+  if (move.choice == GoalChoice::kLargestMargin) {
+    // A larger margin by more than the search's distinct tolerance wins; among equals the
+    // nearest the start (the solutions come nearest first).
+    for (std::size_t i = 1; i < found.solutions.size(); ++i) {
+      const auto m = limit_margin(robot.model, found.solutions[i].q);
+      if (m.first > margin.first + options.distinct_tolerance) {
+        best = i;
+        margin = m;
+      }
+    }
+  }
+  const core::JointVector& goal = found.solutions[best].q;
+  out.spec.goal.assign(goal.data(), goal.data() + goal.size());
+  const auto joint = [&](std::size_t j) {
+    return "joint " + std::to_string(j) + ", " + robot.model.joints[j].name;
+  };
+  const std::string branches = std::to_string(found.solutions.size()) +
+                               (found.solutions.size() == 1 ? " IK solution found" : " IK solutions found");
+  if (move.choice == GoalChoice::kNearest) {
+    out.choice = "the IK solution nearest the start; its margin to the joint limits " +
+                 core::number(margin.first, 4) + " (" + joint(margin.second) + ")";
+  } else {
+    out.choice = "the largest margin to the joint limits, " + core::number(margin.first, 4) + " (" +
+                 joint(margin.second) + "), of " + branches +
+                 (best == 0 ? " (also the nearest the start)"
+                            : "; the nearest the start has " + core::number(nearest.first, 4) + " (" +
+                                  joint(nearest.second) + ")");
+  }
+  return out;
 }
 
 // The straight line to joint values: from the start pose to their forward kinematics.
@@ -299,9 +346,9 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
   if (const auto* move = std::get_if<core::JointMoveSpec>(&request.geometry)) return joint_move(*move);
   if (const auto* move = std::get_if<core::LinearMoveSpec>(&request.geometry)) return linear_move(*move);
   if (const auto* move = std::get_if<JointMoveToPose>(&request.geometry)) {
-    auto spec = resolve(*move, *robot, budget);
-    if (!spec) return tl::unexpected(std::move(spec.error()));
-    return joint_move(*spec);
+    auto chosen = resolve(*move, *robot, budget);
+    if (!chosen) return tl::unexpected(std::move(chosen.error()));
+    return joint_move(chosen->spec);
   }
   if (const auto* move = std::get_if<LinearMoveToJoints>(&request.geometry)) {
     auto spec = resolve(*move, *robot);
@@ -711,6 +758,12 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
       at_end->seed = end.q;
       sub.robot = std::move(at_end);
     }
+    if (const auto* move = std::get_if<JointMoveToPose>(&sub.geometry); move && robot) {
+      auto chosen = resolve(*move, *robot, budget);
+      if (!chosen) return tl::unexpected(in_step(std::move(chosen.error()), i, step));
+      report.goal_choice = std::move(chosen->choice);
+      sub.geometry = std::move(chosen->spec);
+    }
     const bool path = std::holds_alternative<core::PathSpec>(sub.geometry);
     if ((path || std::holds_alternative<core::LinearMoveSpec>(sub.geometry) ||
          std::holds_alternative<LinearMoveToJoints>(sub.geometry)) &&
@@ -829,7 +882,7 @@ std::optional<Expected<Request>> with_approach(const Request& request) {
   }
   const std::vector<double> q(robot->seed.data(), robot->seed.data() + robot->seed.size());
   if (robot->approach == Approach::kJoint) {
-    approach.geometry = JointMoveToPose{q, Eigen::Translation3d(start.p_WT) * start.q_WT};
+    approach.geometry = JointMoveToPose{q, Eigen::Translation3d(start.p_WT) * start.q_WT, GoalChoice::kLargestMargin};
   } else {
     core::ToolPose from;
     from.p_WT = X.translation();

@@ -69,11 +69,19 @@ struct Optimize {
   double budget_s = 10.0;     ///< all optimisers of the request together [s]
 };
 
-/// A joint-interpolated move to a tool pose (Appendix C): the goal's joints are the IK
-/// solution nearest the start, every branch searched (core::search_ik).
+/// How a joint move to a pose picks its goal among the IK branches.
+enum class GoalChoice {
+  kNearest,        ///< the solution nearest the start (a jointMove's goalPose)
+  kLargestMargin,  ///< the largest margin to the joint limits, nearest the start among equals
+                   ///< (robot.approach: the path then starts where the joints have room)
+};
+
+/// A joint-interpolated move to a tool pose (Appendix C): the goal's joints are an IK
+/// solution chosen by `choice`, every branch searched (core::search_ik).
 struct JointMoveToPose {
   std::vector<double> start;  ///< [rad or m], one per joint
   Eigen::Isometry3d goal = Eigen::Isometry3d::Identity();  ///< X_WT at the goal
+  GoalChoice choice = GoalChoice::kNearest;
 };
 
 /// A straight-line move to joint values (Appendix C, Cartesian-interpolated): the goal pose
@@ -236,6 +244,9 @@ struct StepReport {
   double arc_length = 0.0;    ///< [m] (paths and linear moves)
   std::optional<PathReport> path;  ///< a path or a blended chain, kPlan
   std::vector<core::CornerBlend> corners;  ///< a blended chain: its corners
+  /// A joint move to a pose: which IK branch its goal is, and why ("the largest margin to
+  /// the joint limits, 0.43 rad (joint 3, panda_joint4), of 9 branches found; ...").
+  std::string goal_choice;
   OptimizerReports optimizers;     ///< a path's optimisers
 };
 

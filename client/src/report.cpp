@@ -80,6 +80,7 @@ void print_steps(const v1::PlanResponse& response, std::ostream& out) {
     out << buf;
     if (s.kind() == "path") out << "  max error" << num(s.closed_loop().max_error(), 1);
     out << '\n';
+    if (!s.goal_choice().empty()) out << "       goal: " << s.goal_choice() << '\n';
     for (const auto& c : s.corners()) {
       if (c.corner() <= core::kSmoothJunction) {  // tangent-continuous: the curvature blended
         std::snprintf(buf, sizeof buf,

@@ -633,7 +633,10 @@ class ExecuteReactor final : public LiveReactor {
             const core::FactorBounds worst = live_->bounds(1.0);
             const auto& rows = live_->rows();
             worst_ = worst;
-            binding_ = rows[worst.acceleration_row].name + " acceleration";
+            binding_ = worst.acceleration_from_ramp
+                           ? "no limit (no limited quantity moves): speed changes ramp over " +
+                                 core::number(core::LiveOptions{}.ramp_s) + " s"
+                           : rows[worst.acceleration_row].name + " acceleration";
             if (!worst.jerk_from_ramp) binding_ += ", " + rows[worst.jerk_row].name + " jerk";
             live_->set_override(override_);
             if (paused_) live_->pause();

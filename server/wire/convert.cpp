@@ -1469,6 +1469,7 @@ void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanRespons
       out.set_index(static_cast<std::uint32_t>(s.index));
       out.set_last_index(static_cast<std::uint32_t>(s.last_index));
       out.set_kind(s.kind);
+      out.set_goal_choice(s.goal_choice);
       for (const auto& c : s.corners) {
         // Collinear lines: no corner, and their blend is the line itself.
         if (c.corner <= core::kSmoothJunction && c.deviation <= 1e-9) continue;

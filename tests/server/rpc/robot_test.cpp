@@ -676,6 +676,38 @@ TEST_F(RobotTest, AnApproachMoveBringsTheRobotToThePathsStart) {
   EXPECT_THAT(violation_of(refused(at_home), "robot.approach"), HasSubstr("unknown value 7"));
 }
 
+// The joint approach ends where the joints have room: among the IK solutions of the path's
+// start, the one with the largest margin to the joint limits. For this seam the solution
+// nearest the Panda's home has panda_joint2 2.7e-6 rad from its limit (the path then held it
+// there and broke the acceleration limits); the plan says which solution it took and why.
+TEST_F(RobotTest, TheJointApproachEndsWithTheLargestMarginToTheJointLimits) {
+  const auto request = from_json<v1::PlanRequest>(R"({
+    "path": {"frames": [
+      {"position": {"x": 0.45, "y": -0.12, "z": 0.25}, "tangent": {"y": 1}, "normal": {"x": 1},
+       "orientationMode": "ORIENTATION_MODE_CUSTOM", "orientation": {"w": 0, "x": 1}, "easeOrientation": true},
+      {"position": {"x": 0.45, "y": 0.12, "z": 0.25}, "tangent": {"y": 1}, "normal": {"x": 1}}]},
+    "motion": {"durationS": 0, "cycleRateHz": 250, "maxSpeed": 0.05},
+    "robot": {"name": "panda", "approach": "APPROACH_MOVE_JOINT"}})");
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_EQ(response.steps_size(), 2);
+  EXPECT_TRUE(response.robot().feasible());
+  EXPECT_THAT(response.steps(0).goal_choice(), HasSubstr("the largest margin to the joint limits"));
+  EXPECT_THAT(response.steps(0).goal_choice(), HasSubstr("the nearest the start has 2.7"));
+  grpc::Status stream_status;
+  const auto samples = stream_all(request, stream_status);
+  ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+  const auto panda = robot_model("panda");
+  const auto& at_path = samples[response.steps(1).first_sample()];
+  double margin = 1e9;
+  for (int j = 0; j < panda.limits_size(); ++j) {
+    margin = std::min({margin, at_path.joints(j) - panda.limits(j).min_position(),
+                       panda.limits(j).max_position() - at_path.joints(j)});
+  }
+  EXPECT_GT(margin, 0.5) << "rad, at the path's start";
+}
+
 TEST_F(RobotTest, JointMoveNeedsARobot) {
   auto request = from_json<v1::PlanRequest>(
       R"({"jointMove": {"goal": [0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8]}, "motion": {"durationS": 3}})");

@@ -294,18 +294,39 @@ Expected<StraightPath> straight_path(const core::LinearMoveSpec& move) {
   return StraightPath{std::move(*path), std::move(*orientation)};
 }
 
+bool has_jerk_limits(const core::RobotModel& model) {
+  return std::any_of(model.limits.begin(), model.limits.end(),
+                     [](const core::JointLimits& l) { return l.max_jerk.has_value(); });
+}
+
 // The trajectory of a request with a motion.
 Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget& budget, Clock::time_point deadline,
                                            OptimizerReports& reports) {
-  const core::MotionSpec& motion = *request.motion;
+  core::MotionSpec motion = *request.motion;
   const Robot* robot = request.robot.get();
+  const bool time_optimal = request.optimize && request.optimize->time_optimal;
+  bool jerk_limited = request.optimize && request.optimize->jerk_limited;
+  const bool joint = std::holds_alternative<core::JointMoveSpec>(request.geometry) ||
+                     std::holds_alternative<JointMoveToPose>(request.geometry);
+  // Within every limit the model gives: where the limits time the motion and the model has
+  // jerk limits, a path or a line is timed jerk-limited and a joint move is a double S, for
+  // PlanTrajectory, StreamSamples and Execute alike (live execution keeps the jerk limits
+  // and refuses a plan that breaks them).
+  const bool model_jerk = robot != nullptr && has_jerk_limits(robot->model);
+  const bool jerk_from_model =
+      model_jerk && !jerk_limited && time_optimally_timed(motion, true, time_optimal, jerk_limited);
+  if (jerk_from_model) {
+    if (joint) {
+      motion.profile = core::ProfileShape::kSCurve;
+    } else {
+      jerk_limited = true;
+    }
+  }
   const auto joint_move = [&](const core::JointMoveSpec& move) -> Expected<core::Trajectory> {
     auto plan = core::plan_joint_move(robot->model, move, motion);
     if (!plan) return tl::unexpected(invalid(std::move(plan.error())));
     return core::Trajectory(std::in_place_type<core::JointMovePlan>, std::move(*plan));
   };
-  const bool time_optimal = request.optimize && request.optimize->time_optimal;
-  const bool jerk_limited = request.optimize && request.optimize->jerk_limited;
   // The tool's angular limits are imposed where the motion is as fast as its limits allow:
   // the time-optimal sweep, a line's minimum time. Elsewhere they would be ignored: refused.
   const bool angular = motion.max_angular_speed || motion.max_angular_acceleration;
@@ -315,7 +336,10 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
   if (angular && path_or_line) {
     const bool line = !std::holds_alternative<core::PathSpec>(request.geometry);
     std::string why;
-    if (jerk_limited) {
+    if (jerk_from_model && !joint) {
+      why = "is not imposed on the fastest motion of a robot with jerk limits (" + robot->model.name +
+            "'s), which is timed jerk-limited (its NLP has no angular rows): drop it, or give a durationS";
+    } else if (jerk_limited) {
       why = "is not imposed by optimize.timing.jerkLimited (its NLP has no angular rows): use timeOptimal, or drop it";
     } else if (!time_optimally_timed(motion, robot != nullptr, time_optimal, false) &&
                !(line && motion.duration_s == 0.0)) {
@@ -841,7 +865,8 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     });
     const bool allowed = robot->report_only && (purpose == Purpose::kPlan || only_limits);
     if (!joints.feasible() && !allowed) {
-      return tl::unexpected(Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, robot->model.name});
+      return tl::unexpected(
+          Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, robot->model.name, robot->report_only});
     }
     result.joints = std::move(joints);
   }
@@ -875,11 +900,6 @@ std::optional<Expected<Request>> with_approach(const Request& request) {
   approach.motion.duration_s = 0.0;  // as fast as the joint limits (and a line's Cartesian ones) allow
   // The room for live speed changes (reserve_room), unless the request's motion has it already.
   if (!request.motion_reserved) approach.motion.acceleration_scale *= 1.0 - request.reserve;
-  // Within the jerks too where the model gives them (a double S; a trapezoid's jerk is unbounded).
-  const auto& limits = robot->model.limits;
-  if (std::any_of(limits.begin(), limits.end(), [](const core::JointLimits& l) { return l.max_jerk.has_value(); })) {
-    approach.motion.profile = core::ProfileShape::kSCurve;
-  }
   const std::vector<double> q(robot->seed.data(), robot->seed.data() + robot->seed.size());
   if (robot->approach == Approach::kJoint) {
     approach.geometry = JointMoveToPose{q, Eigen::Translation3d(start.p_WT) * start.q_WT, GoalChoice::kLargestMargin};
@@ -904,16 +924,7 @@ bool time_optimally_timed(const core::MotionSpec& motion, bool robot, bool time_
   return time_optimal || jerk_limited || minimum_time;
 }
 
-void prepare_execution(Request& request, double reserve) {
-  if (request.robot) {
-    const auto& limits = request.robot->model.limits;
-    if (std::any_of(limits.begin(), limits.end(), [](const core::JointLimits& l) { return l.max_jerk.has_value(); })) {
-      if (!request.optimize) request.optimize.emplace();
-      request.optimize->jerk_limited = true;
-    }
-  }
-  reserve_room(request, reserve);
-}
+void prepare_execution(Request& request, double reserve) { reserve_room(request, reserve); }
 
 void reserve_room(Request& request, double reserve) {
   const double factor = 1.0 - std::clamp(reserve, 0.0, 0.99);  // of every acceleration and jerk limit
@@ -988,7 +999,8 @@ Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& 
     });
     const bool allowed = request.robot->report_only && (purpose == Purpose::kPlan || only_limits);
     if (!joints.feasible() && !allowed) {
-      return tl::unexpected(Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, request.robot->model.name});
+      return tl::unexpected(Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, request.robot->model.name,
+                                  request.robot->report_only});
     }
     if (joints.feasible()) {
       if (auto refused = ends_at_goal(request.geometry, last)) return tl::unexpected(std::move(*refused));

@@ -144,9 +144,10 @@ struct Request {
 /// the request's motion (own_motion false) holds a copy of it, scaled with the others.
 void reserve_room(Request& request, double reserve);
 
-/// A request made ready for live execution (Execute): with a robot that gives jerk limits,
-/// its paths timed by the limits are timed jerk-limited (live execution keeps the jerk
-/// limits its plan keeps, and refuses a plan that breaks them); then reserve_room.
+/// A request made ready for live execution (Execute): reserve_room. Everything else is
+/// planned as for PlanTrajectory and StreamSamples (a robot's jerk limits included: where
+/// the limits time a motion, a path or a line is timed jerk-limited and a joint move is a
+/// double S, whatever the purpose).
 void prepare_execution(Request& request, double reserve);
 
 /// The server's bounds on one call's work.
@@ -189,6 +190,9 @@ struct Error {
   core::Violations violations;
   std::vector<core::LimitEvent> limits;  ///< kRobotCannotFollow
   std::string robot;                     ///< kRobotCannotFollow: the model's name
+  /// kRobotCannotFollow although robot.reportOnly: an IK failure or a branch jump, which a
+  /// stream never carries (its joints would mean nothing).
+  bool report_only = false;
 };
 
 template <class T>

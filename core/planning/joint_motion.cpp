@@ -227,6 +227,8 @@ JointReportBuilder::JointReportBuilder(const RobotModel& model, double branch_to
   report_.joints.resize(n);
   report_.violations.reserve(n * kKinds);  // at most one per (joint, kind): add() never allocates
   reported_.assign(n * kKinds, false);
+  q_prev_ = JointVector::Zero(static_cast<Eigen::Index>(n));  // add() assigns, never allocates
+  q_dot_prev_ = JointVector::Zero(static_cast<Eigen::Index>(n));
   report_.binding.reserve(kMaxBindingStretches);  // add() never allocates
   constexpr double inf = std::numeric_limits<double>::infinity();
   report_.tightest_position.kind = LimitKind::kPosition;
@@ -245,17 +247,66 @@ void JointReportBuilder::record(LimitKind kind, std::size_t joint, std::size_t s
   report_.violations.push_back(LimitEvent{kind, joint, sample, t, value, limit, margin});
 }
 
+void JointReportBuilder::record_held(std::size_t sample, double t, const JointVector& q, double range_fraction) {
+  for (std::size_t j = 0; j < model_->dof(); ++j) {
+    if (model_->joints[j].type == JointType::kContinuous) continue;
+    const JointLimits& lim = model_->limits[j];
+    const double qj = q(static_cast<Eigen::Index>(j));
+    const bool above = lim.max_position - qj < qj - lim.min_position;
+    const double bound = above ? lim.max_position : lim.min_position;
+    const double margin = std::min(qj - lim.min_position, lim.max_position - qj);
+    const double near = std::max(kLimitTolerance * std::max(1.0, std::abs(bound)),
+                                 range_fraction * (lim.max_position - lim.min_position));
+    if (margin <= near) {
+      record(LimitKind::kPosition, j, sample, t, qj, bound, margin);
+    }
+  }
+}
+
+namespace {
+
+// Before an IK failure, a joint this close to its limit (a fraction of its range) in the
+// last good sample is named as the likely cause: the Newton steps are projected onto the
+// limits, and the next pose needed more of its range (the PA-10's elbow 0.8 mrad from its
+// limit on the thesis's path C, smoothest reading).
+constexpr double kNearLimitBeforeIk = 0.01;
+
+// The order of one sample's events: a joint at (or past) its position limit first, the
+// cause of what follows (a joint held at its limit makes the others race, or the IK fail).
+int cause_rank(LimitKind kind) {
+  switch (kind) {
+    case LimitKind::kPosition: return 0;
+    case LimitKind::kBranch: return 1;
+    case LimitKind::kVelocity: return 2;
+    case LimitKind::kAcceleration: return 3;
+    case LimitKind::kIk: return 4;
+  }
+  return 5;
+}
+
+// Stable insertion sort of [first, last) by cause_rank (no allocation, unlike stable_sort).
+void order_by_cause(std::vector<LimitEvent>::iterator first, std::vector<LimitEvent>::iterator last) {
+  const auto before = [](const LimitEvent& a, const LimitEvent& b) { return cause_rank(a.kind) < cause_rank(b.kind); };
+  for (auto it = first; it != last; ++it) std::rotate(std::upper_bound(first, it, *it, before), it, it + 1);
+}
+
+}  // namespace
+
 void JointReportBuilder::add(std::size_t sample, double t, double s_path, const JointSample& s) {
   JointMotionReport& r = report_;
   ++r.samples;
   r.max_position_error = std::max(r.max_position_error, s.position_error);
   r.max_orientation_error = std::max(r.max_orientation_error, s.orientation_error);
   if (!s.converged) {
+    // A joint at its limit in the last good sample first: the tracker held it there, and the
+    // others could not follow the tool without it.
+    if (has_prev_) record_held(sample_prev_, t_prev_, q_prev_, kNearLimitBeforeIk);
     record(LimitKind::kIk, 0, sample, t, s.position_error, ik_position_tolerance_,
            ik_position_tolerance_ - s.position_error);
     has_prev_ = false;
     return;  // q, q_dot, q_ddot of a failed sample are not a motion
   }
+  const std::size_t first_new = r.violations.size();
   ++r.converged_samples;
   if (s.midpoint_deviation > r.max_midpoint_deviation) {
     r.max_midpoint_deviation = s.midpoint_deviation;
@@ -319,8 +370,17 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
       record(LimitKind::kAcceleration, j, sample, t, a, lim.max_acceleration, margin_a);
     }
   }
+  if (r.violations.size() > first_new) {
+    // A limit broken here: a joint at its position limit in this sample is named as well,
+    // and the sample's events go in causal order (a position limit before the acceleration
+    // it forces).
+    record_held(sample, t, s.q, 0.0);
+    order_by_cause(r.violations.begin() + static_cast<std::ptrdiff_t>(first_new), r.violations.end());
+  }
+  q_prev_ = s.q;
   q_dot_prev_ = s.q_dot;
   t_prev_ = t;
+  sample_prev_ = sample;
   has_prev_ = true;
   update_binding(sample, t, s_path, s);
 }

@@ -190,7 +190,11 @@ struct JointMotionReport {
   double min_manipulability = std::numeric_limits<double>::infinity();
   double min_manipulability_t = 0.0;
   /// Every broken limit, the first sample of each (joint, kind) run only, in time order
-  /// (bounded: at most one event per joint and kind).
+  /// (bounded: at most one event per joint and kind). Within a sample, causes first: a joint
+  /// at or past its position limit, then a branch jump, velocities, accelerations. A joint
+  /// that reaches its limit (margin >= 0: the tracker holds it there) is listed only where
+  /// another limit breaks in that sample, or (within 1 % of its range) in the last good
+  /// sample before an IK failure: it is then the likely cause.
   std::vector<LimitEvent> violations;
   /// Which joint limit is the most used, stretch by stretch, in time order (samples at rest,
   /// where every usage is 0, join the stretch around them; consecutive stretches share their
@@ -230,13 +234,18 @@ class JointReportBuilder {
   void record(LimitKind kind, std::size_t joint, std::size_t sample, double t, double value, double limit,
               double margin);
   void update_binding(std::size_t sample, double t, double s_path, const JointSample& s);
+  /// Records every (non-continuous) joint of q at or past its position limit, or within
+  /// range_fraction of its range from it.
+  void record_held(std::size_t sample, double t, const JointVector& q, double range_fraction);
 
   const RobotModel* model_;
   double branch_tolerance_;
   double ik_position_tolerance_;
   JointMotionReport report_;
-  JointVector q_dot_prev_;     ///< the last converged sample's joint velocities
+  JointVector q_prev_;         ///< the last converged sample's joints
+  JointVector q_dot_prev_;     ///< and joint velocities
   double t_prev_ = 0.0;        ///< and its time [s]
+  std::size_t sample_prev_ = 0;  ///< and index
   bool has_prev_ = false;      ///< the last sample converged
   std::vector<bool> reported_;  ///< (joint, kind) already in violations: joint * kKinds + kind
 };

@@ -841,6 +841,13 @@ std::string describe(const core::LimitEvent& e) {
   const std::string joint = "joint " + std::to_string(e.joint);
   switch (e.kind) {
     case core::LimitKind::kPosition:
+      if (e.margin >= 0.0) {  // at (or near) the limit, named as the cause of what follows
+        const bool at = e.margin <= core::kLimitTolerance * std::max(1.0, std::abs(e.limit));
+        return joint + " position " + core::number(e.value, 6) +
+               (at ? " is at its limit " + core::number(e.limit, 6) + where + ", held there"
+                   : " is " + core::number(e.margin, 3) + " from its limit " + core::number(e.limit, 6) + where) +
+               ": the path needs more of its range";
+      }
       return joint + " position " + core::number(e.value, 6) + " is outside its limits" + where + " (by " + core::number(-e.margin, 6) + ")";
     case core::LimitKind::kVelocity:
       return joint + " speed " + core::number(e.value, 6) + " exceeds maxVelocity " + core::number(e.limit, 6) + where;

@@ -1,6 +1,7 @@
 // The status-mapping file (see status.hpp).
 #include "server/wire/status.hpp"
 
+#include <algorithm>
 #include <cstddef>
 
 #include "google/rpc/error_details.pb.h"
@@ -155,9 +156,25 @@ grpc::Status status_of(const planner::Error& error) {
       }
       std::string message = "robot '" + error.robot + "' cannot follow the plan: " +
                             (error.limits.empty() ? std::string("a limit is broken") : describe(error.limits.front()));
-      if (error.limits.size() > 1) {
-        message += "; and " + std::to_string(error.limits.size() - 1) +
-                   " more in the PreconditionFailure details (set robot.reportOnly for the full report)";
+      std::size_t named = 1;
+      const auto blocking = std::find_if(error.limits.begin(), error.limits.end(), [](const core::LimitEvent& e) {
+        return e.kind == core::LimitKind::kIk || e.kind == core::LimitKind::kBranch;
+      });
+      if (error.report_only && blocking != error.limits.end()) {
+        // What reportOnly cannot let through, and the joint held at its limit just before.
+        message = "robot '" + error.robot + "' cannot follow the plan, even with robot.reportOnly (which streams " +
+                  "broken joint limits, never a failed IK or a branch jump): " + describe(*blocking);
+        const auto held = std::find_if(error.limits.begin(), blocking, [&](const core::LimitEvent& e) {
+          return e.kind == core::LimitKind::kPosition && e.margin >= 0.0 && e.sample + 1 >= blocking->sample;
+        });
+        if (held != blocking) {
+          message += ", after " + describe(*held);
+          ++named;
+        }
+      }
+      if (error.limits.size() > named) {
+        message += "; and " + std::to_string(error.limits.size() - named) + " more in the PreconditionFailure details" +
+                   (error.report_only ? "" : " (set robot.reportOnly for the full report)");
       }
       return failed_precondition(message, details);
     }

@@ -476,6 +476,54 @@ TEST(JointReport, FailedSampleRaisesIk) {
   EXPECT_LT(r.joints[0].max_position, 1.0);
 }
 
+// A joint held at its position limit is named first where it forces another limit (the
+// tracker holds it, and the others race to follow the tool) or before an IK failure (the
+// others could not follow without it); reaching the limit alone breaks nothing.
+TEST(JointReport, AJointHeldAtItsLimitIsNamedBeforeWhatItForces) {
+  const RobotModel& m = pa10();
+  const auto sample = [&] {
+    JointSample s;
+    s.q = core::home_configuration(m);
+    s.q_dot = JointVector::Zero(7);
+    s.q_ddot = JointVector::Zero(7);
+    s.converged = true;
+    s.manipulability = 0.1;
+    return s;
+  };
+  core::JointReportBuilder forced(m);
+  forced.add(0, 0.0, sample());
+  JointSample held = sample();
+  held.q(6) = m.limits[6].max_position;
+  forced.add(1, 0.01, held);
+  EXPECT_TRUE(forced.report().feasible()) << "at the limit, not past it";
+  held.q_ddot(0) = 2.0 * m.limits[0].max_acceleration;
+  forced.add(2, 0.02, held);
+  const auto& r = forced.report();
+  ASSERT_EQ(r.violations.size(), 2u);
+  EXPECT_EQ(r.violations[0].kind, LimitKind::kPosition);
+  EXPECT_EQ(r.violations[0].joint, 6u);
+  EXPECT_EQ(r.violations[0].sample, 2u);
+  EXPECT_DOUBLE_EQ(r.violations[0].margin, 0.0);
+  EXPECT_EQ(r.violations[1].kind, LimitKind::kAcceleration);
+  EXPECT_EQ(r.violations[1].joint, 0u);
+
+  core::JointReportBuilder lost(m);
+  JointSample at_limit = sample();
+  at_limit.q(3) = m.limits[3].min_position;
+  lost.add(0, 0.0, at_limit);
+  JointSample failed = at_limit;
+  failed.converged = false;
+  failed.position_error = 1e-4;
+  lost.add(1, 0.01, failed);
+  const auto& l = lost.report();
+  ASSERT_EQ(l.violations.size(), 2u);
+  EXPECT_EQ(l.violations[0].kind, LimitKind::kPosition);
+  EXPECT_EQ(l.violations[0].joint, 3u);
+  EXPECT_EQ(l.violations[0].sample, 0u) << "the last good sample";
+  EXPECT_EQ(l.violations[1].kind, LimitKind::kIk);
+  EXPECT_EQ(l.violations[1].sample, 1u);
+}
+
 // A joint velocity that steps between samples (each sample's own q_ddot within the limit)
 // is an acceleration of the step over the sample time: reported; a change the limit allows
 // is not; nor is a step across a failed sample.

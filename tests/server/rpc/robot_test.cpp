@@ -307,6 +307,36 @@ TEST_F(RobotTest, WithoutReportOnlyTheBrokenLimitsAreAFailedPrecondition) {
   for (const auto& s : samples) ASSERT_EQ(s.joints_size(), 7) << "t = " << s.t();
 }
 
+// The thesis's path C with kappa' and tau' left to the default reading takes the PA-10's
+// elbow (joint 3) 0.8 mrad from its limit at t = 4.71 s, and the IK fails at the next sample: reportOnly
+// lets the broken accelerations through but not the failed IK, and the refusal says so and
+// names the elbow, not the acceleration at t = 3.9 s it used to lead with.
+TEST_F(RobotTest, AReportOnlyRefusalNamesWhatReportOnlyCannotPassAndItsCause) {
+  auto request = example<v1::PlanRequest>("plan_pa10_path_c.json");
+  for (auto& frame : *request.mutable_path()->mutable_frames()) {
+    frame.clear_curvature_derivative();
+    frame.clear_torsion_derivative();
+  }
+  ASSERT_TRUE(request.robot().report_only());
+  grpc::Status status;
+  EXPECT_TRUE(stream_all(request, status).empty());
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_THAT(status.error_message(), HasSubstr("even with robot.reportOnly"));
+  EXPECT_THAT(status.error_message(), HasSubstr("the inverse kinematics did not converge at t = 4.72 s"));
+  EXPECT_THAT(status.error_message(),
+              HasSubstr("after joint 3 position 2.39029 is 0.000811 from its limit 2.3911 at t = 4.71 s"));
+  // PlanTrajectory reports it all, the elbow before the failed IK.
+  v1::PlanResponse response;
+  ASSERT_TRUE(plan(request, response).ok());
+  const auto& v = response.robot().violations();
+  const auto ik = std::find_if(v.begin(), v.end(), [](const auto& e) { return e.kind() == v1::LIMIT_KIND_IK; });
+  ASSERT_NE(ik, v.end());
+  ASSERT_NE(ik, v.begin());
+  EXPECT_EQ(std::prev(ik)->kind(), v1::LIMIT_KIND_POSITION);
+  EXPECT_EQ(std::prev(ik)->joint(), 3u);
+  EXPECT_EQ(std::prev(ik)->sample() + 1, ik->sample());
+}
+
 // ---------------------------------------------------------------------------------------
 // StreamSamples with a robot
 

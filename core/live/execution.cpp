@@ -184,6 +184,13 @@ Expected<LiveExecution> LiveExecution::start(const Trajectory& trajectory, const
   JointVector previous_q_ddot = JointVector::Zero(static_cast<Eigen::Index>(dof));
   double previous_tangential = 0.0;
   std::size_t previous_step = 0;
+  // The plan's own joint jerk as the samples show it (the refusal below): differences of
+  // the accelerations at the cycle rate and at the final sample, as the planner's joint
+  // report takes them, so that what PlanTrajectory reports within the jerk limits runs here.
+  const auto per_cycle = static_cast<std::size_t>(std::llround(rate / cycle_rate_hz));
+  JointVector cycle_q_ddot = JointVector::Zero(static_cast<Eigen::Index>(dof));
+  JointVector cycle_jerk = JointVector::Zero(static_cast<Eigen::Index>(dof));
+  double cycle_t = 0.0;
   const auto n = static_cast<std::size_t>(std::ceil(live.duration_ * rate - 1e-9));
   for (std::size_t k = 0; k <= n; ++k) {
     const double t = std::min(live.duration_, static_cast<double>(k) * h);
@@ -202,6 +209,15 @@ Expected<LiveExecution> LiveExecution::start(const Trajectory& trajectory, const
       row.peak_acceleration = std::max(row.peak_acceleration, std::abs(x.joints.q_ddot[j]));
       if (k > 0) row.peak_jerk = std::max(row.peak_jerk, std::abs(x.joints.q_ddot[j] - previous_q_ddot[j]) / h);
       previous_q_ddot[j] = x.joints.q_ddot[j];
+    }
+    if (x.has_joints && (k % per_cycle == 0 || k == n)) {
+      for (Eigen::Index j = 0; j < static_cast<Eigen::Index>(dof); ++j) {
+        if (k > 0 && t > cycle_t) {
+          cycle_jerk[j] = std::max(cycle_jerk[j], std::abs(x.joints.q_ddot[j] - cycle_q_ddot[j]) / (t - cycle_t));
+        }
+        cycle_q_ddot[j] = x.joints.q_ddot[j];
+      }
+      cycle_t = t;
     }
     // The step that holds t, as the sampler finds it (a step starts at its start time).
     std::size_t step = 0;
@@ -231,10 +247,12 @@ Expected<LiveExecution> LiveExecution::start(const Trajectory& trajectory, const
 
   // Speed changes keep the jerk limits only if the plan does: one whose own jerk breaks a
   // limit (a trapezoid's steps, a timing without jerk limits) is refused.
-  for (const LiveRow& row : rows) {
-    if (std::isfinite(row.max_jerk) && row.peak_jerk > row.max_jerk * (1.0 + options.jerk_tolerance)) {
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const LiveRow& row = rows[i];
+    const double own = i < dof ? cycle_jerk[static_cast<Eigen::Index>(i)] : row.peak_jerk;
+    if (std::isfinite(row.max_jerk) && own > row.max_jerk * (1.0 + options.jerk_tolerance)) {
       return tl::unexpected(Violations{
-          {"motion", "the plan's own jerk reaches " + number(row.peak_jerk, 4) + " " + row.unit + "/s^3 on the " +
+          {"motion", "the plan's own jerk reaches " + number(own, 4) + " " + row.unit + "/s^3 on the " +
                          row.name + ", beyond its limit of " + number(row.max_jerk, 6) + " " + row.unit +
                          "/s^3: execute a jerk-limited plan (optimize.timing.jerkLimited for a path, profile "
                          "PROFILE_SHAPE_S_CURVE for a move)"}});

@@ -45,6 +45,7 @@
 #include "core/error.hpp"
 #include "core/live/rate_profile.hpp"
 #include "core/motion/motion.hpp"
+#include "core/planning/joint_motion.hpp"
 #include "core/planning/trajectory.hpp"
 #include "core/robot/robot.hpp"
 
@@ -109,9 +110,10 @@ struct LiveOptions {
   /// A plan from whose full speed a stop would take longer than this [s] is refused (it
   /// uses some limit fully: there is no room to slow down on the path).
   double max_stop_time_s = 30.0;
-  /// A plan whose own jerk (finite differences at the check rate) passes a limit by more
-  /// than this fraction is refused (the timing's own sample check allows rounding).
-  double jerk_tolerance = 1e-6;
+  /// A plan whose own jerk passes a limit by more than this fraction is refused: a joint's
+  /// measured as the planner's joint report does (differences of the accelerations at the
+  /// cycle rate, kStepTolerance), the tool's path jerk at the check rate.
+  double jerk_tolerance = kStepTolerance;
   /// The pass over the plan stops when this is requested (a cancelled call).
   std::stop_token stop;
   IkOptions ik;

@@ -229,6 +229,7 @@ JointReportBuilder::JointReportBuilder(const RobotModel& model, double branch_to
   reported_.assign(n * kKinds, false);
   q_prev_ = JointVector::Zero(static_cast<Eigen::Index>(n));  // add() assigns, never allocates
   q_dot_prev_ = JointVector::Zero(static_cast<Eigen::Index>(n));
+  q_ddot_prev_ = JointVector::Zero(static_cast<Eigen::Index>(n));
   report_.binding.reserve(kMaxBindingStretches);  // add() never allocates
   constexpr double inf = std::numeric_limits<double>::infinity();
   report_.tightest_position.kind = LimitKind::kPosition;
@@ -279,9 +280,10 @@ int cause_rank(LimitKind kind) {
     case LimitKind::kBranch: return 1;
     case LimitKind::kVelocity: return 2;
     case LimitKind::kAcceleration: return 3;
-    case LimitKind::kIk: return 4;
+    case LimitKind::kJerk: return 4;
+    case LimitKind::kIk: return 5;
   }
-  return 5;
+  return 6;
 }
 
 // Stable insertion sort of [first, last) by cause_rank (no allocation, unlike stable_sort).
@@ -369,6 +371,15 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
     if (margin_a < -kLimitTolerance * lim.max_acceleration) {
       record(LimitKind::kAcceleration, j, sample, t, a, lim.max_acceleration, margin_a);
     }
+
+    // Jerk, where the model gives a limit: the mean over the step (an acceleration step of a
+    // trapezoid shows as its size times the rate).
+    if (lim.max_jerk && has_prev_ && t > t_prev_) {
+      const double jerk = std::abs(s.q_ddot(i) - q_ddot_prev_(i)) / (t - t_prev_);
+      if (jerk > *lim.max_jerk * (1.0 + kStepTolerance)) {
+        record(LimitKind::kJerk, j, sample, t, jerk, *lim.max_jerk, *lim.max_jerk - jerk);
+      }
+    }
   }
   if (r.violations.size() > first_new) {
     // A limit broken here: a joint at its position limit in this sample is named as well,
@@ -379,6 +390,7 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
   }
   q_prev_ = s.q;
   q_dot_prev_ = s.q_dot;
+  q_ddot_prev_ = s.q_ddot;
   t_prev_ = t;
   sample_prev_ = sample;
   has_prev_ = true;

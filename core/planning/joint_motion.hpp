@@ -131,6 +131,7 @@ enum class LimitKind {
   kAcceleration,  ///< |q_ddot| > maxAcceleration
   kIk,            ///< the IK did not converge (value: position error [m])
   kBranch,        ///< midpoint deviation above the tolerance (a branch change or singularity)
+  kJerk,          ///< |q_ddot_k - q_ddot_k-1| / dt > maxJerk (where the model gives one)
 };
 
 /// One joint-limit event of a motion: where a limit is broken, or how close it comes.
@@ -230,7 +231,7 @@ class JointReportBuilder {
   const JointMotionReport& report() const { return report_; }
 
  private:
-  static constexpr std::size_t kKinds = 5;  ///< LimitKind values
+  static constexpr std::size_t kKinds = 6;  ///< LimitKind values
   void record(LimitKind kind, std::size_t joint, std::size_t sample, double t, double value, double limit,
               double margin);
   void update_binding(std::size_t sample, double t, double s_path, const JointSample& s);
@@ -244,6 +245,7 @@ class JointReportBuilder {
   JointMotionReport report_;
   JointVector q_prev_;         ///< the last converged sample's joints
   JointVector q_dot_prev_;     ///< and joint velocities
+  JointVector q_ddot_prev_;    ///< and accelerations
   double t_prev_ = 0.0;        ///< and its time [s]
   std::size_t sample_prev_ = 0;  ///< and index
   bool has_prev_ = false;      ///< the last sample converged

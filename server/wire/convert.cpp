@@ -476,6 +476,7 @@ v1::LimitKind to_proto(core::LimitKind k) {
     case core::LimitKind::kAcceleration: return v1::LIMIT_KIND_ACCELERATION;
     case core::LimitKind::kIk: return v1::LIMIT_KIND_IK;
     case core::LimitKind::kBranch: return v1::LIMIT_KIND_BRANCH;
+    case core::LimitKind::kJerk: return v1::LIMIT_KIND_JERK;
   }
   return v1::LIMIT_KIND_UNSPECIFIED;
 }
@@ -853,6 +854,9 @@ std::string describe(const core::LimitEvent& e) {
       return joint + " speed " + core::number(e.value, 6) + " exceeds maxVelocity " + core::number(e.limit, 6) + where;
     case core::LimitKind::kAcceleration:
       return joint + " acceleration " + core::number(e.value, 6) + " exceeds maxAcceleration " + core::number(e.limit, 6) + where;
+    case core::LimitKind::kJerk:
+      return joint + " jerk " + core::number(e.value, 6) + " (the change of its acceleration over the sample step) exceeds maxJerk " +
+             core::number(e.limit, 6) + where + ": an acceleration step (a trapezoidal profile); MOTION_PROFILE_S_CURVE or durationS 0 keeps the jerk limits";
     case core::LimitKind::kIk:
       return "the inverse kinematics did not converge" + where + " (position residual " + core::number(e.value, 6) +
              " m): the pose is out of reach or at a singularity";

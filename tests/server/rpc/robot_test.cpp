@@ -337,6 +337,30 @@ TEST_F(RobotTest, AReportOnlyRefusalNamesWhatReportOnlyCannotPassAndItsCause) {
   EXPECT_EQ(std::prev(ik)->sample() + 1, ik->sample());
 }
 
+// The Panda gives jerk limits: a path with a durationS and the default trapezoid steps its
+// accelerations at the start and the end, which the joint report measures as a jerk at the
+// cycle rate (as live execution does, which refused such a plan that Plan called within
+// every limit); the S-curve keeps them.
+TEST_F(RobotTest, AJerkLimitIsCheckedWhereTheModelGivesOne) {
+  auto request = example<v1::PlanRequest>("plan_panda_path_c.json");
+  request.mutable_motion()->set_duration_s(8.0);
+  request.mutable_motion()->set_cycle_rate_hz(4000.0);  // a step of 3.4 rad/s^2 is 13700 rad/s^3 here
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << status.error_message();
+  EXPECT_THAT(status.error_message(), HasSubstr("jerk"));
+  EXPECT_THAT(status.error_message(), HasSubstr("exceeds maxJerk"));
+  request.mutable_robot()->set_report_only(true);
+  ASSERT_TRUE(plan(request, response).ok());
+  const auto& v = response.robot().violations();
+  EXPECT_TRUE(std::any_of(v.begin(), v.end(), [](const auto& e) { return e.kind() == v1::LIMIT_KIND_JERK; }));
+  request.mutable_robot()->set_report_only(false);
+  request.mutable_motion()->set_profile(v1::MOTION_PROFILE_S_CURVE);
+  const auto smooth = plan(request, response);
+  ASSERT_TRUE(smooth.ok()) << smooth.error_message();
+  EXPECT_TRUE(response.robot().feasible());
+}
+
 // ---------------------------------------------------------------------------------------
 // StreamSamples with a robot
 

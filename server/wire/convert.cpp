@@ -302,10 +302,13 @@ core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& requ
   if (m.has_speed_scale()) spec.speed_scale = m.speed_scale();
   if (m.has_acceleration_scale()) {
     spec.acceleration_scale = m.acceleration_scale();
-    if (m.duration_s() > 0.0) {
+    // With a durationS it scales nothing, unless a robot.approach (timed by the limits)
+    // comes first.
+    const bool approach = request.has_path() && request.robot().approach() != v1::APPROACH_MOVE_UNSPECIFIED;
+    if (m.duration_s() > 0.0 && !approach) {
       return tl::unexpected(core::Violations{
-          {"motion.accelerationScale", "scales the limits of a timing by the limits (durationS 0): a motion with a "
-                                       "durationS is timed by it instead"}});
+          {"motion.accelerationScale", "scales the limits of a timing by the limits (durationS 0, or a "
+                                       "robot.approach): a motion with a durationS is timed by it instead"}});
     }
   }
   if (m.has_max_speed()) spec.max_speed = m.max_speed();
@@ -1254,6 +1257,11 @@ core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& requ
     // request's motion gives.
     *sub.mutable_motion() = request.motion();
     if (step.has_motion()) sub.mutable_motion()->MergeFrom(step.motion());
+    // The request's accelerationScale scales the steps the limits time; a step timed by its
+    // own durationS takes none (unless it gives one, which is then refused as at the top).
+    if (step.motion().duration_s() > 0.0 && !step.motion().has_acceleration_scale()) {
+      sub.mutable_motion()->clear_acceleration_scale();
+    }
     sub.set_pacing(request.pacing());
     if (request.has_samples_per_batch()) sub.set_samples_per_batch(request.samples_per_batch());
     bool start_given = false;

@@ -23,6 +23,22 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int kAngularRows = 8;
 constexpr double kAngularInscribed = 0.98078528040323044913;  // cos(pi / 16)
 
+// The grid's continuation (time_optimal_grids): a step of the tracker is accepted when it
+// converges, on the branch it started on: its midpoint certificate
+// (JointSample::midpoint_deviation) within the joint report's branch tolerance
+// (JointReportBuilder's default, 1 mm), and the Newton correction of the tracker's
+// predictor (the largest |q_j - q_pred,j|) within kGridCorrection. On one branch that
+// correction is third order in the step (at most 7e-3 rad on the thesis's demo paths at 200
+// intervals, 1e-4 at 1,000), at a key frame whose turn is not eased first order (the twist
+// steps there) and it shrinks with the step either way; a predictor that left the branch's
+// basin (a singularity passed in one stride, a self-motion or a wrist flipped) is corrected
+// by a sizeable fraction of a radian (0.08 to 0.9 rad where the grid left the samples'
+// branch on random paths). Otherwise the interval is walked in steps halved down to
+// kGridMinStep of a grid interval.
+constexpr double kGridBranchTolerance = 1e-3;  // [m]
+constexpr double kGridCorrection = 1e-2;       // [rad or m]
+constexpr double kGridMinStep = 1.0 / 4096.0;
+
 
 /// Which constraint a bound comes from.
 struct Source {
@@ -338,56 +354,128 @@ Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& pat
   std::vector<std::vector<GridPoint>> grids;
   std::optional<JointTracker> tracker;
   if (robot) tracker.emplace(*robot, seed, ik);
-  JointSample js;
+  JointSample js, rollback;
+  JointVector q_good, qd_good, qdd_good;  // joints and rates at the last accepted point (x_good)
   Jet jet{};
   // The tool's angular rates need the orientation planned for this path (a Cartesian-only
   // caller may pass none: then omega_s = omega_ss = 0 and angular limits bind nothing).
   const bool oriented = orientation.segments.size() == path.segment_count();
+  // The Cartesian state at arc length s_loc of portion p at the tracker's time t [s] (the arc
+  // length travelled at s_dot = 1, s_ddot = 0), its u, and the curvature there. No allocation.
+  CartesianState x, x_try, x_good;
+  double u = 0.0, u_try = 0.0, u_good = 0.0, kappa = 0.0;
+  auto state_at = [&](std::size_t p, double s_loc, double t, bool end, CartesianState& out, double& u_out,
+                      double& kappa_out) -> bool {
+    const MotionPortion& por = portions[p];
+    double uu = s_loc == 0.0 ? por.u_start : end ? por.u_end : parameter_at(path, por.s_start + s_loc);
+    uu = std::clamp(uu, por.u_start, por.u_end);
+    u_out = uu;
+    const std::size_t seg =
+        std::min(static_cast<std::size_t>(std::floor(uu)), static_cast<std::size_t>(por.u_end) - 1);
+    evaluate(path.segments[seg], uu - static_cast<double>(seg), 2, jet);
+    const double sp = jet[1].norm();
+    if (!(sp > 0.0)) return false;
+    const Eigen::Vector3d T = jet[1] / sp;
+    const Eigen::Vector3d p_ss = (jet[2] - jet[2].dot(T) * T) / (sp * sp);  // d2p/ds2 = kappa N
+    kappa_out = p_ss.norm();
+    if (oriented || tracker) {
+      MotionSample ms;
+      ms.t = t;
+      ms.u = uu;
+      ms.s = por.s_start + s_loc;
+      ms.segment = seg;
+      ms.portion = p;
+      ms.p_W = jet[0];
+      ms.v_W = T;  // s_dot = 1
+      ms.a_W = p_ss;
+      ms.speed = 1.0;
+      ms.s_ddot = 0.0;
+      out = cartesian_state(path, orientation, ms);
+    }
+    return true;
+  };
+  auto no_tangent = [&](double uu) {
+    return tl::make_unexpected(Violations{unattainable("motion", "the path has no tangent at u = " + number(uu, 6))});
+  };
+  auto ik_fails = [&](const MotionPortion& por, double s_loc, double uu) {
+    return tl::make_unexpected(Violations{unattainable(
+        "motion", "the IK fails at s = " + number(por.s_start + s_loc, 6) + " m (u = " + number(uu, 6) +
+                      ") of the path: position error " + number(js.position_error, 6) + " m")});
+  };
+  // The Newton correction of the tracker's predictor over a step of dt [s] from the last
+  // accepted point: its second-order predictor, projected onto the limits (joint_motion.cpp).
+  auto correction = [&](double dt) {
+    double worst = 0.0;
+    for (Eigen::Index i = 0; i < js.q.size(); ++i) {
+      const auto j = static_cast<std::size_t>(i);
+      double q_pred = q_good(i) + qd_good(i) * dt + qdd_good(i) * (0.5 * dt * dt);
+      if (robot->joints[j].type != JointType::kContinuous)
+        q_pred = std::clamp(q_pred, robot->limits[j].min_position, robot->limits[j].max_position);
+      worst = std::max(worst, std::abs(js.q(i) - q_pred));
+    }
+    return worst;
+  };
+  auto accept = [&](const CartesianState& at, double u_at) {
+    x_good = at;
+    u_good = u_at;
+    q_good = js.q;
+    qd_good = js.q_dot;
+    qdd_good = js.q_ddot;
+  };
   double t_fake = 0.0;  // the tracker's time: arc length travelled at s_dot = 1 [s]
   for (std::size_t p = 0; p < portions.size(); ++p) {
     const MotionPortion& por = portions[p];
+    const double h = por.length / static_cast<double>(grid_intervals);
     std::vector<GridPoint> grid(grid_intervals + 1);
     for (std::size_t k = 0; k <= grid_intervals; ++k) {
       const double s_loc = por.length * static_cast<double>(k) / static_cast<double>(grid_intervals);
-      double u = k == 0 ? por.u_start : k == grid_intervals ? por.u_end : parameter_at(path, por.s_start + s_loc);
-      u = std::clamp(u, por.u_start, por.u_end);
-      const std::size_t seg =
-          std::min(static_cast<std::size_t>(std::floor(u)), static_cast<std::size_t>(por.u_end) - 1);
-      const double u_local = u - static_cast<double>(seg);
-      evaluate(path.segments[seg], u_local, 2, jet);
-      const double sp = jet[1].norm();
+      if (!state_at(p, s_loc, t_fake, k == grid_intervals, x, u, kappa)) return no_tangent(u);
       GridPoint& g = grid[k];
       g.s = s_loc;
-      if (!(sp > 0.0)) return tl::make_unexpected(Violations{unattainable("motion", "the path has no tangent at u = " + number(u, 6))});
-      const Eigen::Vector3d T = jet[1] / sp;
-      const Eigen::Vector3d p_ss = (jet[2] - jet[2].dot(T) * T) / (sp * sp);  // d2p/ds2 = kappa N
-      g.kappa = p_ss.norm();
-      if (oriented || tracker) {
-        MotionSample ms;
-        ms.t = t_fake;
-        ms.u = u;
-        ms.s = por.s_start + s_loc;
-        ms.segment = seg;
-        ms.portion = p;
-        ms.p_W = jet[0];
-        ms.v_W = T;  // s_dot = 1
-        ms.a_W = p_ss;
-        ms.speed = 1.0;
-        ms.s_ddot = 0.0;
-        const CartesianState x = cartesian_state(path, orientation, ms);
-        g.omega_s = x.omega_WT;   // at s_dot = 1
-        g.omega_ss = x.alpha_WT;  // at s_ddot = 0
-        if (tracker) {
-          if (!tracker->track(x, js))
-            return tl::make_unexpected(Violations{
-                unattainable("motion", "the IK fails at s = " + number(por.s_start + s_loc, 6) + " m (u = " +
-                                           number(u, 6) + ") of the path: position error " +
-                                           number(js.position_error, 6) + " m")});
-          g.q_s = js.q_dot;    // dq/ds at s_dot = 1
-          g.q_ss = js.q_ddot;  // d2q/ds2 at s_ddot = 0
+      g.kappa = kappa;
+      g.omega_s = x.omega_WT;   // at s_dot = 1 (zero when not oriented)
+      g.omega_ss = x.alpha_WT;  // at s_ddot = 0
+      if (tracker) {
+        // The continuation of the samples (joint_motion.hpp): the step from the last grid
+        // point, warm-started there. Where it does not converge, or leaves the branch it
+        // started on (kGridBranchTolerance, kGridCorrection above), the interval is walked
+        // in smaller steps from the last accepted point (halved down to kGridMinStep of it,
+        // and doubled again after each accepted one), as a sampler slow enough to follow the
+        // path would have tracked it; a converged step is rejected only above the smallest
+        // step (there it is kept, as a sampler keeps it). The first point of a portion is
+        // the rest where the last one ended (a tiny step: the tangent may invert).
+        const bool walk = k > 0;
+        double s_good = walk ? grid[k - 1].s : s_loc, step = s_loc - s_good;
+        const double min_step = kGridMinStep * h;
+        for (;;) {
+          const double s_try = step >= s_loc - s_good ? s_loc : s_good + step;
+          const bool at_point = s_try == s_loc;
+          if (!at_point && !state_at(p, s_try, t_fake - (s_loc - s_try), false, x_try, u_try, kappa))
+            return no_tangent(u_try);
+          const bool converged = tracker->track(at_point ? x : x_try, js);
+          const bool last_try = !walk || step <= min_step;
+          if (converged && (last_try || (js.midpoint_deviation <= kGridBranchTolerance &&
+                                         correction(s_try - s_good) <= kGridCorrection))) {
+            if (at_point) break;
+            s_good = s_try;  // accepted: on from here, in a stride twice as long
+            accept(x_try, u_try);
+            step *= 2.0;
+            continue;
+          }
+          if (last_try) return ik_fails(por, s_try, at_point ? u : u_try);
+          // Converged on another branch: back to the last accepted point (a first call from
+          // its joints, already a solution there: the same joints and rates).
+          if (converged) {
+            tracker->reset(q_good);
+            if (!tracker->track(x_good, rollback)) return ik_fails(por, s_good, u_good);
+          }
+          step *= 0.5;
         }
+        accept(x, u);  // the next interval starts here
+        g.q_s = js.q_dot;    // dq/ds at s_dot = 1
+        g.q_ss = js.q_ddot;  // d2q/ds2 at s_ddot = 0
       }
-      const double next = k < grid_intervals ? por.length / static_cast<double>(grid_intervals) : 1e-9;
+      const double next = k < grid_intervals ? h : 1e-9;
       t_fake += next;  // a rest between portions: a tiny step (the tangent may invert)
     }
     grids.push_back(std::move(grid));

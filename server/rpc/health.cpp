@@ -56,6 +56,11 @@ void HealthState::unsubscribe(Watcher* watcher) {
   std::erase(watchers_, watcher);
 }
 
+bool HealthState::delivered() const {
+  const std::lock_guard lock(mutex_);
+  return std::all_of(watchers_.begin(), watchers_.end(), [](Watcher* w) { return w->delivered(); });
+}
+
 void HealthState::notify() {
   for (Watcher* w : watchers_) w->health_changed(get_locked(w->watched()));
 }
@@ -94,6 +99,11 @@ class HealthWatch final : public grpc::ServerWriteReactor<HealthCheckResponse>, 
       return;
     }
     WriteIfChanged();
+  }
+
+  bool delivered() override {
+    const std::lock_guard lock(mutex_);
+    return finished_ || (!writing_ && !pending_ && sent_ && last_ == latest_);
   }
 
   void OnWriteDone(bool ok) override {

@@ -29,6 +29,9 @@ class HealthState {
     /// Its status now (SERVING, NOT_SERVING, or nullopt: not known). Called with the
     /// state's lock held: it must not call back into the state.
     virtual void health_changed(std::optional<bool> serving) = 0;
+    /// Whether the newest status it was told has been written to its client (or the watch
+    /// has ended). Called with the state's lock held.
+    virtual bool delivered() = 0;
 
    protected:
     ~Watcher() = default;
@@ -51,6 +54,9 @@ class HealthState {
   void subscribe(Watcher* watcher);
   /// After it returns, `watcher` is not called again.
   void unsubscribe(Watcher* watcher);
+  /// Whether every watcher has written the newest status (a drain waits for it, within its
+  /// time, so that each Watch sees NOT_SERVING before the server ends it).
+  bool delivered() const;
 
  private:
   void notify();  // mutex_ held

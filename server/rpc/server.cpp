@@ -461,7 +461,10 @@ void stop_server(RunningServer& running, std::chrono::milliseconds drain, std::c
   // server that has begun its shutdown would be CANCELLED instead.
   const auto until = began + drain;
   const auto refuse_until = began + std::min(lame_duck, drain);
-  while ((running.runtime->calls_in_flight() > 0 || std::chrono::steady_clock::now() < refuse_until) &&
+  // Health watches are not calls in flight, but each is owed its NOT_SERVING before the
+  // server ends it (under load the write could still be in flight at the shutdown).
+  while ((running.runtime->calls_in_flight() > 0 || std::chrono::steady_clock::now() < refuse_until ||
+          !running.health->delivered()) &&
          std::chrono::steady_clock::now() < until && !now.stop_requested()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }

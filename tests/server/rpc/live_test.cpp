@@ -659,11 +659,13 @@ TEST(LiveWriteDeadline, AClientThatNeverReadsIsEnded) {
   auto stub = stub_to(running.port, nullptr, args);
   auto context = short_context(60);
   auto stream = stub->Jog(context.get());
-  auto first = panda_jog(0.3);
+  // A deadman time of 1 s: heartbeats every 50 ms keep it fed even on a loaded machine under
+  // a sanitizer, so that what ends the call is the unread writes and not a late heartbeat.
+  auto first = panda_jog(1.0);
   first.mutable_start()->set_cycle_rate_hz(10'000.0);
   ASSERT_TRUE(stream->Write(first));
   ASSERT_TRUE(stream->Write(joint1_velocity(0.2)));
-  // Heartbeats every 50 ms (well inside the 0.3 s deadman) for at most 30 s, never a read.
+  // Heartbeats every 50 ms for at most 30 s, never a read.
   bool ended = false;
   for (int i = 0; i < 600 && !ended; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -680,7 +682,7 @@ TEST(LiveWriteDeadline, AClientThatNeverReadsIsEnded) {
   EXPECT_TRUE(eventually([&] {
     return series(server::metrics_exposition(running), R"(geotraj_live_stops_total{method="Jog",reason="unread"})") == 1 &&
            series(server::metrics_exposition(running), "geotraj_active_streams") == 0;
-  }));
+  })) << server::metrics_exposition(running);
   const auto exposition = server::metrics_exposition(running);
   EXPECT_EQ(series(exposition, R"(geotraj_rpc_calls_total{method="Jog",code="ABORTED"})"), 1);
   server::stop_server(running, std::chrono::seconds(1));

@@ -1,9 +1,9 @@
 # The two commands of the README: `make demo` and `make test`.
 BUILD_DIR ?= build
 ASAN_DIR  ?= build-asan
-FUZZ_DIR  ?= build-fuzz
+FUZZ_DIR  ?= $(ASAN_DIR)
 TSAN_DIR  ?= build-tsan
-FUZZ_SECONDS ?= 45
+FUZZ_SECONDS ?= 20
 JOBS      ?= $(shell nproc)
 CMAKE_FLAGS ?=
 
@@ -24,15 +24,21 @@ test: build
 demo: build
 	bash scripts/demo.sh $(BUILD_DIR)
 
-# Every test again under AddressSanitizer and UndefinedBehaviorSanitizer (benchmarks off),
-# but those labelled slow (cmake/slow_tests.cmake: a minute or more even in Release).
+# Every test again under AddressSanitizer and UndefinedBehaviorSanitizer, built by clang with
+# the fuzz targets (scripts/fuzz.sh), so that `make fuzz` after it builds nothing more. Left
+# out (cmake/slow_tests.cmake): tests labelled slow (a minute or more even in Release) or
+# heavy (numerical property tests of 20 s or more under the sanitizers), and the tests of
+# what is not C++ (interop: the Python and Node clients; deploy; web: the browser), whose
+# server runs under the sanitizers in the server's own tests.
 # -g1: line tables for the sanitizers' stack traces, without the full debug information
 # whose generation and linking are a large part of this build's time.
+SANITIZE_CONFIG = -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG=-g1 -DCMAKE_CXX_COMPILER=clang++ \
+  -DGEOTRAJ_SANITIZE=ON -DGEOTRAJ_BUILD_FUZZ=ON -DGEOTRAJ_BUILD_BENCH=OFF -DGEOTRAJ_NPM_TESTS=OFF
 sanitize: deps
-	cmake -S . -B $(ASAN_DIR) -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG=-g1 -DGEOTRAJ_SANITIZE=ON -DGEOTRAJ_BUILD_BENCH=OFF $(CMAKE_FLAGS)
+	cmake -S . -B $(ASAN_DIR) $(SANITIZE_CONFIG) $(CMAKE_FLAGS)
 	cmake --build $(ASAN_DIR) -j $(JOBS)
 	cd $(ASAN_DIR) && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-	  ctest --output-on-failure -j $(JOBS) -LE slow
+	  ctest --output-on-failure -j $(JOBS) -LE '^(slow|heavy|interop|deploy|web)$$'
 
 # The server's concurrency tests under ThreadSanitizer: every RPC at once, cancelled midway,
 # the worker pool, health watches, the acceptor, streams (docs/reliability.md). gRPC and
@@ -46,9 +52,10 @@ tsan: deps
 	  ctest --output-on-failure -j $(JOBS) -R '$(TSAN_TESTS)'
 
 # libFuzzer targets (clang, ASan+UBSan) on the service's request parsing, validation and
-# planning: the regression inputs, then FUZZ_SECONDS per target (docs/reliability.md).
+# planning: the regression inputs, then FUZZ_SECONDS per target, as many targets at once as
+# there are cores (docs/reliability.md). In the sanitizers' tree when `make sanitize` made it.
 fuzz: deps
-	bash scripts/fuzz.sh $(FUZZ_DIR) $(FUZZ_SECONDS)
+	FUZZ_CONFIG="$(SANITIZE_CONFIG)" bash scripts/fuzz.sh $(FUZZ_DIR) $(FUZZ_SECONDS)
 
 bench: build
 	bash scripts/bench.sh $(BUILD_DIR)

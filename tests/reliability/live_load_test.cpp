@@ -93,11 +93,13 @@ class LiveLoadTest : public ConfiguredServerTest {
     ASSERT_TRUE(other->Write(jog_start(250.0, 1)));
     Lateness lateness;
     std::atomic<bool> stop_other{false};
+    std::atomic<bool> other_streaming{false};
     std::thread reader([&] {
       v1::SampleBatch batch;
       auto last_beat = std::chrono::steady_clock::now();
       bool stopped = false;
       while (other->Read(&batch)) {
+        other_streaming = true;
         const auto now = std::chrono::steady_clock::now();
         for (const auto& s : batch.samples()) lateness.arrived(s.t(), now);
         v1::JogRequest message;
@@ -113,6 +115,12 @@ class LiveLoadTest : public ConfiguredServerTest {
       }
     });
 
+    // The other robot is admitted first (its start could otherwise reach the server after
+    // the fast Jogs had taken the whole live budget, on a loaded machine).
+    const auto admitted_by = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (!other_streaming && std::chrono::steady_clock::now() < admitted_by) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
     // The fast Jogs, over 4 connections.
     std::vector<std::unique_ptr<v1::TrajectoryService::Stub>> stubs;
     for (int c = 0; c < 4; ++c) stubs.push_back(v1::TrajectoryService::NewStub(own_channel(c)));

@@ -85,7 +85,7 @@ const LivePlan& live_plan(long arm, double cycle_hz) {
   const server::RobotCatalog catalog{planner::builtin_robots()};
   auto input = server::request_from_proto(request, catalog, server::ServiceLimits{}, server::RequestUse::kStream);
   if (!input) throw std::runtime_error(file + ": " + input.error().front().description);
-  planner::prepare_execution(*input, 0.1);  // as Execute, with ExecuteOptions.accelerationReserve's default
+  planner::reserve_room(*input, 0.1);  // as Execute, with ExecuteOptions.accelerationReserve's default
   auto planned = planner::plan(*input, planner::Budget{}, planner::Limits{}, planner::Purpose::kStream);
   if (!planned) throw std::runtime_error(file + ": not planned");
   slot = std::make_unique<LivePlan>();

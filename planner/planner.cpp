@@ -294,14 +294,37 @@ Expected<StraightPath> straight_path(const core::LinearMoveSpec& move) {
   return StraightPath{std::move(*path), std::move(*orientation)};
 }
 
-bool has_jerk_limits(const core::RobotModel& model) {
-  return std::any_of(model.limits.begin(), model.limits.end(),
-                     [](const core::JointLimits& l) { return l.max_jerk.has_value(); });
+// The jerk bounds of `model`'s joints without max_jerk under core::jerk_bound's default.
+DefaultJerk default_jerk_of(const core::RobotModel& model) {
+  DefaultJerk used;
+  for (std::size_t i = 0; i < model.limits.size(); ++i) {
+    if (model.limits[i].max_jerk) continue;
+    used.joints.push_back(i);
+    used.max_jerk.push_back(core::jerk_bound(model.limits[i], used.ramp_s));
+  }
+  const auto [low, high] = std::minmax_element(used.max_jerk.begin(), used.max_jerk.end());
+  std::string names;
+  bool revolute = false, prismatic = false;
+  for (std::size_t k = 0; k < used.joints.size(); ++k) {
+    const std::size_t i = used.joints[k];
+    names += (k == 0 ? "" : ", ") + std::to_string(i) +
+             (model.joints[i].name.empty() ? "" : " (" + model.joints[i].name + ")");
+    (model.joints[i].type == core::JointType::kPrismatic ? prismatic : revolute) = true;
+  }
+  const std::string unit = revolute && prismatic ? " rad/s^3 or m/s^3" : prismatic ? " m/s^3" : " rad/s^3";
+  used.message = "the " + model.name + " model gives no maxJerk for joint" + (used.joints.size() > 1 ? "s " : " ") +
+                 names + ": the motion, timed by the limits, keeps their jerk within maxAcceleration / " +
+                 core::number(used.ramp_s) + " s (" + core::number(*low, 4) +
+                 (*high > *low ? " to " + core::number(*high, 4) : std::string()) + unit +
+                 ") so that it starts and ends without an acceleration step; give the joints a maxJerk (or the "
+                 "motion a durationS) to choose otherwise";
+  return used;
 }
 
-// The trajectory of a request with a motion.
+// The trajectory of a request with a motion. `default_jerk`: set when the model's missing
+// jerk limits were defaulted.
 Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget& budget, Clock::time_point deadline,
-                                           OptimizerReports& reports) {
+                                           OptimizerReports& reports, std::optional<DefaultJerk>& default_jerk) {
   core::MotionSpec motion = *request.motion;
   const Robot* robot = request.robot.get();
   const bool time_optimal = request.optimize && request.optimize->time_optimal;
@@ -310,11 +333,26 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
                      std::holds_alternative<JointMoveToPose>(request.geometry);
   // Within every limit the model gives: where the limits time the motion and the model has
   // jerk limits, a path or a line is timed jerk-limited and a joint move is a double S, for
-  // PlanTrajectory, StreamSamples and Execute alike (live execution keeps the jerk limits
-  // and refuses a plan that breaks them).
-  const bool model_jerk = robot != nullptr && has_jerk_limits(robot->model);
-  const bool jerk_from_model =
-      model_jerk && !jerk_limited && time_optimally_timed(motion, true, time_optimal, jerk_limited);
+  // PlanTrajectory, StreamSamples and Execute alike (live execution keeps the model's jerk
+  // limits and refuses a plan that breaks them).
+  // No acceleration step by default: where the request leaves the timing to the limits (no
+  // durationS and no optimize.timing.timeOptimal) or asks for jerkLimited, a joint without
+  // max_jerk is bounded by core::jerk_bound's default, and the plan says so. Not where the
+  // tool's angular limits are asked of a path or a line (the jerk-limited NLP has no angular
+  // rows: the time-optimal sweep imposes them) nor under an explicit timeOptimal (the sweep
+  // the request asks for, thesis 6.4).
+  const bool by_limits = robot != nullptr && time_optimally_timed(motion, true, time_optimal, jerk_limited);
+  const bool angular = motion.max_angular_speed || motion.max_angular_acceleration;
+  Robot defaulted;
+  if (by_limits && !core::jerk_limited(robot->model) && !(angular && !joint) && (!time_optimal || jerk_limited)) {
+    default_jerk = default_jerk_of(robot->model);
+    defaulted = *robot;
+    defaulted.model = core::with_default_jerk(robot->model, default_jerk->ramp_s);
+    robot = &defaulted;
+  }
+  const bool jerk_from_model = by_limits && !jerk_limited && robot != nullptr &&
+                               std::any_of(robot->model.limits.begin(), robot->model.limits.end(),
+                                           [](const core::JointLimits& l) { return l.max_jerk.has_value(); });
   if (jerk_from_model) {
     if (joint) {
       motion.profile = core::ProfileShape::kSCurve;
@@ -329,7 +367,6 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
   };
   // The tool's angular limits are imposed where the motion is as fast as its limits allow:
   // the time-optimal sweep, a line's minimum time. Elsewhere they would be ignored: refused.
-  const bool angular = motion.max_angular_speed || motion.max_angular_acceleration;
   const std::string angular_field = motion.max_angular_speed ? "motion.maxAngularSpeed" : "motion.maxAngularAcceleration";
   const bool path_or_line = !std::holds_alternative<core::JointMoveSpec>(request.geometry) &&
                             !std::holds_alternative<JointMoveToPose>(request.geometry);
@@ -440,14 +477,28 @@ std::optional<Error> starts_at_robot(const core::Trajectory& trajectory, const R
           "start first (a jointMove with goalPose), or give initialJoints there")});
 }
 
-Expected<RobotPass> robot_pass(const core::Trajectory& trajectory, const Robot& robot, const Budget& budget) {
+// The Cartesian limits that `motion`'s samples are measured against in the binding report:
+// a path's or a line's, as given (none for a joint move, whose tool follows no path).
+core::CartesianLimits cartesian_limits(const core::MotionSpec& motion, bool tool_path) {
+  if (!tool_path) return {};
+  return {motion.max_speed.value_or(0.0), motion.max_acceleration.value_or(0.0), motion.max_angular_speed.value_or(0.0),
+          motion.max_angular_acceleration.value_or(0.0)};
+}
+
+bool joint_geometry(const Geometry& geometry) {
+  return std::holds_alternative<core::JointMoveSpec>(geometry) || std::holds_alternative<JointMoveToPose>(geometry);
+}
+
+Expected<RobotPass> robot_pass(const core::Trajectory& trajectory, const Robot& robot,
+                               const core::CartesianLimits& cartesian, const Budget& budget) {
   core::TrajectorySampler sampler(trajectory, &robot.model, robot.seed);
   core::JointReportBuilder builder(robot.model, robot.branch_tolerance);
+  builder.set_cartesian_limits(cartesian);
   core::TrajectorySample sample;
   ToolPeaks peaks;
   while (sampler.next(sample)) {
     const std::size_t k = sampler.index() - 1;
-    builder.add(k, sample.t, sample.s, sample.joints);
+    builder.add(k, sample.t, sample.s, sample.joints, &sample.tool);
     add(peaks, sample);
     if (k % kSamplesPerCheck == 0) {
       if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
@@ -794,7 +845,7 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
         last == i) {
       sub.optimize = request.optimize;  // a line takes its timing flags only
     }
-    auto trajectory = plan_trajectory(sub, budget, deadline, report.optimizers);
+    auto trajectory = plan_trajectory(sub, budget, deadline, report.optimizers, result.default_jerk);
     if (!trajectory) return tl::unexpected(in_step(std::move(trajectory.error()), i, step));
     if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
     if (i == 0 && robot) {
@@ -823,6 +874,7 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     // peaks over the whole sequence, and where the unit ends.
     const auto ref = std::visit([](const auto& m) { return core::StepRef(&m); }, motion);
     core::StepSampler sampler(ref, robot ? &robot->model : nullptr, end.q, {});
+    if (builder) builder->set_cartesian_limits(cartesian_limits(*sub.motion, !joint_geometry(sub.geometry)));
     core::TrajectorySample sample;
     while (sampler.next(sample)) {
       const std::size_t j = sampler.index() - 1;
@@ -831,9 +883,10 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
       }
       if (last_unit || j + 1 < n) {
         const double t = report.start_time_s + sample.t;
-        if (builder) builder->add(first + j, t, sample.s, sample.joints);
+        if (builder) builder->add(first + j, t, sample.s, sample.joints, &sample.tool);
         add(peaks, sample);
       }
+      add(report.tool, sample);  // the step's own, its last rest included
       if (j % (robot ? kSamplesPerCheck : kToolSamplesPerCheck) == 0) {
         if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
       }
@@ -900,6 +953,7 @@ std::optional<Expected<Request>> with_approach(const Request& request) {
   approach.motion.duration_s = 0.0;  // as fast as the joint limits (and a line's Cartesian ones) allow
   // The room for live speed changes (reserve_room), unless the request's motion has it already.
   if (!request.motion_reserved) approach.motion.acceleration_scale *= 1.0 - request.reserve;
+  out.reserve_applied = out.reserve_applied || request.reserve > 0.0;
   const std::vector<double> q(robot->seed.data(), robot->seed.data() + robot->seed.size());
   if (robot->approach == Approach::kJoint) {
     approach.geometry = JointMoveToPose{q, Eigen::Translation3d(start.p_WT) * start.q_WT, GoalChoice::kLargestMargin};
@@ -924,8 +978,6 @@ bool time_optimally_timed(const core::MotionSpec& motion, bool robot, bool time_
   return time_optimal || jerk_limited || minimum_time;
 }
 
-void prepare_execution(Request& request, double reserve) { reserve_room(request, reserve); }
-
 void reserve_room(Request& request, double reserve) {
   const double factor = 1.0 - std::clamp(reserve, 0.0, 0.99);  // of every acceleration and jerk limit
   request.reserve = reserve;
@@ -935,11 +987,13 @@ void reserve_room(Request& request, double reserve) {
   if (request.motion && time_optimally_timed(*request.motion, robot, time_optimal, jerk_limited)) {
     request.motion->acceleration_scale *= factor;
     request.motion_reserved = true;
+    request.reserve_applied = reserve > 0.0;
   }
   for (Step& step : request.sequence) {
     const bool path = std::holds_alternative<core::PathSpec>(step.geometry);
     if (time_optimally_timed(step.motion, robot, path && time_optimal, path && jerk_limited)) {
       step.motion.acceleration_scale *= factor;
+      request.reserve_applied = request.reserve_applied || reserve > 0.0;
     }
   }
 }
@@ -959,12 +1013,29 @@ const core::Path* Plan::followed_path() const {
   return nullptr;
 }
 
-Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose) {
+namespace {
+
+// What Execute's reserve (reserve_room) changed in `result`, in words.
+Expected<Plan> with_reserve_noted(Expected<Plan> result, const Request& request) {
+  if (!result || !request.reserve_applied) return result;
+  const std::string percent = core::number(100.0 * request.reserve, 4) + " %";
+  const std::string scale = core::number(1.0 - request.reserve, 4);
+  result->reserve = request.reserve;
+  result->reserve_note =
+      "the motions the limits time (no durationS: fastest paths and moves, robot.approach) keep " + percent +
+      " of every acceleration and jerk limit free for speed changes (ExecuteOptions.accelerationReserve " +
+      core::number(request.reserve, 4) + "): their speed-ups and slow-downs take longer than PlanTrajectory's and " +
+      "StreamSamples' (theirs with motion.accelerationScale x " + scale +
+      " are this plan); speed limits and motions with a durationS are kept";
+  return result;
+}
+
+Expected<Plan> plan_request(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose) {
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   if (!request.sequence.empty()) return plan_sequence(request, budget, limits, purpose);
   if (auto approached = with_approach(request)) {
     if (!*approached) return tl::unexpected(std::move(approached->error()));
-    return plan_sequence(**approached, budget, limits, purpose);
+    return with_reserve_noted(plan_sequence(**approached, budget, limits, purpose), **approached);
   }
   const auto deadline = optimizer_deadline(request, budget);
   Plan result;
@@ -979,7 +1050,7 @@ Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& 
     result.path = std::move(*path);
     return result;
   }
-  auto trajectory = plan_trajectory(request, budget, deadline, result.optimizers);
+  auto trajectory = plan_trajectory(request, budget, deadline, result.optimizers, result.default_jerk);
   if (!trajectory) return tl::unexpected(std::move(trajectory.error()));
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   result.trajectory = std::move(*trajectory);
@@ -989,7 +1060,8 @@ Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& 
   if (auto refused = sample_limit(*result.trajectory, limits)) return tl::unexpected(std::move(*refused));
   if (request.robot) {
     if (auto refused = starts_at_robot(*result.trajectory, *request.robot)) return tl::unexpected(std::move(*refused));
-    auto pass = robot_pass(*result.trajectory, *request.robot, budget);
+    auto pass = robot_pass(*result.trajectory, *request.robot,
+                           cartesian_limits(*request.motion, !joint_geometry(request.geometry)), budget);
     if (!pass) return tl::unexpected(std::move(pass.error()));
     auto& [joints, peaks, last] = *pass;
     // reportOnly streams a motion that breaks joint limits (for simulation and analysis),
@@ -1014,6 +1086,12 @@ Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& 
   }
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   return result;
+}
+
+}  // namespace
+
+Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose) {
+  return with_reserve_noted(plan_request(request, budget, limits, purpose), request);
 }
 
 Expected<std::vector<core::FrameConstraints>> convert(const core::PathSpec& path) {

@@ -132,6 +132,7 @@ struct Request {
   /// (reserve_room), and whether `motion` has been scaled for it.
   double reserve = 0.0;
   bool motion_reserved = false;
+  bool reserve_applied = false;  ///< some motion (the approach included) was scaled for it
 };
 
 /// Leaves `reserve` (in [0, 0.99]) of every acceleration free, for live speed changes, in the
@@ -142,13 +143,9 @@ struct Request {
 /// it, and only its speed-ups and slow-downs take longer. A motion with a durationS keeps
 /// the room it has. A step of a sequence that takes
 /// the request's motion (own_motion false) holds a copy of it, scaled with the others.
+/// Execute plans the request so prepared; everything else is planned as for PlanTrajectory
+/// and StreamSamples.
 void reserve_room(Request& request, double reserve);
-
-/// A request made ready for live execution (Execute): reserve_room. Everything else is
-/// planned as for PlanTrajectory and StreamSamples (a robot's jerk limits included: where
-/// the limits time a motion, a path or a line is timed jerk-limited and a joint move is a
-/// double S, whatever the purpose).
-void prepare_execution(Request& request, double reserve);
 
 /// The server's bounds on one call's work.
 struct Limits {
@@ -221,6 +218,17 @@ struct TimingReport {
   double duration_grid_error_s = 0.0;
 };
 
+/// The jerk bounds that a motion timed by the limits (no durationS, or optimize.timing) kept
+/// on the joints whose model gives no max_jerk, so that it starts and ends with zero
+/// acceleration and a bounded jerk: each joint's max_acceleration / ramp_s
+/// (core::jerk_bound, the jog's rule).
+struct DefaultJerk {
+  double ramp_s = core::kDefaultJerkRampS;  ///< [s]
+  std::vector<std::size_t> joints;          ///< the joints without max_jerk, base outwards
+  std::vector<double> max_jerk;             ///< their bounds [rad/s^3 or m/s^3]
+  std::string message;                      ///< the same in words, with how to choose otherwise
+};
+
 /// The reports of the optimisers that ran.
 struct OptimizerReports {
   std::optional<optim::TangentScaleResult> tangent_scales;
@@ -252,6 +260,7 @@ struct StepReport {
   /// the joint limits, 0.43 rad (joint 3, panda_joint4), of 9 branches found; ...").
   std::string goal_choice;
   OptimizerReports optimizers;     ///< a path's optimisers
+  ToolPeaks tool;                  ///< kPlan: the tool's peaks over the step's own samples
 };
 
 /// What a request plans for.
@@ -272,6 +281,12 @@ struct Plan {
   std::optional<core::JointMotionReport> joints;  ///< with a robot
   std::optional<ToolPeaks> tool;                  ///< kPlan with a motion
   std::vector<StepReport> steps;                  ///< a sequence: one per step
+  /// With a robot whose model lacks jerk limits, when a motion (a step) is timed by the limits.
+  std::optional<DefaultJerk> default_jerk;
+  /// Execute (reserve_room): the reserve kept where it changed a motion timed by the limits
+  /// (0: it changed none), and what that means, in words.
+  double reserve = 0.0;
+  std::string reserve_note;
 
   /// The path the plan follows, if any.
   const core::Path* followed_path() const;

@@ -139,6 +139,7 @@ async function execute(client, requestFile) {
       const s = batch.live;
       console.log(`executing: ${fixed(s.planDurationS)} s at full speed; a stop from full speed takes ` +
                   `${fixed(s.stoppingTimeS)} s (bound by ${s.binding})`);
+      if (s.accelerationReserve > 0) console.log(`acceleration reserve ${s.accelerationReserve}: ${s.reserveNote}`);
     }
     if (!steps.override && now - started >= 1000) {
       steps.override = true;

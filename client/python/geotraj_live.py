@@ -142,6 +142,8 @@ def execute(args, grpc, pb, stub, status_pb2, error_details_pb2):
         for batch in call.batches():
             samples += len(batch.samples)
             s, live = batch.samples[-1], batch.live
+            if live.acceleration_reserve > 0:  # the first batch: how the reserve changed the timing
+                print(f"acceleration reserve {live.acceleration_reserve:g}: {live.reserve_note}")
             if s.t >= next_line or live.state in (pb.LIVE_STATE_COMPLETED, pb.LIVE_STATE_STOPPED):
                 print(f"{s.t:8.3f}   {s.plan_time:6.3f} / {live.plan_duration_s:.3f}   {s.speed_factor:12.3f}   "
                       f"{state_name(pb, live.state)}")

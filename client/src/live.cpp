@@ -152,6 +152,8 @@ struct BatchView {
   std::function<std::string(const v1::SampleBatch&)> status;
   /// Checks the first batch; a message (the call is then stopped, exit 2) or "".
   std::function<std::string(const v1::SampleBatch&)> check_first;
+  /// What the first batch says once, on stderr (or "").
+  std::function<std::string(const v1::SampleBatch&)> first_note;
 };
 
 std::string short_name(const std::string& name, const std::string& prefix) {
@@ -180,6 +182,11 @@ int drive(grpc::ClientContext& context, std::unique_ptr<grpc::ClientReaderWriter
     if (first && !batch.samples().empty()) {
       first = false;
       if (view.check_first) check_error = view.check_first(batch);
+      if (view.first_note) {
+        if (const std::string note = view.first_note(batch); !note.empty()) {
+          std::fprintf(stderr, "geotraj: %s: %s\n", what, note.c_str());
+        }
+      }
       if (!check_error.empty()) {
         {
           const std::lock_guard lock(progress.mutex);
@@ -367,6 +374,13 @@ int run_execute(const Connection& connection, const CallOptions& options) {
       }
     }
     std::cout.flush();
+  };
+  view.first_note = [](const v1::SampleBatch& batch) {
+    const auto& live = batch.live();
+    if (live.acceleration_reserve() <= 0.0) return std::string();
+    char reserve[32];
+    std::snprintf(reserve, sizeof reserve, "%.4g", live.acceleration_reserve());
+    return "acceleration reserve " + std::string(reserve) + ": " + live.reserve_note();
   };
   view.status = [](const v1::SampleBatch& batch) {
     const auto& live = batch.live();

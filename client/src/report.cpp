@@ -80,6 +80,16 @@ void print_steps(const v1::PlanResponse& response, std::ostream& out) {
     out << buf;
     if (s.kind() == "path") out << "  max error" << num(s.closed_loop().max_error(), 1);
     out << '\n';
+    if (s.has_motion()) {
+      const auto& m = s.motion();
+      const auto shown = [](double x) { return std::abs(x) < 1e-12 ? 0.0 : x; };  // rounding, not motion
+      std::snprintf(buf, sizeof buf,
+                    "       peaks: speed %.4g m/s, acceleration %.4g m/s^2 (tangential %.4g), angular speed %.4g "
+                    "rad/s\n",
+                    shown(m.peak_speed()), shown(m.peak_acceleration()), shown(m.peak_tangential_acceleration()),
+                    shown(m.peak_angular_speed()));
+      out << buf;
+    }
     if (!s.goal_choice().empty()) out << "       goal: " << s.goal_choice() << '\n';
     for (const auto& c : s.corners()) {
       if (c.corner() <= core::kSmoothJunction) {  // tangent-continuous: the curvature blended
@@ -267,13 +277,17 @@ void print_table(const v1::RobotReport& robot, std::ostream& out) {
                 robot.max_midpoint_deviation_t(), robot.min_manipulability(), robot.min_manipulability_t());
   out << buf;
   for (const auto& v : robot.violations()) out << "VIOLATION " << event_text(v) << '\n';
-  if (robot.binding_size() > 0) out << "the most used limit, stretch by stretch:\n";
+  if (robot.has_default_jerk()) out << "default jerk: " << robot.default_jerk().message() << '\n';
+  if (robot.binding_size() > 0) out << "the most used limit, stretch by stretch (binding: at 100 %):\n";
   for (const auto& b : robot.binding()) {
     char row[200];
+    const std::string kind = short_enum(v1::BindingKind_Name(b.kind()), "BINDING_KIND_");
+    const bool joint = kind.rfind("JOINT_", 0) == 0;  // a Cartesian limit is the tool's
     // "binding" only of a limit used whole (it sets the pace there).
-    std::snprintf(row, sizeof row, "  t %8.3f .. %8.3f s  %-20s joint %u  peak %.4g of limit %.4g (%.1f%%)%s\n",
-                  b.t_start(), b.t_end(), short_enum(v1::BindingKind_Name(b.kind()), "BINDING_KIND_").c_str(),
-                  b.joint(), b.value(), b.limit(), 100.0 * b.usage(), b.usage() >= 0.999 ? "  binding" : "");
+    std::snprintf(row, sizeof row, "  t %8.3f .. %8.3f s  %-24s %-8s peak %.4g of limit %.4g (%.1f%%)%s\n",
+                  b.t_start(), b.t_end(), kind.c_str(), joint ? ("joint " + std::to_string(b.joint())).c_str() : "tool",
+                  b.value(), b.limit(), 100.0 * b.usage(),
+                  b.usage() > 1.001 ? "  above it" : b.usage() >= 0.999 ? "  binding" : "");
     out << row;
   }
 }

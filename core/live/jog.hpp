@@ -122,7 +122,7 @@ struct JogOptions {
   double singular_threshold = 0.04;
   /// > 0 [s]: for a joint without max_jerk, the jerk bound is max_acceleration / jerk_ramp_s
   /// (the acceleration ramps from 0 to its limit in this time).
-  double jerk_ramp_s = 0.05;
+  double jerk_ramp_s = kDefaultJerkRampS;
 };
 
 /// One set point.

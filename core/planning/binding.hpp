@@ -37,6 +37,17 @@ constexpr bool is_joint_kind(BindingKind kind) {
   return kind == BindingKind::kJointVelocity || kind == BindingKind::kJointAcceleration;
 }
 
+/// A path's or a line's Cartesian limits as the request gives them (MotionSpec's maxSpeed
+/// [m/s], maxAcceleration [m/s^2] on the tangential and the centripetal part each,
+/// maxAngularSpeed [rad/s], maxAngularAcceleration [rad/s^2]); 0: not limited.
+struct CartesianLimits {
+  double speed = 0.0;
+  double acceleration = 0.0;
+  double angular_speed = 0.0;
+  double angular_acceleration = 0.0;
+  bool any() const { return speed > 0.0 || acceleration > 0.0 || angular_speed > 0.0 || angular_acceleration > 0.0; }
+};
+
 /// A stretch of the motion over which one limit sets the pace.
 struct BindingStretch {
   BindingKind kind = BindingKind::kCartesianSpeed;

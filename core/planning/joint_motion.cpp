@@ -294,7 +294,8 @@ void order_by_cause(std::vector<LimitEvent>::iterator first, std::vector<LimitEv
 
 }  // namespace
 
-void JointReportBuilder::add(std::size_t sample, double t, double s_path, const JointSample& s) {
+void JointReportBuilder::add(std::size_t sample, double t, double s_path, const JointSample& s,
+                             const CartesianState* tool) {
   JointMotionReport& r = report_;
   ++r.samples;
   r.max_position_error = std::max(r.max_position_error, s.position_error);
@@ -394,14 +395,51 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
   t_prev_ = t;
   sample_prev_ = sample;
   has_prev_ = true;
-  update_binding(sample, t, s_path, s);
+  update_binding(sample, t, s_path, s, tool);
 }
 
-void JointReportBuilder::update_binding(std::size_t sample, double t, double s_path, const JointSample& s) {
-  // The most used joint limit at this sample.
+namespace {
+
+// The tool's Cartesian quantities of the binding kinds at one sample [m/s, m/s^2, rad/s, rad/s^2].
+struct ToolValues {
+  double speed = 0.0, tangential = 0.0, centripetal = 0.0, angular_speed = 0.0, angular_acceleration = 0.0;
+};
+
+ToolValues tool_values(const CartesianState& tool) {
+  ToolValues v;
+  v.speed = tool.v_WT.norm();
+  if (v.speed > 0.0) {
+    const Eigen::Vector3d along = tool.v_WT / v.speed;
+    const double tangential = tool.a_WT.dot(along);
+    v.tangential = std::abs(tangential);
+    v.centripetal = (tool.a_WT - tangential * along).norm();
+  } else {
+    v.tangential = tool.a_WT.norm();  // from rest the acceleration is along the path
+  }
+  v.angular_speed = tool.omega_WT.norm();
+  v.angular_acceleration = tool.alpha_WT.norm();
+  return v;
+}
+
+double tool_value(const ToolValues& v, BindingKind kind) {
+  switch (kind) {
+    case BindingKind::kCartesianSpeed: return v.speed;
+    case BindingKind::kTangentialAcceleration: return v.tangential;
+    case BindingKind::kCentripetalAcceleration: return v.centripetal;
+    case BindingKind::kAngularSpeed: return v.angular_speed;
+    case BindingKind::kAngularAcceleration: return v.angular_acceleration;
+    default: return 0.0;
+  }
+}
+
+}  // namespace
+
+void JointReportBuilder::update_binding(std::size_t sample, double t, double s_path, const JointSample& s,
+                                        const CartesianState* tool) {
+  // The most used limit at this sample: the joints', and the tool's where they are given.
   BindingStretch top;
   const auto take = [&top](BindingKind kind, std::size_t joint, double value, double limit) {
-    if (value / limit > top.usage) {
+    if (limit > 0.0 && value / limit > top.usage) {
       top.kind = kind, top.joint = joint, top.usage = value / limit, top.value = value, top.limit = limit;
     }
   };
@@ -411,15 +449,28 @@ void JointReportBuilder::update_binding(std::size_t sample, double t, double s_p
     take(BindingKind::kJointVelocity, j, std::abs(s.q_dot(i)), lim.max_velocity);
     take(BindingKind::kJointAcceleration, j, std::abs(s.q_ddot(i)), lim.max_acceleration);
   }
+  const bool cartesian = tool != nullptr && cartesian_.any();
+  const ToolValues values = cartesian ? tool_values(*tool) : ToolValues{};
+  if (cartesian) {
+    take(BindingKind::kCartesianSpeed, 0, values.speed, cartesian_.speed);
+    take(BindingKind::kTangentialAcceleration, 0, values.tangential, cartesian_.acceleration);
+    take(BindingKind::kCentripetalAcceleration, 0, values.centripetal, cartesian_.acceleration);
+    take(BindingKind::kAngularSpeed, 0, values.angular_speed, cartesian_.angular_speed);
+    take(BindingKind::kAngularAcceleration, 0, values.angular_acceleration, cartesian_.angular_acceleration);
+  }
   auto& stretches = report_.binding;
   if (!stretches.empty()) {
     BindingStretch& last = stretches.back();
     last.sample_end = sample;
     last.t_end = t;
     last.s_end = s_path;
-    // The current stretch's own limit at this sample.
+    // The current stretch's own limit at this sample (a Cartesian one counts where this
+    // sample has Cartesian limits; a joint move after a path does not measure the path's).
     const auto i = static_cast<Eigen::Index>(last.joint);
-    const double own_value = last.kind == BindingKind::kJointVelocity ? std::abs(s.q_dot(i)) : std::abs(s.q_ddot(i));
+    const double own_value = last.kind == BindingKind::kJointVelocity       ? std::abs(s.q_dot(i))
+                             : last.kind == BindingKind::kJointAcceleration ? std::abs(s.q_ddot(i))
+                             : cartesian                                   ? tool_value(values, last.kind)
+                                                                           : 0.0;
     const double own = own_value / last.limit;
     if (own > last.usage) {
       last.usage = own;

@@ -199,8 +199,10 @@ struct JointMotionReport {
   std::vector<LimitEvent> violations;
   /// Which joint limit is the most used, stretch by stretch, in time order (samples at rest,
   /// where every usage is 0, join the stretch around them; consecutive stretches share their
-  /// boundary sample).
-  std::vector<BindingStretch> binding;  ///< joint kinds only; usage the largest on the stretch
+  /// boundary sample). Joint limits, and the Cartesian limits of a path or a line where the
+  /// request gives them (JointReportBuilder::set_cartesian_limits); usage the largest on
+  /// the stretch.
+  std::vector<BindingStretch> binding;
   bool feasible() const { return violations.empty(); }
 };
 
@@ -227,14 +229,22 @@ class JointReportBuilder {
   /// Adds sample number `sample` (zero-based, increasing) at time t [s].
   void add(std::size_t sample, double t, const JointSample& s) { add(sample, t, 0.0, s); }
   /// The same, with the sample's arc length along the path s_path [m] (for the stretches).
-  void add(std::size_t sample, double t, double s_path, const JointSample& s);
+  void add(std::size_t sample, double t, double s_path, const JointSample& s) { add(sample, t, s_path, s, nullptr); }
+  /// The same, with the tool's state at the sample: the Cartesian limits set by
+  /// set_cartesian_limits take part in the binding stretches (|v| against the speed limit;
+  /// the tangential part of a, a . v / |v|, and the centripetal rest against the
+  /// acceleration limit, each; |omega|, |alpha|).
+  void add(std::size_t sample, double t, double s_path, const JointSample& s, const CartesianState* tool);
+  /// The Cartesian limits of the samples that follow (a path's or a line's; none for a joint
+  /// move: CartesianLimits{}).
+  void set_cartesian_limits(const CartesianLimits& limits) { cartesian_ = limits; }
   const JointMotionReport& report() const { return report_; }
 
  private:
   static constexpr std::size_t kKinds = 6;  ///< LimitKind values
   void record(LimitKind kind, std::size_t joint, std::size_t sample, double t, double value, double limit,
               double margin);
-  void update_binding(std::size_t sample, double t, double s_path, const JointSample& s);
+  void update_binding(std::size_t sample, double t, double s_path, const JointSample& s, const CartesianState* tool);
   /// Records every (non-continuous) joint of q at or past its position limit, or within
   /// range_fraction of its range from it.
   void record_held(std::size_t sample, double t, const JointVector& q, double range_fraction);
@@ -250,6 +260,7 @@ class JointReportBuilder {
   std::size_t sample_prev_ = 0;  ///< and index
   bool has_prev_ = false;      ///< the last sample converged
   std::vector<bool> reported_;  ///< (joint, kind) already in violations: joint * kKinds + kind
+  CartesianLimits cartesian_;   ///< of the samples being added
 };
 
 }  // namespace geotraj::core

@@ -1,4 +1,5 @@
 // Robot models: validation and the built-in arms. See robot.hpp.
+#include <algorithm>
 #include "core/robot/robot.hpp"
 #include "core/format.hpp"
 
@@ -278,6 +279,19 @@ RobotModel with_scaled_limits(RobotModel model, double velocity, double accelera
     l.max_acceleration *= acceleration;
     if (l.max_jerk) *l.max_jerk *= acceleration;
   }
+  return model;
+}
+
+double jerk_bound(const JointLimits& limits, double ramp_s) {
+  return limits.max_jerk ? *limits.max_jerk : std::min(kMaxJointLimit, limits.max_acceleration / ramp_s);
+}
+
+bool jerk_limited(const RobotModel& model) {
+  return std::all_of(model.limits.begin(), model.limits.end(), [](const JointLimits& l) { return l.max_jerk.has_value(); });
+}
+
+RobotModel with_default_jerk(RobotModel model, double ramp_s) {
+  for (JointLimits& l : model.limits) l.max_jerk = jerk_bound(l, ramp_s);
   return model;
 }
 

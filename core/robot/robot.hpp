@@ -192,4 +192,19 @@ JointVector home_configuration(const RobotModel& model);
 /// (checked by the caller). Position limits are unchanged.
 RobotModel with_scaled_limits(RobotModel model, double velocity, double acceleration);
 
+/// [s] Where a motion must not step its acceleration (a jog; a motion timed by the limits)
+/// and a joint has no max_jerk, its acceleration is taken to ramp from 0 to max_acceleration
+/// in this time: its jerk bound is max_acceleration / kDefaultJerkRampS (20 a_max).
+inline constexpr double kDefaultJerkRampS = 0.05;
+
+/// A joint's jerk bound [rad/s^3 or m/s^3]: its max_jerk, or max_acceleration / ramp_s
+/// (ramp_s > 0), at most kMaxJointLimit.
+double jerk_bound(const JointLimits& limits, double ramp_s = kDefaultJerkRampS);
+
+/// Whether every joint of `model` has a max_jerk.
+bool jerk_limited(const RobotModel& model);
+
+/// The model with every joint without max_jerk given jerk_bound(its limits, ramp_s).
+RobotModel with_default_jerk(RobotModel model, double ramp_s = kDefaultJerkRampS);
+
 }  // namespace geotraj::core

@@ -710,6 +710,11 @@ class ExecuteReactor final : public LiveReactor {
     out.set_factor_jerk_limit(worst_.jerk);
     out.set_binding(binding_);
     out.set_plan_duration_s(live_->plan_duration());
+    if (!reserve_told_) {  // once: the first batch (each batch starts cleared)
+      reserve_told_ = true;
+      out.set_acceleration_reserve(plan_->reserve);
+      out.set_reserve_note(plan_->reserve_note);
+    }
   }
 
   double stopping_time() const override { return live_ ? live_->stopping().time_s : 0.0; }
@@ -727,6 +732,7 @@ class ExecuteReactor final : public LiveReactor {
   core::LiveSample sample_;
   core::FactorBounds worst_;
   std::string binding_;
+  bool reserve_told_ = false;  // the first batch's status carried the reserve
   // Commands that came before the motion was ready.
   double override_ = 1.0;
   bool paused_ = false;

@@ -406,7 +406,7 @@ tl::expected<planner::Plan, grpc::Status> plan_execution(const Abandon& abandon,
         {"plan.robot.reportOnly", "Execute drives the robot, within its limits: a plan that may break them "
                                   "(reportOnly) is for PlanTrajectory and StreamSamples"}}));
   }
-  planner::prepare_execution(*input, reserve);
+  planner::reserve_room(*input, reserve);
   // A live plan's samples are bounded by --max-live-samples before the robot pass (IK at
   // every sample), whatever timing set its duration.
   planner::Limits limits = limits_of(services);

@@ -1464,6 +1464,13 @@ void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanRespons
   }
   if (with_optimization) to_proto(plan.optimizers, *response.mutable_optimization());
   if (plan.joints) to_proto(plan.robot->model.name, *plan.joints, *response.mutable_robot());
+  if (plan.joints && plan.default_jerk) {
+    auto& out = *response.mutable_robot()->mutable_default_jerk();
+    out.set_ramp_s(plan.default_jerk->ramp_s);
+    for (std::size_t i : plan.default_jerk->joints) out.add_joints(static_cast<std::uint32_t>(i));
+    for (double j : plan.default_jerk->max_jerk) out.add_max_jerk(j);
+    out.set_message(plan.default_jerk->message);
+  }
   if (!plan.trajectory) return;
   const auto& trajectory = *plan.trajectory;
   const auto tool = plan.tool.value_or(planner::ToolPeaks{});
@@ -1506,6 +1513,13 @@ void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanRespons
       out.set_first_sample(s.first_sample);
       out.set_sample_count(s.sample_count);
       out.set_arc_length(s.arc_length);
+      auto& step_summary = *out.mutable_motion();
+      step_summary.set_duration_s(s.duration_s);
+      step_summary.set_sample_count(s.sample_count);
+      step_summary.set_peak_speed(s.tool.speed);
+      step_summary.set_peak_acceleration(s.tool.acceleration);
+      step_summary.set_peak_angular_speed(s.tool.angular_speed);
+      step_summary.set_peak_tangential_acceleration(tangential(sequence->steps[i]));
       if (s.path) {
         const auto* path = std::get_if<core::PathMotion>(&sequence->steps[i]);
         if (path != nullptr) {

@@ -116,6 +116,25 @@ class CliLive : public ServerTest {
 // and stopped at 2 s: the states in that order, the plan time never going back, the speed
 // factor back at the override (not the plan's full speed) after the resume, and a final
 // sample at rest.
+// Where the acceleration reserve changes the timing (the Panda's path C, timed by its limits,
+// and its joint approach), execute says so on stderr at the start; with --acceleration-reserve
+// 0.3 it names that reserve.
+TEST_F(CliLive, ExecuteSaysWhereTheReserveChangesTheTiming) {
+  const std::string script = write_file("geotraj_execute_reserve.txt", "0.2 stop\n");
+  CliRun run = run_cli(server() + "execute " + example_path("plan_panda_path_c.json") + " --deadman 5 --script " +
+                           script,
+                       /*merge_stderr=*/true);
+  ASSERT_EQ(run.exit_code, 0) << run.out.substr(0, 2000);
+  EXPECT_THAT(run.out, HasSubstr("geotraj: execute: acceleration reserve 0.1: the motions the limits time"));
+  EXPECT_THAT(run.out, HasSubstr("motion.accelerationScale x 0.9"));
+  run = run_cli(server() + "execute " + example_path("plan_panda_path_c.json") +
+                    " --deadman 5 --acceleration-reserve 0.3 --script " + script,
+                /*merge_stderr=*/true);
+  ASSERT_EQ(run.exit_code, 0) << run.out.substr(0, 2000);
+  EXPECT_THAT(run.out, HasSubstr("geotraj: execute: acceleration reserve 0.3: "));
+  EXPECT_THAT(run.out, HasSubstr("keep 30 % of every acceleration and jerk limit"));
+}
+
 TEST_F(CliLive, ExecuteFollowsItsScript) {
   const std::string script = write_file("geotraj_execute_script.txt",
                                         "# override, pause, resume, stop\n"

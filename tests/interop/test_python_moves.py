@@ -26,6 +26,19 @@ ARGS = None
 RATES = (100.0, 1000.0, 10000.0)
 
 
+def double_s_time(h, v, a, j):
+    """The minimum time of a rest-to-rest double S over distance h within v, a, j
+    (Biagiotti and Melchiorri 2008, 3.4, with zero velocities at both ends)."""
+    tj = a / j if v * j >= a * a else math.sqrt(v / j)  # the jerk phases reaching v
+    ta = tj + v / a if v * j >= a * a else 2.0 * tj
+    if h / v >= ta:  # v is reached: cruise for h / v - ta
+        return h / v + ta
+    if h >= 2.0 * a ** 3 / j ** 2:  # a is reached, v is not
+        ta = (a * a / j + math.sqrt((a * a / j) ** 2 + 4.0 * a * h)) / (2.0 * a)
+        return 2.0 * ta
+    return 4.0 * (h / (2.0 * j)) ** (1.0 / 3.0)  # neither
+
+
 class Moves(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -99,12 +112,14 @@ class Moves(unittest.TestCase):
         request = self.example("joint_move_pa10.json")
         model = self.models["pa10"]
         durations = self.run_kind("jointMove to joints (PA-10)", request, model)
-        # The move's x in [0, 1] under the tightest normalised limits: a trapezoid (or a
-        # triangle) in closed form.
+        # The move's x in [0, 1] under the tightest normalised limits: a double S in closed
+        # form (Biagiotti and Melchiorri 2008, 3.4), the PA-10 having no jerk limits: each
+        # joint's jerk bound is the documented default, max_acceleration / 0.05 s.
         dq = [abs(g - h) for g, h in zip(request.joint_move.goal, model.home)]
         v = min(l.max_velocity / d for l, d in zip(model.limits, dq) if d > 0)
         a = min(l.max_acceleration / d for l, d in zip(model.limits, dq) if d > 0)
-        t_ref = 1.0 / v + v / a if v * v / a < 1.0 else 2.0 * math.sqrt(1.0 / a)
+        j = min(l.max_acceleration / 0.05 / d for l, d in zip(model.limits, dq) if d > 0)
+        t_ref = double_s_time(1.0, v, a, j)
         for t in durations:
             self.assertLess(abs(t - t_ref), 1e-9 + 1e-9 * t_ref, f"{t} against {t_ref}")
 
@@ -118,7 +133,13 @@ class Moves(unittest.TestCase):
         request = self.example("linear_move_ur5.json")
         request.motion.duration_s = 0
         model = self.models["ur5"]
+        # The default timing bounds the jerk (the UR5 gives no jerk limits: the default,
+        # max_acceleration / 0.05 s); the time-optimal sweep is asked for explicitly.
+        default = self.stub.PlanTrajectory(request, timeout=120)
+        self.assertTrue(default.robot.HasField("default_jerk"))
+        request.optimize.timing.time_optimal = True
         durations = self.run_kind("linearMove to a pose (UR5)", request, model)
+        self.assertGreater(default.motion.duration_s, max(durations))
         # The reference: q(s) from the 10 kHz samples (s = distance along the line), q'(s) and
         # q''(s) by differences on a grid of 2,000 intervals, then the largest b = s_dot^2 at
         # each point under |q' s_dot| <= v_max and |q' s_ddot + q'' s_dot^2| <= a_max by
@@ -190,7 +211,24 @@ class Moves(unittest.TestCase):
         request = self.example("plan_pa10_path_c.json")
         request.motion.duration_s = 0
         request.robot.report_only = False
+        request.optimize.timing.time_optimal = True
         self.run_kind("path C, time-optimal (PA-10)", request, self.models["pa10"])
+
+    def test_default_timing_bounds_the_jerk(self):
+        # durationS 0 alone: the PA-10 gives no jerk limits, so its joints are bounded by the
+        # documented default, max_acceleration / 0.05 s, which the plan names and the
+        # streamed joints keep by differences of their accelerations.
+        request = self.example("plan_pa10_path_c.json")
+        request.motion.duration_s = 0
+        request.robot.report_only = False
+        plan = self.stub.PlanTrajectory(request, timeout=120)
+        self.assertEqual(plan.robot.default_jerk.ramp_s, 0.05)
+        model = pb.RobotModel()
+        model.CopyFrom(self.models["pa10"])
+        for j, lim in enumerate(model.limits):
+            lim.max_jerk = lim.max_acceleration / 0.05
+            self.assertAlmostEqual(plan.robot.default_jerk.max_jerk[j], lim.max_jerk, delta=1e-9 * lim.max_jerk)
+        self.run_kind("path C, durationS 0 (PA-10, default jerk a_max / 0.05 s)", request, model, min_usage=0.9)
 
     def test_jerk_limited_path(self):
         request = self.example("plan_pa10_path_c.json")

@@ -34,6 +34,7 @@ struct LiveRun {
   std::string reason;  // the trailer geotraj-stop-reason
   std::vector<v1::Sample> samples;
   v1::LiveStatus last;
+  v1::LiveStatus first;  // the first batch's
 };
 
 std::string trailer(const grpc::ClientContext& context, const std::string& key) {
@@ -53,6 +54,7 @@ LiveRun run_live(std::unique_ptr<grpc::ClientReaderWriter<Request, v1::SampleBat
   stream->Write(first);
   v1::SampleBatch batch;
   while (stream->Read(&batch)) {
+    if (run.samples.empty()) run.first = batch.live();
     for (const auto& s : batch.samples()) run.samples.push_back(s);
     run.last = batch.live();
     if (on_batch) on_batch(*stream, run);
@@ -149,6 +151,27 @@ TEST_F(Live, TheReserveKeepsTheSpeedALimitSets) {
   }
   EXPECT_NEAR(peak, 0.15, 0.15 * 2e-3);
   EXPECT_LE(peak, 0.15 * (1.0 + 1e-6));
+  // The reserve changed the timing (the path and its approach, timed by the limits): the
+  // first batch says so, once.
+  EXPECT_EQ(run.first.acceleration_reserve(), 0.1);
+  EXPECT_THAT(run.first.reserve_note(), HasSubstr("keep 10 % of every acceleration and jerk limit"));
+  EXPECT_THAT(run.first.reserve_note(), HasSubstr("motion.accelerationScale x 0.9"));
+  EXPECT_EQ(run.last.acceleration_reserve(), 0.0);
+  EXPECT_TRUE(run.last.reserve_note().empty());
+}
+
+// A plan with a durationS (at the robot's pose: no approach) keeps its timing: the reserve
+// changes nothing, and the first batch says none.
+TEST_F(Live, APlanWithADurationIsNotReserved) {
+  v1::ExecuteRequest first;
+  *first.mutable_plan() = example<v1::PlanRequest>("linear_move_ur5.json");
+  first.mutable_options()->set_deadman_s(2.0);
+  const auto run = execute(first);
+  ASSERT_TRUE(run.status.ok()) << run.status.error_message();
+  EXPECT_EQ(run.reason, "completed");
+  EXPECT_EQ(run.first.acceleration_reserve(), 0.0);
+  EXPECT_TRUE(run.first.reserve_note().empty());
+  EXPECT_NEAR(run.samples.back().plan_time(), 2.0, 1e-12);
 }
 
 // A path's Cartesian limits hold on the path, not on the joint move of its approach (whose

@@ -389,26 +389,37 @@ TEST_F(OptimizeTest, TimeOptimalPa10OnDemoPathC) {
     }
   }
 
-  // Asked for explicitly: the same motion, with the timing report.
+  // The PA-10 gives no jerk limits: without optimize.timing the motion is timed
+  // jerk-limited under the default bound (no acceleration step), and says so.
+  EXPECT_TRUE(robot.has_default_jerk());
+  EXPECT_EQ(robot.default_jerk().joints_size(), 7);
+
+  // Asked for explicitly: the time-optimal sweep (bang-bang in the path acceleration), with
+  // the timing report, faster by the ramps the default jerk adds.
   auto asked = request;
   asked.mutable_optimize()->mutable_timing()->set_time_optimal(true);
   const auto reported = plan_ok(asked);
   ASSERT_TRUE(reported.has_optimization());
   ASSERT_TRUE(reported.optimization().has_timing());
+  EXPECT_FALSE(reported.robot().has_default_jerk());
   const auto& timing = reported.optimization().timing();
-  EXPECT_EQ(reported.motion().duration_s(), duration);
+  EXPECT_LT(reported.motion().duration_s(), duration);
+  EXPECT_GT(reported.motion().duration_s(), 0.9 * duration);
+  const double sweep = reported.motion().duration_s();
   EXPECT_EQ(timing.objective_after(), reported.motion().duration_s());
   // objectiveBefore: 0, documented: no move time was asked and no Cartesian limit given.
   EXPECT_EQ(timing.objective_before(), 0.0);
   EXPECT_EQ(timing.status(), v1::OPTIMIZER_STATUS_CONVERGED) << timing.message();
   std::printf("[ measured ] timing report: %.4f s -> %.4f s, %.3f s (server)\n", timing.objective_before(),
               timing.objective_after(), timing.seconds());
-  expect_timing_binding(timing.binding(), reported.arc_length(), duration);
+  expect_timing_binding(timing.binding(), reported.arc_length(), sweep);
   for (const auto& b : timing.binding()) {
     EXPECT_THAT(b.kind(), AnyOf(Eq(v1::BINDING_KIND_JOINT_VELOCITY), Eq(v1::BINDING_KIND_JOINT_ACCELERATION)))
         << "no Cartesian limit was given";
     EXPECT_LT(b.joint(), 7u);
   }
+  // The default jerk bound holds on the stream of the default timing, by differences of the
+  // streamed joint accelerations (100 Hz), and the motion starts and ends without a step.
 
   // The stream: every joint velocity and acceleration within ListRobots' limits.
   const auto pa10 = robot_model("pa10");
@@ -430,6 +441,14 @@ TEST_F(OptimizeTest, TimeOptimalPa10OnDemoPathC) {
       worst = std::max({worst, std::abs(s.joint_velocities(j)) / vmax, std::abs(s.joint_accelerations(j)) / amax});
     }
   }
+  for (std::size_t k = 1; k < samples.size(); ++k) {
+    for (int j = 0; j < 7; ++j) {
+      const double jerk = std::abs(samples[k].joint_accelerations(j) - samples[k - 1].joint_accelerations(j)) /
+                          (samples[k].t() - samples[k - 1].t());
+      EXPECT_LE(jerk, robot.default_jerk().max_jerk(j) * (1 + 1e-6)) << "sample " << k << " joint " << j;
+    }
+  }
+  for (int j = 0; j < 7; ++j) EXPECT_EQ(samples.front().joint_accelerations(j), 0.0) << "joint " << j;
   std::printf("[ measured ] streamed: largest joint usage %.9f over %zu samples\n", worst, samples.size());
   EXPECT_GT(worst, 0.98);
   EXPECT_NEAR(samples.front().speed(), 0.0, 1e-12);

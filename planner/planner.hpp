@@ -206,6 +206,8 @@ struct ToolPeaks {
 /// its result can be trusted between the samples and from its grid.
 struct TimingReport {
   optim::OptimizerReport report;
+  /// The time-optimal sweep's; empty for a jerk-limited timing (the sweep is its warm start,
+  /// a faster motion: JointMotionReport::binding measures this one on its samples).
   std::vector<core::BindingStretch> binding;
   /// The finest rate at which every limit was checked on the result (the cycle rate, then
   /// core::TimeOptimalOptions::check_rate_hz) [Hz].

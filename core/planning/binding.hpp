@@ -12,6 +12,7 @@ namespace geotraj::core {
 enum class BindingKind {
   kJointVelocity,            ///< |q_dot_j| <= maxVelocity [rad/s or m/s]
   kJointAcceleration,        ///< |q_ddot_j| <= maxAcceleration [rad/s^2 or m/s^2]
+  kJointJerk,                ///< |q_dddot_j| <= maxJerk [rad/s^3 or m/s^3] (on samples: by differences)
   kCartesianSpeed,           ///< s_dot <= maxSpeed [m/s]
   kTangentialAcceleration,   ///< |s_ddot| <= maxAcceleration [m/s^2]
   kCentripetalAcceleration,  ///< kappa s_dot^2 <= maxAcceleration [m/s^2]
@@ -24,6 +25,7 @@ constexpr const char* name(BindingKind kind) {
   switch (kind) {
     case BindingKind::kJointVelocity: return "joint velocity";
     case BindingKind::kJointAcceleration: return "joint acceleration";
+    case BindingKind::kJointJerk: return "joint jerk";
     case BindingKind::kCartesianSpeed: return "Cartesian speed";
     case BindingKind::kTangentialAcceleration: return "tangential acceleration";
     case BindingKind::kCentripetalAcceleration: return "centripetal acceleration";
@@ -34,7 +36,8 @@ constexpr const char* name(BindingKind kind) {
 }
 
 constexpr bool is_joint_kind(BindingKind kind) {
-  return kind == BindingKind::kJointVelocity || kind == BindingKind::kJointAcceleration;
+  return kind == BindingKind::kJointVelocity || kind == BindingKind::kJointAcceleration ||
+         kind == BindingKind::kJointJerk;
 }
 
 /// A path's or a line's Cartesian limits as the request gives them (MotionSpec's maxSpeed

@@ -230,6 +230,7 @@ JointReportBuilder::JointReportBuilder(const RobotModel& model, double branch_to
   q_prev_ = JointVector::Zero(static_cast<Eigen::Index>(n));  // add() assigns, never allocates
   q_dot_prev_ = JointVector::Zero(static_cast<Eigen::Index>(n));
   q_ddot_prev_ = JointVector::Zero(static_cast<Eigen::Index>(n));
+  jerk_ = JointVector::Zero(static_cast<Eigen::Index>(n));
   report_.binding.reserve(kMaxBindingStretches);  // add() never allocates
   constexpr double inf = std::numeric_limits<double>::infinity();
   report_.tightest_position.kind = LimitKind::kPosition;
@@ -375,8 +376,9 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
 
     // Jerk, where the model gives a limit: the mean over the step (an acceleration step of a
     // trapezoid shows as its size times the rate).
+    jerk_(i) = has_prev_ && t > t_prev_ ? std::abs(s.q_ddot(i) - q_ddot_prev_(i)) / (t - t_prev_) : 0.0;
     if (lim.max_jerk && has_prev_ && t > t_prev_) {
-      const double jerk = std::abs(s.q_ddot(i) - q_ddot_prev_(i)) / (t - t_prev_);
+      const double jerk = jerk_(i);
       if (jerk > *lim.max_jerk * (1.0 + kStepTolerance)) {
         record(LimitKind::kJerk, j, sample, t, jerk, *lim.max_jerk, *lim.max_jerk - jerk);
       }
@@ -448,6 +450,7 @@ void JointReportBuilder::update_binding(std::size_t sample, double t, double s_p
     const JointLimits& lim = model_->limits[j];
     take(BindingKind::kJointVelocity, j, std::abs(s.q_dot(i)), lim.max_velocity);
     take(BindingKind::kJointAcceleration, j, std::abs(s.q_ddot(i)), lim.max_acceleration);
+    if (lim.max_jerk) take(BindingKind::kJointJerk, j, jerk_(i), *lim.max_jerk);
   }
   const bool cartesian = tool != nullptr && cartesian_.any();
   const ToolValues values = cartesian ? tool_values(*tool) : ToolValues{};
@@ -469,6 +472,7 @@ void JointReportBuilder::update_binding(std::size_t sample, double t, double s_p
     const auto i = static_cast<Eigen::Index>(last.joint);
     const double own_value = last.kind == BindingKind::kJointVelocity       ? std::abs(s.q_dot(i))
                              : last.kind == BindingKind::kJointAcceleration ? std::abs(s.q_ddot(i))
+                             : last.kind == BindingKind::kJointJerk         ? jerk_(i)
                              : cartesian                                   ? tool_value(values, last.kind)
                                                                            : 0.0;
     const double own = own_value / last.limit;

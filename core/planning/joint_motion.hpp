@@ -199,7 +199,8 @@ struct JointMotionReport {
   std::vector<LimitEvent> violations;
   /// Which joint limit is the most used, stretch by stretch, in time order (samples at rest,
   /// where every usage is 0, join the stretch around them; consecutive stretches share their
-  /// boundary sample). Joint limits, and the Cartesian limits of a path or a line where the
+  /// boundary sample). Joint limits (the jerk by differences of the accelerations, where the
+  /// model gives one), and the Cartesian limits of a path or a line where the
   /// request gives them (JointReportBuilder::set_cartesian_limits); usage the largest on
   /// the stretch.
   std::vector<BindingStretch> binding;
@@ -261,6 +262,7 @@ class JointReportBuilder {
   bool has_prev_ = false;      ///< the last sample converged
   std::vector<bool> reported_;  ///< (joint, kind) already in violations: joint * kKinds + kind
   CartesianLimits cartesian_;   ///< of the samples being added
+  JointVector jerk_;            ///< |q_ddot - q_ddot_prev| / dt at the sample being added (0 at the first)
 };
 
 }  // namespace geotraj::core

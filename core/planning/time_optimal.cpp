@@ -189,6 +189,7 @@ std::string source_words(const Source& s) {
   switch (s.kind) {
     case BindingKind::kJointVelocity: return "the velocity limit of joint " + std::to_string(s.joint);
     case BindingKind::kJointAcceleration: return "the acceleration limit of joint " + std::to_string(s.joint);
+    case BindingKind::kJointJerk: return "the jerk limit of joint " + std::to_string(s.joint);
     case BindingKind::kCartesianSpeed: return "maxSpeed";
     case BindingKind::kTangentialAcceleration: return "maxAcceleration (tangential)";
     case BindingKind::kCentripetalAcceleration: return "maxAcceleration (centripetal)";

@@ -810,6 +810,7 @@ void to_proto(const core::BindingStretch& stretch, v1::BindingStretch& out) {
   switch (stretch.kind) {
     case core::BindingKind::kJointVelocity: out.set_kind(v1::BINDING_KIND_JOINT_VELOCITY); break;
     case core::BindingKind::kJointAcceleration: out.set_kind(v1::BINDING_KIND_JOINT_ACCELERATION); break;
+    case core::BindingKind::kJointJerk: out.set_kind(v1::BINDING_KIND_JOINT_JERK); break;
     case core::BindingKind::kCartesianSpeed: out.set_kind(v1::BINDING_KIND_CARTESIAN_SPEED); break;
     case core::BindingKind::kTangentialAcceleration:
       out.set_kind(v1::BINDING_KIND_CARTESIAN_TANGENTIAL_ACCELERATION);

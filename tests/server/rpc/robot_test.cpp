@@ -354,6 +354,12 @@ TEST_F(RobotTest, AJerkLimitIsCheckedWhereTheModelGivesOne) {
   ASSERT_TRUE(plan(request, response).ok());
   const auto& v = response.robot().violations();
   EXPECT_TRUE(std::any_of(v.begin(), v.end(), [](const auto& e) { return e.kind() == v1::LIMIT_KIND_JERK; }));
+  // The binding report names it too: a joint's jerk, by differences, the most used limit
+  // where the trapezoid steps (above 100 %).
+  const auto& binding = response.robot().binding();
+  EXPECT_TRUE(std::any_of(binding.begin(), binding.end(), [](const auto& b) {
+    return b.kind() == v1::BINDING_KIND_JOINT_JERK && b.usage() > 1.0;
+  }));
   request.mutable_robot()->set_report_only(false);
   request.mutable_motion()->set_profile(v1::MOTION_PROFILE_S_CURVE);
   const auto smooth = plan(request, response);

@@ -23,6 +23,7 @@
 #include <grpcpp/support/client_callback.h>
 
 #include "tests/server/support/test_server.hpp"
+#include "tests/support/sanitizers.hpp"
 
 namespace geotraj::testing {
 
@@ -155,19 +156,9 @@ inline long long trimmed_rss_bytes() {
   return rss_bytes();
 }
 
-/// Whether AddressSanitizer is on: its quarantine keeps freed memory (up to 256 MB), so
-/// the resident set says nothing about leaks there (LeakSanitizer checks them at exit).
-#if defined(__SANITIZE_ADDRESS__)
-inline constexpr bool kAddressSanitizer = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-inline constexpr bool kAddressSanitizer = true;
-#else
-inline constexpr bool kAddressSanitizer = false;
-#endif
-#else
-inline constexpr bool kAddressSanitizer = false;
-#endif
+// kAddressSanitizer (tests/support/sanitizers.hpp): its quarantine keeps freed memory (up to
+// 256 MB), so the resident set says nothing about leaks there (LeakSanitizer checks them at
+// exit).
 
 inline double megabytes(long long bytes) { return static_cast<double>(bytes) / (1024.0 * 1024.0); }
 

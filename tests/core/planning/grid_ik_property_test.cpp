@@ -67,6 +67,7 @@
 #include "core/robot/robot.hpp"
 #include "optim/timing/time_optimal_jerk.hpp"
 #include "planner/robots.hpp"
+#include "tests/support/sanitizers.hpp"
 #include "test_support.hpp"
 #include "thesis_paths.hpp"
 
@@ -79,17 +80,7 @@ using Eigen::Vector3d;
 
 /// Random paths per arm unless GEOTRAJ_PROPERTY_CASES says otherwise: 24 (about 3 s per arm
 /// in Release); 4 under AddressSanitizer, where every timing takes about 20 times as long.
-#if defined(__SANITIZE_ADDRESS__)
-constexpr int kPathsPerArm = 4;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-constexpr int kPathsPerArm = 4;
-#else
-constexpr int kPathsPerArm = 24;
-#endif
-#else
-constexpr int kPathsPerArm = 24;
-#endif
+constexpr int kPathsPerArm = geotraj::testing::kAddressSanitizer ? 4 : 24;
 
 constexpr double kFixedDurationS = 10.0;
 constexpr double kRateHz = 100.0;

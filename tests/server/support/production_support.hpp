@@ -84,10 +84,11 @@ inline double series(const std::string& exposition, const std::string& name) {
   return 0.0;
 }
 
-// Polls until `done` or ten seconds have passed.
+// Polls until `done` or `limit` has passed (a bound on waiting, never a margin asserted).
 template <typename Done>
-bool eventually(Done done) {
-  for (int i = 0; i < 1000; ++i) {
+bool eventually(Done done, std::chrono::seconds limit = std::chrono::seconds(10)) {
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < until) {
     if (done()) return true;
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }

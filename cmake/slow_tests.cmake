@@ -10,10 +10,17 @@
 # <stem> and directory.
 function(geotraj_label_tests)
   cmake_parse_arguments(arg "" "FILE" "LABELS;TESTS" ${ARGN})
+  geotraj_discovered_test_properties(FILE ${arg_FILE} PROPERTY LABELS VALUE ${arg_LABELS} TESTS ${arg_TESTS})
+endfunction()
+
+# geotraj_discovered_test_properties(FILE <stem> PROPERTY <p> VALUE <v> TESTS <name>...): the
+# file above, for any one property; each listed name is checked by ctest.labelled_tests_exist.
+function(geotraj_discovered_test_properties)
+  cmake_parse_arguments(arg "" "FILE;PROPERTY" "VALUE;TESTS" ${ARGN})  # VALUE: a list for LABELS
   set(file "${CMAKE_CURRENT_BINARY_DIR}/${arg_FILE}.cmake")
   set(text "")
   foreach(name IN LISTS arg_TESTS)
-    string(APPEND text "set_tests_properties([==[${name}]==] PROPERTIES LABELS \"${arg_LABELS}\")\n")
+    string(APPEND text "set_tests_properties([==[${name}]==] PROPERTIES ${arg_PROPERTY} \"${arg_VALUE}\")\n")
   endforeach()
   file(WRITE "${file}" "${text}")
   set_property(DIRECTORY APPEND PROPERTY TEST_INCLUDE_FILES "${file}")
@@ -48,4 +55,13 @@ endfunction()
 function(geotraj_heavy_tests)
   cmake_parse_arguments(arg "" "" "LABELS;TESTS" ${ARGN})
   geotraj_label_tests(FILE heavy_tests LABELS ${arg_LABELS} heavy TESTS ${arg_TESTS})
+endfunction()
+
+# geotraj_first_tests(TESTS <name>...): tests that `ctest -j` starts before the others. ctest
+# orders a parallel run by the times it measured before, and a fresh clone (CI) has none: a
+# test of a minute that starts last then runs alone at the end. These are the longest under
+# the sanitizers or in Release (`ctest` prints each one's time).
+function(geotraj_first_tests)
+  cmake_parse_arguments(arg "" "" "TESTS" ${ARGN})
+  geotraj_discovered_test_properties(FILE first_tests PROPERTY COST VALUE 1000 TESTS ${arg_TESTS})
 endfunction()

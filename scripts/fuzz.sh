@@ -9,7 +9,7 @@
 #   FUZZ_TARGETS     the targets to run (default: all nine)
 #   FUZZ_JOBS        build parallelism, and how many targets fuzz at once (default: nproc)
 #   FUZZ_CONFIG      the configure flags (default: clang, Debug -g1, ASan + UBSan, the fuzz
-#                    targets, no tests); `make fuzz` gives `make sanitize`'s, whose tree it shares
+#                    targets, no tests)
 #   FUZZ_FORK        >0: run each target with -fork=N (N processes; a long job on a big machine)
 #   FUZZ_KEEP_CORPUS 1: keep growing BUILD_DIR/fuzz-corpus/<target> across runs instead of
 #                    starting again from the seeds
@@ -31,7 +31,7 @@ fork="${FUZZ_FORK:-0}"
 timeout="${FUZZ_TIMEOUT:-10}"
 
 if [ "${FUZZ_NO_BUILD:-0}" != 1 ]; then
-  # Debug: assertions (Eigen's bounds checks included) stay on; GEOTRAJ_SANITIZE builds at -O1.
+  # Debug: assertions (Eigen's bounds checks included) stay on; GEOTRAJ_SANITIZE builds at -O2.
   config="${FUZZ_CONFIG:--DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG=-g1 -DCMAKE_CXX_COMPILER=clang++ -DGEOTRAJ_BUILD_FUZZ=ON -DGEOTRAJ_SANITIZE=ON -DGEOTRAJ_BUILD_TESTS=OFF -DGEOTRAJ_BUILD_BENCH=OFF}"
   # shellcheck disable=SC2086  # a list of flags
   cmake -S . -B "$build_dir" $config >/dev/null

@@ -39,12 +39,12 @@ CliRun run_cli(const std::string& args, bool merge_stderr = false, const std::st
   const std::string feed = stdin_text.empty() ? "" : "printf '%s' '" + stdin_text + "' | ";
   // Without input, /dev/null: never the test's own stdin (a terminal would make execute
   // interactive).
-  const std::string command = feed + "'" + GEOTRAJ_CLI + "' " + args + (stdin_text.empty() ? " < /dev/null" : "") +
+  const std::string command = feed + "'" + build_paths::cli() + "' " + args + (stdin_text.empty() ? " < /dev/null" : "") +
                               (merge_stderr ? " 2>&1" : " 2>/dev/null");
   return run_shell(command);
 }
 
-std::string example_path(const std::string& name) { return std::string("'") + GEOTRAJ_EXAMPLES_DIR + "/" + name + "'"; }
+std::string example_path(const std::string& name) { return std::string("'") + build_paths::examples_dir() + "/" + name + "'"; }
 
 // Writes `text` to a file in the test's temporary directory; its path (with the process id:
 // test programs running at once do not share it).
@@ -356,7 +356,7 @@ class Child {
       ::dup2(tty ? slave_ : null_fd, STDIN_FILENO);
       ::dup2(out[1], STDOUT_FILENO);
       ::dup2(tty ? slave_ : null_fd, STDERR_FILENO);
-      ::execv(GEOTRAJ_CLI, argv.data());
+      ::execv(build_paths::cli(), argv.data());
       ::_exit(127);
     }
     ::close(null_fd);
@@ -468,8 +468,8 @@ const std::string& state_of(const std::vector<std::string>& f) { return f.back()
 // 40 % of its speed the motion is far from its end when the stop comes, however late the
 // test reads its output. The terminal's modes are restored at the end.
 TEST_F(CliLive, ExecuteAtATerminalFollowsTheKeys) {
-  const std::string request = std::string(GEOTRAJ_EXAMPLES_DIR) + "/plan_panda_path_c.json";
-  Child cli({GEOTRAJ_CLI, "--server", address_, "execute", request, "--deadman", "5", "--override", "30"},
+  const std::string request = std::string(build_paths::examples_dir()) + "/plan_panda_path_c.json";
+  Child cli({build_paths::cli(), "--server", address_, "execute", request, "--deadman", "5", "--override", "30"},
             /*tty=*/true);
   ASSERT_TRUE(cli.started());
   ASSERT_NE(cli.modes_before(), 0u);
@@ -499,8 +499,8 @@ TEST_F(CliLive, ExecuteAtATerminalFollowsTheKeys) {
 // The first SIGINT stops the motion on its path: a final sample at rest, exit 130. (At 30 %
 // of its speed the motion is far from its end, however late the signal comes.)
 TEST_F(CliLive, InterruptStopsTheMotion) {
-  const std::string request = std::string(GEOTRAJ_EXAMPLES_DIR) + "/plan_panda_path_c.json";
-  Child cli({GEOTRAJ_CLI, "--server", address_, "execute", request, "--deadman", "5", "--override", "30"},
+  const std::string request = std::string(build_paths::examples_dir()) + "/plan_panda_path_c.json";
+  Child cli({build_paths::cli(), "--server", address_, "execute", request, "--deadman", "5", "--override", "30"},
             /*tty=*/false);
   ASSERT_TRUE(cli.started());
   ASSERT_TRUE(cli.read_until([](const auto& f) { return t_of(f) >= 0.5; })) << cli.why();

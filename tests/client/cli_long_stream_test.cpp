@@ -25,7 +25,7 @@ TEST_F(CliLongStream, AStreamLongerThanAMinuteIsNotCut) {
   std::FILE* f = std::fopen(path.c_str(), "w");
   std::fputs(json.c_str(), f);
   std::fclose(f);
-  const std::string command = std::string("'") + GEOTRAJ_CLI + "' --server " + address_ + " stream " + path + " 2>&1";
+  const std::string command = std::string("'") + build_paths::cli() + "' --server " + address_ + " stream " + path + " 2>&1";
   FILE* pipe = ::popen(command.c_str(), "r");
   ASSERT_NE(pipe, nullptr);
   int lines = 0;

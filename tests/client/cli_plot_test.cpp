@@ -29,12 +29,12 @@ using ::testing::Not;
 // Runs the CLI with `args` (shell words) after the environment assignments `env` (shell
 // words too), stdout and stderr captured together.
 CliRun run_cli(const std::string& args, const std::string& env = "") {
-  const std::string command = env + (env.empty() ? "" : " ") + "'" + GEOTRAJ_CLI + "' " + args + " 2>&1";
+  const std::string command = env + (env.empty() ? "" : " ") + "'" + build_paths::cli() + "' " + args + " 2>&1";
   return run_shell(command);
 }
 
 std::string example_path(const std::string& name) {
-  return std::string("'") + GEOTRAJ_EXAMPLES_DIR + "/" + name + "'";
+  return std::string("'") + build_paths::examples_dir() + "/" + name + "'";
 }
 
 std::string read_file(const fs::path& file) {
@@ -195,7 +195,7 @@ TEST_F(CliPlot, TheModuleCanBeNamedAndAMissingOneIsSaid) {
   EXPECT_THAT(run.out, HasSubstr("--plot-module"));
   // The source tree's module, by the environment variable.
   run = run_cli("plot --name a " + out_flag() + " " + example_path("plan_demo_path_a.json"),
-                std::string("GEOTRAJ_PLOT_MODULE='") + GEOTRAJ_EXAMPLES_DIR + "/../../scripts/geotraj_plot.py'");
+                std::string("GEOTRAJ_PLOT_MODULE='") + build_paths::source_dir() + "/scripts/geotraj_plot.py'");
   EXPECT_EQ(run.exit_code, 0) << run.out;
   EXPECT_TRUE(fs::exists(dir_ / "a_path.svg"));
 }

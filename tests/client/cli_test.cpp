@@ -24,11 +24,11 @@ using ::testing::HasSubstr;
 CliRun run_cli(const std::string& args, bool merge_stderr = false, const std::string& stdin_text = "") {
   const std::string feed = stdin_text.empty() ? "" : "printf '%s' '" + stdin_text + "' | ";
   const std::string command =
-      feed + "'" + GEOTRAJ_CLI + "' " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null");
+      feed + "'" + build_paths::cli() + "' " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null");
   return run_shell(command);
 }
 
-std::string example_path(const std::string& name) { return std::string("'") + GEOTRAJ_EXAMPLES_DIR + "/" + name + "'"; }
+std::string example_path(const std::string& name) { return std::string("'") + build_paths::examples_dir() + "/" + name + "'"; }
 
 TEST(Cli, PlanPrintsATable) {
   const CliRun run = run_cli("plan " + example_path("plan_demo_path_a.json"));

@@ -22,6 +22,7 @@
 #include "core/robot/ik.hpp"
 #include "core/robot/kinematics.hpp"
 #include "planner/robots.hpp"
+#include "tests/support/build_paths.hpp"
 #include "tests/support/utf8.hpp"
 
 namespace geotraj::test {
@@ -32,7 +33,7 @@ using core::JointVector;
 using core::RobotModel;
 
 std::string fixture(const std::string& name) {
-  std::ifstream in(std::string(GEOTRAJ_URDF_FIXTURES) + "/" + name);
+  std::ifstream in(std::string(::geotraj::testing::build_paths::urdf_fixtures()) + "/" + name);
   EXPECT_TRUE(in) << name;
   std::stringstream s;
   s << in.rdbuf();

@@ -268,7 +268,7 @@ TEST_F(TlsTest, TheCliSpeaksMutualTlsWithAToken) {
   auto options = tls_options(true);
   options.auth_token = "cli-token-0123456789abcdef";
   auto running = start(options);
-  const std::string cli = std::string(GEOTRAJ_CLI) + " --server 127.0.0.1:" + std::to_string(running.port) +
+  const std::string cli = std::string(build_paths::cli()) + " --server 127.0.0.1:" + std::to_string(running.port) +
                           " --tls-ca " + (dir_ / "ca.pem").string() + " --tls-cert " + (dir_ / "client.pem").string() +
                           " --tls-key " + (dir_ / "client.key").string() + " robots";
   const auto run = [](const std::string& command) {

@@ -1,6 +1,6 @@
-// geotrajd as a child process (GEOTRAJD, the binary's path, is a compile definition of the
-// test): its arguments and environment, its standard output read line by line, its
-// standard error read at the end, signals and its exit code.
+// geotrajd as a child process (the binary of tests/support/build_paths.hpp): its arguments
+// and environment, its standard output read line by line, its standard error read at the end,
+// signals and its exit code.
 #pragma once
 
 #include <poll.h>
@@ -18,11 +18,13 @@
 #include <utility>
 #include <vector>
 
+#include "tests/support/build_paths.hpp"
+
 namespace geotraj::testing {
 
 class Daemon {
  public:
-  /// Starts GEOTRAJD with `args`, after setting `env` (name, value) in the child.
+  /// Starts geotrajd with `args`, after setting `env` (name, value) in the child.
   /// With `open_files` > 0, the child's descriptor limit (soft and hard) is set to it.
   explicit Daemon(const std::vector<std::string>& args,
                   const std::vector<std::pair<std::string, std::string>>& env = {}, long open_files = 0) {
@@ -38,10 +40,10 @@ class Daemon {
         const rlimit limit{static_cast<rlim_t>(open_files), static_cast<rlim_t>(open_files)};
         if (::setrlimit(RLIMIT_NOFILE, &limit) != 0) std::_Exit(126);
       }
-      std::vector<char*> argv{const_cast<char*>(GEOTRAJD)};
+      std::vector<char*> argv{const_cast<char*>(build_paths::geotrajd())};
       for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
       argv.push_back(nullptr);
-      ::execv(GEOTRAJD, argv.data());
+      ::execv(build_paths::geotrajd(), argv.data());
       std::_Exit(127);
     }
     ::close(out[1]);

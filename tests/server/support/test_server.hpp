@@ -18,6 +18,7 @@
 #include "google/rpc/error_details.pb.h"
 #include "google/rpc/status.pb.h"
 #include "server/server.hpp"
+#include "tests/support/build_paths.hpp"
 
 namespace geotraj::testing {
 
@@ -104,7 +105,7 @@ Message from_json(const std::string& json) {
 
 /// The text of an example request file in client/grpcurl/.
 inline std::string example_text(const std::string& name) {
-  std::ifstream file(std::string(GEOTRAJ_EXAMPLES_DIR) + "/" + name);
+  std::ifstream file(std::string(build_paths::examples_dir()) + "/" + name);
   EXPECT_TRUE(file.good()) << "cannot open example " << name;
   std::stringstream text;
   text << file.rdbuf();

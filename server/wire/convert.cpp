@@ -14,6 +14,7 @@
 
 #include "core/geometry/validate.hpp"
 #include "core/robot/kinematics.hpp"
+#include "planner/robot_spec.hpp"
 #include "planner/robots.hpp"
 #include "core/format.hpp"
 
@@ -486,13 +487,6 @@ v1::LimitKind to_proto(core::LimitKind k) {
 
 }  // namespace
 
-const core::RobotModel* RobotCatalog::find(std::string_view name) const {
-  for (const auto& m : models) {
-    if (m.name == name) return &m;
-  }
-  return nullptr;
-}
-
 namespace {
 
 core::JointType joint_type_from_proto(v1::JointType type) {
@@ -566,9 +560,6 @@ core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& mo
   if (model.has_base()) m.base = pose_from_proto(model.base(), prefix + "base", poses);
   if (model.has_tool()) m.tool = pose_from_proto(model.tool(), prefix + "tool", poses);
   for (auto& v : poses) check.violations.push_back(std::move(v));
-  if (check.violations.empty()) {  // poses already refused would be reported twice
-    for (auto& v : core::prefixed(core::validate_robot(m), prefix)) check.violations.push_back(std::move(v));
-  }
   if (!check.violations.empty()) return tl::unexpected(std::move(check.violations));
   return m;
 }
@@ -580,7 +571,10 @@ core::Expected<core::RobotModel> robot_model_from_json(std::string_view json) {
     return tl::unexpected(core::Violations{{"", "is not a RobotModel in proto3 JSON: " + std::string(status.message())}});
   }
   if (model.name().empty()) return tl::unexpected(core::Violations{{"name", "is required: the model's name"}});
-  return robot_model_from_proto(model, "");
+  auto read = robot_model_from_proto(model, "");
+  if (!read) return read;
+  if (core::Violations bad = core::validate_robot(*read); !bad.empty()) return tl::unexpected(std::move(bad));
+  return read;
 }
 
 void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
@@ -622,188 +616,63 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
   for (double q : model.home) out.add_home(q);
 }
 
+namespace {
+
+// RobotSpec as the planner's value: a translation, with the violations of what cannot be
+// translated (an unreadable inline model, a pose that is not one, an unknown approach) in
+// `out`; the planner checks the values (planner::resolve_robot).
+planner::RobotSpec robot_spec_from_proto(const v1::RobotSpec& spec, core::Violations& out) {
+  planner::RobotSpec s;
+  switch (spec.model_source_case()) {
+    case v1::RobotSpec::kName: s.source = planner::RobotByName{spec.name()}; break;
+    case v1::RobotSpec::kModel: {
+      auto model = robot_model_from_proto(spec.model(), "robot.model.");
+      if (!model) out.insert(out.end(), model.error().begin(), model.error().end());
+      s.source = planner::InlineRobot{model ? std::optional<core::RobotModel>(std::move(*model)) : std::nullopt};
+      break;
+    }
+    case v1::RobotSpec::kUrdf: s.source = planner::UrdfRobot{spec.urdf()}; break;
+    case v1::RobotSpec::MODEL_SOURCE_NOT_SET: break;
+  }
+  s.base_link = spec.base_link();
+  s.tip_link = spec.tip_link();
+  for (const auto& l : spec.joint_limits()) {
+    planner::NamedLimits limits{l.joint(), std::nullopt, std::nullopt, std::nullopt};
+    if (l.has_max_velocity()) limits.max_velocity = l.max_velocity();
+    if (l.has_max_acceleration()) limits.max_acceleration = l.max_acceleration();
+    if (l.has_max_jerk()) limits.max_jerk = l.max_jerk();
+    s.joint_limits.push_back(std::move(limits));
+  }
+  if (spec.has_base()) s.base = pose_from_proto(spec.base(), "robot.base", out);
+  if (spec.has_tool()) s.tool = pose_from_proto(spec.tool(), "robot.tool", out);
+  s.report_only = spec.report_only();
+  if (spec.has_branch_tolerance()) s.branch_tolerance = spec.branch_tolerance();
+  if (spec.has_start_position_tolerance()) s.start_position_tolerance = spec.start_position_tolerance();
+  if (spec.has_start_orientation_tolerance()) s.start_orientation_tolerance = spec.start_orientation_tolerance();
+  if (spec.has_velocity_scale()) s.velocity_scale = spec.velocity_scale();
+  if (spec.has_acceleration_scale()) s.acceleration_scale = spec.acceleration_scale();
+  switch (spec.approach()) {
+    case v1::APPROACH_MOVE_UNSPECIFIED: s.approach = planner::Approach::kNone; break;
+    case v1::APPROACH_MOVE_JOINT: s.approach = planner::Approach::kJoint; break;
+    case v1::APPROACH_MOVE_LINEAR: s.approach = planner::Approach::kLinear; break;
+    default:
+      out.push_back({"robot.approach", "unknown value " + std::to_string(spec.approach()) +
+                                           "; use APPROACH_MOVE_JOINT or APPROACH_MOVE_LINEAR"});
+  }
+  s.initial_joints.assign(spec.initial_joints().begin(), spec.initial_joints().end());
+  return s;
+}
+
+}  // namespace
+
 core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog,
                                                   bool motion, const planner::StopAt& stop_at) {
   core::Violations out;
-  // robot.jointLimits: each named, each value within [core::kMinJointLimit, core::kMaxJointLimit]
-  // (applied once the model is known).
-  std::vector<planner::NamedLimits> named;
-  for (int k = 0; k < spec.joint_limits_size(); ++k) {
-    const auto& l = spec.joint_limits(k);
-    const std::string at = "robot.jointLimits[" + std::to_string(k) + "]";
-    if (l.joint().empty()) out.push_back({at + ".joint", "is required: the name of one of the model's joints"});
-    planner::NamedLimits limits{l.joint(), std::nullopt, std::nullopt, std::nullopt};
-    const auto take = [&](bool has, double value, const char* field, const char* unit, std::optional<double>& to) {
-      if (!has) return;
-      if (auto bad = core::joint_limit_violation(at + "." + field, value, unit)) {
-        out.push_back(std::move(*bad));
-      } else {
-        to = value;
-      }
-    };
-    take(l.has_max_velocity(), l.max_velocity(), "maxVelocity", "rad/s or m/s", limits.max_velocity);
-    take(l.has_max_acceleration(), l.max_acceleration(), "maxAcceleration", "rad/s^2 or m/s^2",
-         limits.max_acceleration);
-    take(l.has_max_jerk(), l.max_jerk(), "maxJerk", "rad/s^3 or m/s^3", limits.max_jerk);
-    named.push_back(std::move(limits));
-  }
-  planner::Robot resolved;
-  resolved.inline_model = spec.has_model() || spec.model_source_case() == v1::RobotSpec::kUrdf;
-  switch (spec.model_source_case()) {
-    case v1::RobotSpec::kName: {
-      const auto* model = catalog.find(spec.name());
-      if (model == nullptr) {
-        std::string names;
-        for (const auto& m : catalog.models) names += (names.empty() ? "" : ", ") + m.name;
-        out.push_back({"robot.name", "unknown robot '" + spec.name() + "'; the server knows: " + names});
-      } else {
-        resolved.model = *model;
-      }
-      break;
-    }
-    case v1::RobotSpec::kModel: {
-      auto model = robot_model_from_proto(spec.model(), "robot.model.");
-      if (model) {
-        resolved.model = std::move(*model);
-      } else {
-        out.insert(out.end(), model.error().begin(), model.error().end());
-      }
-      break;
-    }
-    case v1::RobotSpec::kUrdf: {
-      planner::UrdfOptions options{spec.base_link(), spec.tip_link(), named, motion, stop_at};
-      auto model = planner::robot_from_urdf(spec.urdf(), options);
-      if (model) {
-        resolved.model = std::move(*model);
-      } else {
-        for (auto& v : core::prefixed(std::move(model.error()), "robot.")) out.push_back(std::move(v));
-      }
-      break;
-    }
-    default:
-      out.push_back({"robot", "needs a model: `name` of a built-in model (see ListRobots), an inline `model` or "
-                              "a `urdf` document"});
-  }
-  if (spec.model_source_case() != v1::RobotSpec::kUrdf && (!spec.base_link().empty() || !spec.tip_link().empty())) {
-    out.push_back({spec.base_link().empty() ? "robot.tipLink" : "robot.baseLink", "is read with `urdf` only"});
-  }
-  if (out.empty()) {  // robot.jointLimits over the model's, by name
-    auto& model = resolved.model;
-    for (std::size_t k = 0; k < named.size(); ++k) {
-      const auto it = std::find_if(model.joints.begin(), model.joints.end(),
-                                   [&](const core::Joint& j) { return j.name == named[k].joint; });
-      if (it == model.joints.end()) {
-        std::string names;
-        for (const auto& j : model.joints) names += (names.empty() ? "'" : ", '") + j.name + "'";
-        out.push_back({"robot.jointLimits[" + std::to_string(k) + "].joint",
-                       "names no joint of the model ('" + named[k].joint + "'); its joints: " + names});
-        continue;
-      }
-      core::JointLimits& l = model.limits[static_cast<std::size_t>(it - model.joints.begin())];
-      if (named[k].max_velocity) l.max_velocity = *named[k].max_velocity;
-      if (named[k].max_acceleration) l.max_acceleration = *named[k].max_acceleration;
-      if (named[k].max_jerk) l.max_jerk = named[k].max_jerk;
-    }
-  }
-  if (spec.has_base()) resolved.model.base = pose_from_proto(spec.base(), "robot.base", out);
-  if (spec.has_tool()) resolved.model.tool = pose_from_proto(spec.tool(), "robot.tool", out);
-  resolved.report_only = spec.report_only();
-  if (spec.has_branch_tolerance()) {
-    resolved.branch_tolerance = spec.branch_tolerance();
-    if (!(std::isfinite(resolved.branch_tolerance) && resolved.branch_tolerance > 0.0)) {
-      out.push_back({"robot.branchTolerance", "must be finite and > 0 [m], got " + core::number(resolved.branch_tolerance, 6)});
-    }
-  }
-  const auto tolerance = [&out](bool given, double value, const char* field, const char* unit, double& to) {
-    if (!given) return;
-    if (!(std::isfinite(value) && value > 0.0)) {
-      out.push_back({field, std::string("must be finite and > 0 [") + unit + "], got " + core::number(value)});
-    }
-    to = value;
-  };
-  tolerance(spec.has_start_position_tolerance(), spec.start_position_tolerance(), "robot.startPositionTolerance",
-            "m", resolved.start_position_tolerance);
-  tolerance(spec.has_start_orientation_tolerance(), spec.start_orientation_tolerance(),
-            "robot.startOrientationTolerance", "rad", resolved.start_orientation_tolerance);
-  switch (spec.approach()) {
-    case v1::APPROACH_MOVE_UNSPECIFIED: resolved.approach = planner::Approach::kNone; break;
-    case v1::APPROACH_MOVE_JOINT: resolved.approach = planner::Approach::kJoint; break;
-    case v1::APPROACH_MOVE_LINEAR: resolved.approach = planner::Approach::kLinear; break;
-    default:
-      out.push_back({"robot.approach", "unknown value " + std::to_string(spec.approach()) +
-                                                  "; use APPROACH_MOVE_JOINT or APPROACH_MOVE_LINEAR"});
-  }
-  const auto factor = [&out](bool given, double value, const char* field) {
-    if (given && !(std::isfinite(value) && value > 0.0 && value <= 1.0)) {
-      out.push_back({field, "must be in (0, 1] (a fraction of the model's limits), got " + core::number(value)});
-    }
-    return given ? value : 1.0;
-  };
-  const double velocity_scale = factor(spec.has_velocity_scale(), spec.velocity_scale(), "robot.velocityScale");
-  const double acceleration_scale =
-      factor(spec.has_acceleration_scale(), spec.acceleration_scale(), "robot.accelerationScale");
-  if (out.empty() && (velocity_scale != 1.0 || acceleration_scale != 1.0)) {
-    resolved.model = core::with_scaled_limits(std::move(resolved.model), velocity_scale, acceleration_scale);
-    // A scale is a fraction in (0, 1], but the limits it makes must stay within the range
-    // every limit keeps (5e-324 times a limit is 0): the first joint it takes below, named.
-    const auto scaled = [&](double scale, const char* field, const char* what, auto limit_of) {
-      const auto& model = resolved.model;
-      for (std::size_t i = 0; i < model.dof(); ++i) {
-        const std::optional<double> limit = limit_of(model.limits[i]);
-        if (!limit || core::within_joint_limit_range(*limit)) continue;
-        out.push_back({field, core::number(scale) + " makes joint " + std::to_string(i) + " (" +
-                                  model.joints[i].name + ")'s " + what + " " + core::number(*limit) +
-                                  ", outside [" + core::number(core::kMinJointLimit) + ", " +
-                                  core::number(core::kMaxJointLimit) + "]: give a larger scale"});
-        return;
-      }
-    };
-    scaled(velocity_scale, "robot.velocityScale", "maxVelocity",
-           [](const core::JointLimits& l) { return std::optional<double>(l.max_velocity); });
-    scaled(acceleration_scale, "robot.accelerationScale", "maxAcceleration",
-           [](const core::JointLimits& l) { return std::optional<double>(l.max_acceleration); });
-    scaled(acceleration_scale, "robot.accelerationScale", "maxJerk",
-           [](const core::JointLimits& l) { return l.max_jerk; });
-  }
-  if (spec.has_base() || spec.has_tool()) {  // the request's poses over the model's, as validate_robot bounds them
-    for (const auto& [field, X] : {std::pair<const char*, const Eigen::Isometry3d*>{"robot.base", &resolved.model.base},
-                                   std::pair<const char*, const Eigen::Isometry3d*>{"robot.tool", &resolved.model.tool}}) {
-      const double far = X->translation().cwiseAbs().maxCoeff();
-      if (std::isfinite(far) && far > core::kMaxModelMagnitude) {
-        out.push_back({std::string(field) + ".position", "magnitude must be at most " +
-                                                            core::number(core::kMaxModelMagnitude) + " m, got " +
-                                                            core::number(far)});
-      }
-    }
-  }
-  const std::size_t n = resolved.model.dof();
-  if (n > 0) {
-    if (spec.initial_joints_size() == 0) {
-      resolved.seed = core::home_configuration(resolved.model);
-    } else if (static_cast<std::size_t>(spec.initial_joints_size()) != n) {
-      out.push_back({"robot.initialJoints", "has " + std::to_string(spec.initial_joints_size()) + " values for a " +
-                                                std::to_string(n) + "-joint robot"});
-    } else {
-      resolved.seed.resize(static_cast<Eigen::Index>(n));
-      for (std::size_t i = 0; i < n; ++i) {
-        const double q = spec.initial_joints(static_cast<int>(i));
-        const auto& l = resolved.model.limits[i];
-        if (!std::isfinite(q)) {
-          out.push_back({"robot.initialJoints[" + std::to_string(i) + "]", "must be finite, got " + core::number(q, 6)});
-        } else if (std::abs(q) > core::kMaxModelMagnitude) {
-          out.push_back({"robot.initialJoints[" + std::to_string(i) + "]",
-                         "magnitude must be at most " + core::number(core::kMaxModelMagnitude) + ", got " + core::number(q, 6)});
-        } else if (!core::within_position_limits(resolved.model.joints[i].type, l, q)) {
-          out.push_back({"robot.initialJoints[" + std::to_string(i) + "]",
-                         core::number(q, 6) + " is outside the joint's limits [" + core::number(l.min_position, 6) + ", " +
-                             core::number(l.max_position, 6) + "]"});
-        }
-        resolved.seed(static_cast<Eigen::Index>(i)) = q;
-      }
-    }
-  }
+  const planner::RobotSpec translated = robot_spec_from_proto(spec, out);
+  auto robot = planner::resolve_robot(translated, catalog, motion, stop_at);
+  if (!robot) out.insert(out.end(), robot.error().begin(), robot.error().end());
   if (!out.empty()) return tl::unexpected(std::move(out));
-  return resolved;
+  return robot;
 }
 
 void to_proto(const core::BindingStretch& stretch, v1::BindingStretch& out) {

@@ -26,6 +26,7 @@
 #include "optim/breakpoints/breakpoints.hpp"
 #include "optim/tangent_scales/tangent_scales.hpp"
 #include "planner/planner.hpp"
+#include "planner/robot_spec.hpp"
 #include "planner/robots.hpp"
 #include "server/server.hpp"
 
@@ -91,15 +92,12 @@ void to_proto(const Eigen::Vector3d& v, v1::Vec3& out);
 
 // --- robots ---------------------------------------------------------------------------------
 
-/// The robot models a server knows by name: the built-in ones and those loaded from files.
-struct RobotCatalog {
-  std::vector<core::RobotModel> models;
-  const core::RobotModel* find(std::string_view name) const;
-};
+using planner::RobotCatalog;
 
 /// A RobotModel message as a core model, or every violation with field paths under
-/// `prefix` (`robot.model.limits[2].minPosition`): enum ranges, orientations that are not
-/// unit quaternions, then core's validate_robot.
+/// `prefix` (`robot.model.jointType`): enum ranges, orientations that are not unit
+/// quaternions, a chain written two ways. Not validated: planner::resolve_robot validates a
+/// request's model, robot_model_from_json a file's.
 core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& model, const std::string& prefix);
 
 /// A robot model file: the proto3 JSON form of RobotModel (the form ListRobots returns, and
@@ -110,16 +108,11 @@ core::Expected<core::RobotModel> robot_model_from_json(std::string_view json);
 void to_proto(const core::RobotModel& model, v1::RobotModel& out);
 
 
-/// Default RobotSpec.branchTolerance [m].
-inline constexpr double kDefaultBranchTolerance = 1e-3;
 
-/// A request's `robot` resolved against `catalog` (the model with the request's base and tool
-/// applied, the seed from initialJoints or the home), or every violation (`robot.name` unknown,
-/// `robot.model...`, `robot.base.orientation`, `robot.initialJoints` size or limits,
-/// `robot.branchTolerance`, `robot.urdf`, `robot.jointLimits[k]...`); the field is `robot` in
-/// every request that has one. `motion`: false for the kinematics calls, which read no
-/// acceleration limit (a URDF without them is accepted there). A URDF's parse gives up once
-/// `stop_at` is reached (planner::UrdfOptions), with a violation of `robot.urdf`.
+/// A request's `robot` translated (planner::RobotSpec) and resolved against `catalog` by
+/// planner::resolve_robot, or every violation of both together (`robot.base.orientation`,
+/// `robot.approach` here; `robot.name` unknown, `robot.model...`, `robot.initialJoints`,
+/// `robot.urdf`, `robot.jointLimits[k]...` there). `motion` and `stop_at`: resolve_robot's.
 core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog,
                                                   bool motion = true, const planner::StopAt& stop_at = {});
 

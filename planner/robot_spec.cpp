@@ -1,0 +1,214 @@
+// A request's robot resolved: see robot_spec.hpp.
+#include "planner/robot_spec.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <utility>
+
+#include "core/format.hpp"
+
+namespace geotraj::planner {
+
+const core::RobotModel* RobotCatalog::find(std::string_view name) const {
+  for (const auto& m : models) {
+    if (m.name == name) return &m;
+  }
+  return nullptr;
+}
+
+namespace {
+
+std::string at(const char* field, std::size_t i) { return std::string(field) + "[" + std::to_string(i) + "]"; }
+
+// robot.jointLimits: each names a joint, each value within [core::kMinJointLimit,
+// core::kMaxJointLimit]; the values that are, kept for the model.
+std::vector<NamedLimits> checked_joint_limits(const std::vector<NamedLimits>& given, core::Violations& out) {
+  std::vector<NamedLimits> kept;
+  for (std::size_t k = 0; k < given.size(); ++k) {
+    const NamedLimits& l = given[k];
+    const std::string field = at("robot.jointLimits", k);
+    if (l.joint.empty()) out.push_back({field + ".joint", "is required: the name of one of the model's joints"});
+    NamedLimits limits{l.joint, std::nullopt, std::nullopt, std::nullopt};
+    const auto take = [&](const std::optional<double>& value, const char* name, const char* unit,
+                          std::optional<double>& to) {
+      if (!value) return;
+      if (auto bad = core::joint_limit_violation(field + "." + name, *value, unit)) {
+        out.push_back(std::move(*bad));
+      } else {
+        to = value;
+      }
+    };
+    take(l.max_velocity, "maxVelocity", "rad/s or m/s", limits.max_velocity);
+    take(l.max_acceleration, "maxAcceleration", "rad/s^2 or m/s^2", limits.max_acceleration);
+    take(l.max_jerk, "maxJerk", "rad/s^3 or m/s^3", limits.max_jerk);
+    kept.push_back(std::move(limits));
+  }
+  return kept;
+}
+
+// The model the source names, or nullopt with its violations in `out`.
+std::optional<core::RobotModel> source_model(const RobotSpec& spec, const std::vector<NamedLimits>& limits,
+                                             const RobotCatalog& catalog, bool motion, const StopAt& stop_at,
+                                             core::Violations& out) {
+  if (const auto* by_name = std::get_if<RobotByName>(&spec.source)) {
+    if (const auto* model = catalog.find(by_name->name)) return *model;
+    std::string names;
+    for (const auto& m : catalog.models) names += (names.empty() ? "" : ", ") + m.name;
+    out.push_back({"robot.name", "unknown robot '" + by_name->name + "'; the server knows: " + names});
+    return std::nullopt;
+  }
+  if (const auto* written = std::get_if<InlineRobot>(&spec.source)) {
+    if (!written->model) return std::nullopt;  // its wire form was refused
+    core::Violations bad = core::prefixed(core::validate_robot(*written->model), "robot.model.");
+    if (bad.empty()) return written->model;
+    out.insert(out.end(), bad.begin(), bad.end());
+    return std::nullopt;
+  }
+  if (const auto* urdf = std::get_if<UrdfRobot>(&spec.source)) {
+    const UrdfOptions options{spec.base_link, spec.tip_link, limits, motion, stop_at};
+    auto model = robot_from_urdf(urdf->urdf, options);
+    if (model) return std::move(*model);
+    for (auto& v : core::prefixed(std::move(model.error()), "robot.")) out.push_back(std::move(v));
+    return std::nullopt;
+  }
+  out.push_back({"robot", "needs a model: `name` of a built-in model (see ListRobots), an inline `model` or a "
+                          "`urdf` document"});
+  return std::nullopt;
+}
+
+// robot.jointLimits over the model's, by joint name.
+void apply_joint_limits(const std::vector<NamedLimits>& limits, core::RobotModel& model, core::Violations& out) {
+  for (std::size_t k = 0; k < limits.size(); ++k) {
+    const auto it = std::find_if(model.joints.begin(), model.joints.end(),
+                                 [&](const core::Joint& j) { return j.name == limits[k].joint; });
+    if (it == model.joints.end()) {
+      std::string names;
+      for (const auto& j : model.joints) names += (names.empty() ? "'" : ", '") + j.name + "'";
+      out.push_back({at("robot.jointLimits", k) + ".joint",
+                     "names no joint of the model ('" + limits[k].joint + "'); its joints: " + names});
+      continue;
+    }
+    core::JointLimits& l = model.limits[static_cast<std::size_t>(it - model.joints.begin())];
+    if (limits[k].max_velocity) l.max_velocity = *limits[k].max_velocity;
+    if (limits[k].max_acceleration) l.max_acceleration = *limits[k].max_acceleration;
+    if (limits[k].max_jerk) l.max_jerk = limits[k].max_jerk;
+  }
+}
+
+// robot.velocityScale and accelerationScale: fractions in (0, 1] of the model's limits, whose
+// products must stay within the range every limit keeps (5e-324 times a limit is 0): the
+// first joint a scale takes below it is named.
+void apply_scales(const RobotSpec& spec, core::RobotModel& model, bool model_known, core::Violations& out) {
+  const auto factor = [&out](const std::optional<double>& value, const char* field) {
+    if (value && !(std::isfinite(*value) && *value > 0.0 && *value <= 1.0)) {
+      out.push_back({field, "must be in (0, 1] (a fraction of the model's limits), got " + core::number(*value)});
+    }
+    return value.value_or(1.0);
+  };
+  const double velocity = factor(spec.velocity_scale, "robot.velocityScale");
+  const double acceleration = factor(spec.acceleration_scale, "robot.accelerationScale");
+  if (!out.empty() || !model_known || (velocity == 1.0 && acceleration == 1.0)) return;
+  model = core::with_scaled_limits(std::move(model), velocity, acceleration);
+  const auto scaled = [&](double scale, const char* field, const char* what, auto limit_of) {
+    for (std::size_t i = 0; i < model.dof(); ++i) {
+      const std::optional<double> limit = limit_of(model.limits[i]);
+      if (!limit || core::within_joint_limit_range(*limit)) continue;
+      out.push_back({field, core::number(scale) + " makes joint " + std::to_string(i) + " (" + model.joints[i].name +
+                                ")'s " + what + " " + core::number(*limit) + ", outside [" +
+                                core::number(core::kMinJointLimit) + ", " + core::number(core::kMaxJointLimit) +
+                                "]: give a larger scale"});
+      return;
+    }
+  };
+  scaled(velocity, "robot.velocityScale", "maxVelocity",
+         [](const core::JointLimits& l) { return std::optional<double>(l.max_velocity); });
+  scaled(acceleration, "robot.accelerationScale", "maxAcceleration",
+         [](const core::JointLimits& l) { return std::optional<double>(l.max_acceleration); });
+  scaled(acceleration, "robot.accelerationScale", "maxJerk", [](const core::JointLimits& l) { return l.max_jerk; });
+}
+
+// robot.initialJoints: one per joint, finite, within the joints' limits; empty: the home.
+core::JointVector initial_joints(const std::vector<double>& given, const core::RobotModel& model,
+                                 core::Violations& out) {
+  const std::size_t n = model.dof();
+  if (given.empty()) return core::home_configuration(model);
+  core::JointVector q = core::JointVector::Zero(static_cast<Eigen::Index>(n));
+  if (given.size() != n) {
+    out.push_back({"robot.initialJoints", "has " + std::to_string(given.size()) + " values for a " + std::to_string(n) +
+                                              "-joint robot"});
+    return q;
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const double v = given[i];
+    const auto& l = model.limits[i];
+    if (!std::isfinite(v)) {
+      out.push_back({at("robot.initialJoints", i), "must be finite, got " + core::number(v, 6)});
+    } else if (std::abs(v) > core::kMaxModelMagnitude) {
+      out.push_back({at("robot.initialJoints", i), "magnitude must be at most " +
+                                                       core::number(core::kMaxModelMagnitude) + ", got " +
+                                                       core::number(v, 6)});
+    } else if (!core::within_position_limits(model.joints[i].type, l, v)) {
+      out.push_back({at("robot.initialJoints", i), core::number(v, 6) + " is outside the joint's limits [" +
+                                                       core::number(l.min_position, 6) + ", " +
+                                                       core::number(l.max_position, 6) + "]"});
+    }
+    q(static_cast<Eigen::Index>(i)) = v;
+  }
+  return q;
+}
+
+}  // namespace
+
+core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& catalog, bool motion,
+                                    const StopAt& stop_at) {
+  core::Violations out;
+  const std::vector<NamedLimits> limits = checked_joint_limits(spec.joint_limits, out);
+  Robot resolved;
+  resolved.inline_model = !std::holds_alternative<RobotByName>(spec.source) &&
+                          !std::holds_alternative<std::monostate>(spec.source);
+  std::optional<core::RobotModel> model = source_model(spec, limits, catalog, motion, stop_at, out);
+  if (!std::holds_alternative<UrdfRobot>(spec.source) && (!spec.base_link.empty() || !spec.tip_link.empty())) {
+    out.push_back({spec.base_link.empty() ? "robot.tipLink" : "robot.baseLink", "is read with `urdf` only"});
+  }
+  if (model && out.empty()) apply_joint_limits(limits, *model, out);
+  if (model) resolved.model = std::move(*model);
+  if (spec.base) resolved.model.base = *spec.base;
+  if (spec.tool) resolved.model.tool = *spec.tool;
+  resolved.report_only = spec.report_only;
+  if (spec.branch_tolerance) {
+    resolved.branch_tolerance = *spec.branch_tolerance;
+    if (!(std::isfinite(resolved.branch_tolerance) && resolved.branch_tolerance > 0.0)) {
+      out.push_back({"robot.branchTolerance",
+                     "must be finite and > 0 [m], got " + core::number(resolved.branch_tolerance, 6)});
+    }
+  }
+  const auto tolerance = [&out](const std::optional<double>& value, const char* field, const char* unit, double& to) {
+    if (!value) return;
+    if (!(std::isfinite(*value) && *value > 0.0)) {
+      out.push_back({field, std::string("must be finite and > 0 [") + unit + "], got " + core::number(*value)});
+    }
+    to = *value;
+  };
+  tolerance(spec.start_position_tolerance, "robot.startPositionTolerance", "m", resolved.start_position_tolerance);
+  tolerance(spec.start_orientation_tolerance, "robot.startOrientationTolerance", "rad",
+            resolved.start_orientation_tolerance);
+  resolved.approach = spec.approach;
+  apply_scales(spec, resolved.model, model.has_value(), out);
+  // The request's base and tool over the model's, within the bounds validate_robot keeps.
+  for (const auto& [field, X] : {std::pair<const char*, const std::optional<Eigen::Isometry3d>*>{"robot.base", &spec.base},
+                                 std::pair<const char*, const std::optional<Eigen::Isometry3d>*>{"robot.tool", &spec.tool}}) {
+    if (!*X) continue;
+    const double far = (*X)->translation().cwiseAbs().maxCoeff();
+    if (std::isfinite(far) && far > core::kMaxModelMagnitude) {
+      out.push_back({std::string(field) + ".position", "magnitude must be at most " +
+                                                          core::number(core::kMaxModelMagnitude) + " m, got " +
+                                                          core::number(far)});
+    }
+  }
+  if (resolved.model.dof() > 0) resolved.seed = initial_joints(spec.initial_joints, resolved.model, out);
+  if (!out.empty()) return tl::unexpected(std::move(out));
+  return resolved;
+}
+
+}  // namespace geotraj::planner

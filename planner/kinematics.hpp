@@ -1,7 +1,7 @@
 // The kinematics calls of the application layer: the forward kinematics of a configuration
 // and the inverse kinematics of a pose (core/robot/kinematics.hpp, core/robot/ik.hpp), on
 // the request's robot (a catalog model or an inline one, with its base and tool), under the
-// call's budget. The wire layer converts and checks the requests (server/wire/convert.cpp).
+// call's budget. The wire layer converts and checks the requests (server/wire/convert.hpp).
 #pragma once
 
 #include <memory>

@@ -1,6 +1,6 @@
 // The TrajectoryService: each RPC is a free function from request to response and status,
-// and a reactor that runs it. Proto <-> core conversion lives in convert.cpp, the mapping of
-// violations to a status in status.cpp.
+// and a reactor that runs it. Proto <-> core conversion lives in wire/ (convert.hpp), the
+// mapping of violations to a status in wire/status.cpp.
 #include "server/rpc/service.hpp"
 
 #include <grpc/support/time.h>

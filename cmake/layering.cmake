@@ -9,10 +9,15 @@
 #   optim/common                       report, solver lock, AD type
 #   optim/<problem>                    one optimisation problem each, on core and optim/common
 #   planner                            the application layer, on core and optim
-#   server/wire < server/ops < server/rpc < server/main.cpp
+#   server/wire < server/ops < server/web < server/rpc < server/main.cpp
 #                                      proto <-> planner values; runtime, metrics, logs, HTTP;
-#                                      reactors; the process. server/server.hpp and
-#                                      server/status_codes.hpp are the server's public face.
+#                                      the JSON/HTTP gateway; reactors; the process.
+#                                      server/server.hpp and server/status_codes.hpp are the
+#                                      server's public face.
+#   client                             the CLI: the server's public face (it runs the service
+#                                      in process without --server), the wire's conversions
+#                                      (both ends read the same proto), the planner's robots
+#                                      and core's values; never ops, web or rpc.
 # Generated and third-party headers (<...>, geotraj/v1/..., grpc/...) are not this graph's;
 # core, optim and planner must not include gRPC or protobuf at all (below).
 
@@ -23,7 +28,7 @@ set(_optim_all "optim/(common|tangent_scales|breakpoints|timing)/")
 set(_layer_folders
   core/geometry core/robot core/motion core/planning core/live
   optim/common optim/tangent_scales optim/breakpoints optim/timing
-  planner server/wire server/ops server/rpc)
+  planner server/wire server/ops server/web server/rpc client)
 set(_allowed_core/geometry "^(${_core_shared}|core/geometry/)")
 set(_allowed_core/robot "^(${_core_shared}|core/robot/)")
 set(_allowed_core/motion "^(${_core_shared}|core/(geometry|motion)/)")
@@ -36,7 +41,9 @@ set(_allowed_optim/timing "^(${_core_all}|optim/(common|timing)/)")
 set(_allowed_planner "^(${_core_all}|${_optim_all}|planner/)")
 set(_allowed_server/wire "^(${_core_all}|${_optim_all}|planner/|server/(wire/|status_codes\\.hpp|server\\.hpp))")
 set(_allowed_server/ops "^(server/(wire/|ops/|status_codes\\.hpp|server\\.hpp))")
-set(_allowed_server/rpc "^(${_core_all}|${_optim_all}|planner/|server/)")
+set(_allowed_server/web "^(${_core_shared}|server/(wire/|ops/|web/|status_codes\\.hpp|server\\.hpp))")
+set(_allowed_server/rpc "^(${_core_all}|${_optim_all}|planner/|server/(wire|ops|web|rpc)/|server/(status_codes|server)\\.hpp)")
+set(_allowed_client "^(${_core_all}|planner/|client/|server/(wire/|status_codes\\.hpp|server\\.hpp))")
 
 foreach(_folder IN LISTS _layer_folders)
   file(GLOB_RECURSE _files CONFIGURE_DEPENDS
@@ -52,6 +59,15 @@ foreach(_folder IN LISTS _layer_folders)
       endif()
     endforeach()
   endforeach()
+endforeach()
+
+# The process (server/main.cpp) may include all of the server, and nothing includes it.
+file(STRINGS ${PROJECT_SOURCE_DIR}/server/main.cpp _includes REGEX "^[ \t]*#[ \t]*include[ \t]*\"(core|optim|planner|server)/")
+foreach(_line IN LISTS _includes)
+  string(REGEX REPLACE "^[ \t]*#[ \t]*include[ \t]*\"([^\"]+)\".*" "\\1" _included "${_line}")
+  if(NOT _included MATCHES "^(${_core_all}|${_optim_all}|planner/|server/)")
+    message(FATAL_ERROR "layering: server/main.cpp includes \"${_included}\" (cmake/layering.cmake has the graph)")
+  endif()
 endforeach()
 
 # Nothing under core/, optim/ or planner/ includes gRPC or protobuf headers.

@@ -34,7 +34,7 @@
 #include "geotraj/v1/geotraj.grpc.pb.h"
 #include "core/live/execution.hpp"
 #include "core/live/jog.hpp"
-#include "server/rpc/tsan.hpp"
+#include "server/ops/tsan.hpp"
 #include "server/wire/convert.hpp"
 #include "server/wire/live.hpp"
 #include "server/wire/status.hpp"

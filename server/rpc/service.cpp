@@ -31,7 +31,7 @@
 #include "server/ops/runtime.hpp"
 #include "core/format.hpp"
 #include "server/rpc/live.hpp"
-#include "server/rpc/tsan.hpp"
+#include "server/ops/tsan.hpp"
 #include "server/wire/convert.hpp"
 #include "server/wire/kinematics.hpp"
 #include "server/wire/status.hpp"

@@ -37,7 +37,7 @@
 #include "server/ops/runtime.hpp"
 #include "server/ops/socket.hpp"
 #include "server/ops/worker_pool.hpp"
-#include "server/rpc/tsan.hpp"
+#include "server/ops/tsan.hpp"
 #include "server/wire/status.hpp"
 #include "server/wire/text.hpp"
 

@@ -13,7 +13,8 @@
 #                                      proto <-> planner values; runtime, metrics, logs, HTTP;
 #                                      the JSON/HTTP gateway; reactors; the process.
 #                                      server/server.hpp and server/status_codes.hpp are the
-#                                      server's public face.
+#                                      server's public face; below rpc only its configuration
+#                                      values (server/options.hpp), not the running server.
 #   client                             the CLI: the server's public face (it runs the service
 #                                      in process without --server), the wire's conversions
 #                                      (both ends read the same proto), the planner's robots
@@ -39,11 +40,11 @@ set(_allowed_optim/tangent_scales "^(${_core_all}|optim/(common|tangent_scales)/
 set(_allowed_optim/breakpoints "^(${_core_all}|optim/(common|breakpoints)/)")
 set(_allowed_optim/timing "^(${_core_all}|optim/(common|timing)/)")
 set(_allowed_planner "^(${_core_all}|${_optim_all}|planner/)")
-set(_allowed_server/wire "^(${_core_all}|${_optim_all}|planner/|server/(wire/|status_codes\\.hpp|server\\.hpp))")
-set(_allowed_server/ops "^(server/(wire/|ops/|status_codes\\.hpp|server\\.hpp))")
-set(_allowed_server/web "^(${_core_shared}|server/(wire/|ops/|web/|status_codes\\.hpp|server\\.hpp))")
-set(_allowed_server/rpc "^(${_core_all}|${_optim_all}|planner/|server/(wire|ops|web|rpc)/|server/(status_codes|server)\\.hpp)")
-set(_allowed_client "^(${_core_all}|planner/|client/|server/(wire/|status_codes\\.hpp|server\\.hpp))")
+set(_allowed_server/wire "^(${_core_all}|${_optim_all}|planner/|server/(wire/|status_codes\\.hpp|options\\.hpp))")
+set(_allowed_server/ops "^(server/(wire/|ops/|status_codes\\.hpp|options\\.hpp))")
+set(_allowed_server/web "^(${_core_shared}|server/(wire/|ops/|web/|status_codes\\.hpp|options\\.hpp))")
+set(_allowed_server/rpc "^(${_core_all}|${_optim_all}|planner/|server/(wire|ops|web|rpc)/|server/(status_codes|options|server)\\.hpp)")
+set(_allowed_client "^(${_core_all}|planner/|client/|server/(wire/|status_codes\\.hpp|options\\.hpp|server\\.hpp))")
 
 foreach(_folder IN LISTS _layer_folders)
   file(GLOB_RECURSE _files CONFIGURE_DEPENDS

@@ -16,6 +16,7 @@
 #include <CLI/CLI.hpp>
 
 #include "core/format.hpp"
+#include "server/ops/exit_guard.hpp"
 #include "server/server.hpp"
 
 namespace {

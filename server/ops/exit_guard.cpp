@@ -4,7 +4,7 @@
 
 #include <unistd.h>
 
-#include "server/server.hpp"
+#include "server/ops/exit_guard.hpp"
 
 namespace geotraj::server {
 namespace {

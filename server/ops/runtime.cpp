@@ -1,8 +1,5 @@
 #include "server/ops/runtime.hpp"
 
-#include "server/status_codes.hpp"
-#include "server/wire/text.hpp"
-
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -10,6 +7,11 @@
 #include <fstream>
 #include <sstream>
 #include <thread>
+
+#include <grpcpp/server_context.h>
+
+#include "server/status_codes.hpp"
+#include "server/wire/text.hpp"
 
 namespace geotraj::server {
 namespace {

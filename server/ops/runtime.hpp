@@ -19,7 +19,7 @@
 #include "server/ops/log.hpp"
 #include "server/ops/metrics.hpp"
 #include "server/ops/worker_pool.hpp"
-#include "server/server.hpp"
+#include "server/options.hpp"
 
 namespace geotraj::server {
 

@@ -14,7 +14,7 @@
 #include "geotraj/v1/geotraj.pb.h"
 #include "planner/planner.hpp"
 #include "server/ops/runtime.hpp"
-#include "server/server.hpp"
+#include "server/options.hpp"
 #include "server/wire/convert.hpp"
 
 namespace geotraj::server {

@@ -34,12 +34,12 @@
 #include <grpcpp/support/status.h>
 #include <tl/expected.hpp>
 
-#include "server/server.hpp"
+#include "server/options.hpp"
 
 namespace geotraj::server {
 
 /// Where and how the web side listens, and what it lets one client take (WebLimits, in
-/// server/server.hpp). start_server fills it from ServerOptions.
+/// server/options.hpp). start_server fills it from ServerOptions.
 struct WebOptions : WebLimits {
   /// HOST:PORT or [IPV6]:PORT; port 0 picks a free port; an empty host means every address.
   std::string address;

@@ -28,7 +28,7 @@
 #include "planner/planner.hpp"
 #include "planner/robot_spec.hpp"
 #include "planner/robots.hpp"
-#include "server/server.hpp"
+#include "server/options.hpp"
 
 namespace geotraj::server {
 

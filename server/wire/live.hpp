@@ -11,7 +11,7 @@
 #include "core/live/jog.hpp"
 #include "geotraj/v1/geotraj.pb.h"
 #include "planner/planner.hpp"
-#include "server/server.hpp"
+#include "server/options.hpp"
 #include "server/wire/convert.hpp"
 
 namespace geotraj::server {

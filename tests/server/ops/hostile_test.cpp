@@ -22,6 +22,7 @@
 #include <grpcpp/generic/generic_stub.h>
 #include <nlohmann/json.hpp>
 
+#include "server/ops/exit_guard.hpp"
 #include "tests/server/support/daemon.hpp"
 #include "tests/server/support/production_support.hpp"
 #include "tests/server/support/raw_sockets.hpp"

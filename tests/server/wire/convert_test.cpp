@@ -1,0 +1,231 @@
+// The wire alone (server/wire/convert.hpp), without gRPC calls: each field of a PlanRequest
+// reaches the planner's Request as the API documents it, each value the wire cannot translate
+// is named by its field, and the robot model's wire form round-trips.
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "planner/robots.hpp"
+#include "server/wire/convert.hpp"
+#include "tests/server/support/test_server.hpp"
+
+namespace geotraj::testing {
+namespace {
+
+using ::testing::HasSubstr;
+
+const server::RobotCatalog& catalog() {
+  static const server::RobotCatalog c{planner::builtin_robots()};
+  return c;
+}
+
+core::Expected<planner::Request> convert(const v1::PlanRequest& request,
+                                          server::RequestUse use = server::RequestUse::kPlan) {
+  return server::request_from_proto(request, catalog(), server::ServiceLimits{}, use);
+}
+
+// The violation of `field` in a refused conversion ("" when there is none).
+std::string description_of(const core::Expected<planner::Request>& converted, const std::string& field) {
+  if (converted) return "";
+  for (const auto& v : converted.error()) {
+    if (v.field == field) return v.description;
+  }
+  return "";
+}
+
+std::string listed(const core::Expected<planner::Request>& converted) {
+  std::string out;
+  if (!converted) {
+    for (const auto& v : converted.error()) out += v.field + ": " + v.description + "\n";
+  }
+  return out;
+}
+
+TEST(WireRequest, EveryMotionFieldReachesThePlanner) {
+  auto request = demo_example('c');
+  auto* m = request.mutable_motion();
+  m->set_duration_s(7.5);
+  m->set_profile(v1::MOTION_PROFILE_S_CURVE);
+  m->set_ramp_fraction(0.3);
+  m->set_cycle_rate_hz(250.0);
+  m->set_time_parameterization(v1::TIME_PARAMETERIZATION_TAYLOR_SECOND_ORDER);
+  m->set_speed_scale(0.5);
+  m->set_max_speed(0.4);
+  m->set_max_acceleration(2.0);
+  m->set_max_jerk(30.0);
+  m->set_max_angular_speed(1.5);
+  m->set_max_angular_acceleration(6.0);
+  const auto converted = convert(request);
+  ASSERT_TRUE(converted.has_value()) << listed(converted);
+  ASSERT_TRUE(converted->motion.has_value());
+  const core::MotionSpec& s = *converted->motion;
+  EXPECT_EQ(s.duration_s, 7.5);
+  EXPECT_EQ(s.profile, core::ProfileShape::kSCurve);
+  EXPECT_EQ(s.ramp_fraction, 0.3);
+  EXPECT_TRUE(s.ramp_fraction_given);
+  EXPECT_EQ(s.cycle_rate_hz, 250.0);
+  EXPECT_EQ(s.time_parameterization, core::TimeParameterization::kTaylorSecondOrder);
+  EXPECT_EQ(s.speed_scale, 0.5);
+  EXPECT_EQ(s.max_speed, 0.4);
+  EXPECT_EQ(s.max_acceleration, 2.0);
+  EXPECT_EQ(s.max_jerk, 30.0);
+  EXPECT_EQ(s.max_angular_speed, 1.5);
+  EXPECT_EQ(s.max_angular_acceleration, 6.0);
+}
+
+TEST(WireRequest, UnknownEnumValuesAreNamedWithTheValuesThatExist) {
+  auto request = demo_example('a');
+  request.mutable_motion()->set_profile(static_cast<v1::MotionProfile>(42));
+  auto converted = convert(request);
+  EXPECT_THAT(description_of(converted, "motion.profile"), HasSubstr("unknown value 42"));
+  EXPECT_THAT(description_of(converted, "motion.profile"), HasSubstr("MOTION_PROFILE_S_CURVE"));
+
+  request = example<v1::PlanRequest>("plan_pa10_path_c.json");
+  request.mutable_robot()->set_approach(static_cast<v1::ApproachMove>(9));
+  converted = convert(request);
+  EXPECT_THAT(description_of(converted, "robot.approach"), HasSubstr("unknown value 9"));
+
+  request = demo_example('a');
+  request.set_pacing(static_cast<v1::StreamPacing>(7));
+  converted = convert(request, server::RequestUse::kStream);
+  EXPECT_THAT(description_of(converted, "pacing"), HasSubstr("unknown value 7"));
+}
+
+TEST(WireRequest, EveryRobotFieldReachesThePlanner) {
+  auto request = example<v1::PlanRequest>("plan_pa10_path_c.json");
+  auto* r = request.mutable_robot();
+  r->set_report_only(true);
+  r->set_branch_tolerance(2e-3);
+  r->set_start_position_tolerance(2e-4);
+  r->set_start_orientation_tolerance(3e-3);
+  r->set_approach(v1::APPROACH_MOVE_LINEAR);
+  r->set_velocity_scale(0.5);
+  r->set_acceleration_scale(0.25);
+  auto* base = r->mutable_base();
+  base->mutable_position()->set_z(0.1);
+  base->mutable_orientation()->set_w(std::sqrt(0.5));
+  base->mutable_orientation()->set_z(std::sqrt(0.5));
+  r->clear_initial_joints();
+  for (double q : {0.1, 0.2, 0.0, 1.2, 0.0, 0.5, 0.0}) r->add_initial_joints(q);
+  auto* named = r->add_joint_limits();
+  const core::RobotModel& pa10 = *catalog().find("pa10");
+  named->set_joint(pa10.joints[3].name);
+  named->set_max_velocity(0.8);
+  const auto converted = convert(request);
+  ASSERT_TRUE(converted.has_value()) << listed(converted);
+  const planner::Robot& robot = *converted->robot;
+  EXPECT_TRUE(robot.report_only);
+  EXPECT_EQ(robot.branch_tolerance, 2e-3);
+  EXPECT_EQ(robot.start_position_tolerance, 2e-4);
+  EXPECT_EQ(robot.start_orientation_tolerance, 3e-3);
+  EXPECT_EQ(robot.approach, planner::Approach::kLinear);
+  EXPECT_DOUBLE_EQ(robot.model.limits[0].max_velocity, 0.5 * pa10.limits[0].max_velocity);
+  EXPECT_DOUBLE_EQ(robot.model.limits[3].max_velocity, 0.4);  // the request's 0.8, scaled
+  EXPECT_DOUBLE_EQ(robot.model.limits[0].max_acceleration, 0.25 * pa10.limits[0].max_acceleration);
+  EXPECT_NEAR(robot.model.base.translation().z(), 0.1, 1e-15);
+  EXPECT_TRUE(robot.model.base.linear().isApprox(
+      Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix(), 1e-12));
+  ASSERT_EQ(robot.seed.size(), 7);
+  EXPECT_EQ(robot.seed(3), 1.2);
+}
+
+TEST(WireRequest, APoseThatIsNoneIsNamedWithTheRestOfTheRobot) {
+  auto request = example<v1::PlanRequest>("plan_pa10_path_c.json");
+  request.mutable_robot()->mutable_tool()->mutable_orientation()->set_w(2.0);
+  request.mutable_robot()->set_branch_tolerance(-1.0);
+  const auto converted = convert(request);
+  EXPECT_THAT(description_of(converted, "robot.tool.orientation"), HasSubstr("unit quaternion"));
+  EXPECT_THAT(description_of(converted, "robot.branchTolerance"), HasSubstr("> 0")) << "in the same answer";
+}
+
+TEST(WireRequest, AnInlineModelWrittenTwoWaysIsRefusedByField) {
+  auto request = example<v1::PlanRequest>("plan_pa10_path_c.json");
+  v1::RobotModel model;
+  server::to_proto(*catalog().find("ur5"), model);  // a DH table: links
+  model.add_joints()->set_name("extra");             // and a general chain
+  *request.mutable_robot()->mutable_model() = model;
+  const auto converted = convert(request);
+  EXPECT_THAT(description_of(converted, "robot.model.joints"), HasSubstr("give one"));
+}
+
+TEST(WireRequest, AModelsWireFormRoundTrips) {
+  for (const auto& model : catalog().models) {
+    v1::RobotModel wire;
+    server::to_proto(model, wire);
+    const auto back = server::robot_model_from_proto(wire, "robot.model.");
+    ASSERT_TRUE(back.has_value()) << model.name;
+    EXPECT_EQ(back->name, model.name);
+    ASSERT_EQ(back->dof(), model.dof()) << model.name;
+    for (std::size_t i = 0; i < model.dof(); ++i) {
+      EXPECT_EQ(back->joints[i].name, model.joints[i].name);
+      EXPECT_TRUE(back->joints[i].origin.isApprox(model.joints[i].origin, 1e-12)) << model.name << " joint " << i;
+      EXPECT_EQ(back->limits[i].max_velocity, model.limits[i].max_velocity);
+      EXPECT_EQ(back->limits[i].max_jerk, model.limits[i].max_jerk);
+    }
+    EXPECT_TRUE(back->flange.isApprox(model.flange, 1e-12)) << model.name;
+    EXPECT_EQ(back->home, model.home);
+  }
+}
+
+TEST(WireRequest, AModelFileIsValidatedByItsReader) {
+  v1::RobotModel wire;
+  server::to_proto(*catalog().find("ur5"), wire);
+  wire.mutable_limits(2)->set_max_velocity(-1.0);
+  std::string json;
+  ASSERT_TRUE(google::protobuf::util::MessageToJsonString(wire, &json).ok());
+  const auto read = server::robot_model_from_json(json);
+  ASSERT_FALSE(read.has_value());
+  EXPECT_EQ(read.error().front().field, "limits[2].maxVelocity");
+}
+
+TEST(WireRequest, FollowingAPoseNeedsSixJointsNamedWhereTheModelCameFrom) {
+  auto request = example<v1::PlanRequest>("plan_pa10_path_c.json");
+  v1::RobotModel model;
+  core::RobotModel five = *catalog().find("ur5");
+  five.dh->links.pop_back();
+  five.limits.pop_back();
+  five.home.pop_back();
+  core::set_dh(five, *five.dh);
+  server::to_proto(five, model);
+  *request.mutable_robot()->mutable_model() = model;
+  request.mutable_robot()->clear_initial_joints();
+  const auto converted = convert(request);
+  EXPECT_THAT(description_of(converted, "robot.model.links"), HasSubstr("5 joints"));
+}
+
+TEST(WireRequest, AStreamNeedsAMotionAndAPlanWithARobotToo) {
+  auto request = demo_example('a');
+  request.clear_motion();
+  EXPECT_THAT(description_of(convert(request, server::RequestUse::kStream), "motion"), HasSubstr("required"));
+  EXPECT_TRUE(convert(request, server::RequestUse::kPlan).has_value()) << "the geometry alone";
+  request.mutable_robot()->set_name("pa10");
+  EXPECT_THAT(description_of(convert(request, server::RequestUse::kPlan), "motion"), HasSubstr("robot"));
+}
+
+TEST(WireRequest, AnAccelerationScaleWithADurationIsNamed) {
+  auto request = demo_example('a');
+  request.mutable_motion()->set_duration_s(5.0);
+  request.mutable_motion()->set_acceleration_scale(0.5);
+  EXPECT_THAT(description_of(convert(request), "motion.accelerationScale"), HasSubstr("durationS"));
+}
+
+TEST(WireRequest, ASequenceStepTakesTheRequestsMotionFieldsItDoesNotGive) {
+  auto request = example<v1::PlanRequest>("sequence_ur5.json");
+  ASSERT_GE(request.sequence_size(), 2);
+  request.mutable_motion()->set_cycle_rate_hz(250.0);
+  auto* step = request.mutable_sequence(1);
+  step->mutable_motion()->set_duration_s(3.0);
+  step->mutable_motion()->clear_cycle_rate_hz();
+  const auto converted = convert(request);
+  ASSERT_TRUE(converted.has_value()) << listed(converted);
+  ASSERT_EQ(converted->sequence.size(), static_cast<std::size_t>(request.sequence_size()));
+  EXPECT_EQ(converted->sequence[1].motion.cycle_rate_hz, 250.0);
+  EXPECT_EQ(converted->sequence[1].motion.duration_s, 3.0);
+}
+
+}  // namespace
+}  // namespace geotraj::testing

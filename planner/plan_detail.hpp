@@ -1,0 +1,82 @@
+// What planner.cpp (one path, move or line) and sequence.cpp (steps, the approach move) share:
+// the steps of planning one trajectory and its passes. Not the planner's interface
+// (planner.hpp).
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <optional>
+#include <string>
+
+#include "core/geometry/path.hpp"
+#include "core/planning/joint_motion.hpp"
+#include "core/planning/moves.hpp"
+#include "core/planning/trajectory.hpp"
+#include "planner/planner.hpp"
+
+namespace geotraj::planner::detail {
+
+using Clock = std::chrono::steady_clock;
+
+// Samples between two checks of the budget in the joint-space pass: an IK sample costs about
+// a microsecond when the pose is within reach and milliseconds when the solver fails on one
+// out of reach, so a check every 16 keeps an abandoned call's overrun to tens of
+// milliseconds at a cost below 0.5 %. Without IK a sample costs about a microsecond: every
+// 1,024.
+inline constexpr std::size_t kSamplesPerCheck = 16;
+inline constexpr std::size_t kToolSamplesPerCheck = 1024;
+
+/// Violations as an error: kUnattainable when every one is (core::ViolationKind: the request
+/// is well-formed and cannot be carried out), kInvalidArgument otherwise (fields to change).
+Error invalid(core::Violations violations);
+
+/// The deadline every optimiser of the request shares: the earlier of the budget's and
+/// optimize.timeBudgetS from now.
+Clock::time_point optimizer_deadline(const Request& request, const Budget& budget);
+
+/// core::build_path, its violations under `path.`.
+Expected<core::Path> build(const core::PathSpec& spec);
+
+/// A joint move to a pose: its goal joints, and which branch was chosen, in words.
+struct ChosenGoal {
+  core::JointMoveSpec spec;
+  std::string choice;
+};
+Expected<ChosenGoal> resolve(const JointMoveToPose& move, const Robot& robot, const Budget& budget);
+/// A line to joint values: its goal pose.
+Expected<core::LinearMoveSpec> resolve(const LinearMoveToJoints& move, const Robot& robot);
+
+/// A linear move's poses checked as core::plan_linear_move checks them.
+std::optional<Error> pose_errors(const core::LinearMoveSpec& move, const core::MotionSpec& motion);
+
+/// The request's geometry as a timed trajectory (its optimisers, path, orientation, timing).
+Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget& budget, Clock::time_point deadline,
+                                           OptimizerReports& reports, std::optional<DefaultJerk>& default_jerk);
+
+/// `sample`'s tool speed, acceleration and angular speed into `peaks`.
+void add(ToolPeaks& peaks, const core::TrajectorySample& sample);
+
+/// A path's first tool pose against the robot's at its initial joints (robot.*Tolerance).
+std::optional<Error> starts_at_robot(const core::Trajectory& trajectory, const Robot& robot);
+
+/// The motion's Cartesian limits, for the binding report of a tool path (none otherwise).
+core::CartesianLimits cartesian_limits(const core::MotionSpec& motion, bool tool_path);
+
+/// A joint move (to joints or to a pose).
+bool joint_geometry(const Geometry& geometry);
+
+/// A line to joint values ends at them (the tracked branch is the goal's).
+std::optional<Error> ends_at_goal(const Geometry& geometry, const core::JointVector& last);
+
+/// The geometry part of a plan's answer for a path.
+PathReport report_of(const core::Path& path);
+
+/// PlanRequest.sequence (sequence.cpp).
+Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose);
+
+/// A path with a robot that starts away from the tool pose of the robot's initial joints, and
+/// robot.approach set: the request as a sequence of the approach move (minimum time) and the
+/// path. nullopt: plan the request as it is (sequence.cpp).
+std::optional<Expected<Request>> with_approach(const Request& request);
+
+}  // namespace geotraj::planner::detail

@@ -20,8 +20,7 @@ using namespace wire_detail;
 
 namespace {
 
-using wire_detail::set;
-using wire_detail::to_core;
+using wire_detail::to_core;  // beside the overloads for key frames and paths below
 
 std::string at_frame(std::size_t i) { return "path.frames[" + std::to_string(i) + "]"; }
 
@@ -261,8 +260,7 @@ void to_proto(const std::vector<core::FrameConstraints>& frames, v1::ConvertResp
 
 namespace {
 
-using wire_detail::set;
-using wire_detail::to_core;
+using wire_detail::set;  // beside the overload for extrema below
 
 void set(v1::Extremum* out, const core::Extremum& e) {
   out->set_value(e.value);

@@ -53,9 +53,6 @@ void to_proto(const Eigen::Vector3d& v, v1::Vec3& out) { set(&out, v); }
 
 namespace {
 
-using wire_detail::set;
-using wire_detail::to_core;
-
 v1::LimitKind to_proto(core::LimitKind k) {
   switch (k) {
     case core::LimitKind::kPosition: return v1::LIMIT_KIND_POSITION;
@@ -71,9 +68,6 @@ v1::LimitKind to_proto(core::LimitKind k) {
 }  // namespace
 
 namespace {
-
-using wire_detail::set;
-using wire_detail::to_core;
 
 core::JointType joint_type_from_proto(v1::JointType type) {
   switch (type) {
@@ -203,9 +197,6 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
 }
 
 namespace {
-
-using wire_detail::set;
-using wire_detail::to_core;
 
 // RobotSpec as the planner's value: a translation, with the violations of what cannot be
 // translated (an unreadable inline model, a pose that is not one, an unknown approach) in

@@ -1,6 +1,6 @@
 // Live execution (core/live/execution.hpp) and its 1-D building block (rate_profile.hpp): what
 // Execute spends per call and per controller cycle. The plans are the grpcurl examples planned
-// as Execute plans them (request_from_proto; jerk-limited timing for a robot with jerk
+// as Execute plans them (request_input_from_proto, planner::admit; jerk-limited timing for a robot with jerk
 // limits; planner::reserve_room with the default reserve 0.1; planner::plan for a stream),
 // both timed by the robot's limits: the PA-10 along the thesis's path C
 // (client/grpcurl/plan_pa10_path_c.json with durationS 0, time-optimal, and without its
@@ -83,10 +83,10 @@ const LivePlan& live_plan(long arm, double cycle_hz) {
   request.mutable_motion()->set_duration_s(0.0);      // timed by the limits (the Panda's is already)
   request.mutable_motion()->set_cycle_rate_hz(cycle_hz);
   const server::RobotCatalog catalog{planner::builtin_robots()};
-  auto input = server::request_from_proto(request, catalog, server::ServiceLimits{}, server::RequestUse::kStream);
+  auto input = planner::admit(server::request_input_from_proto(request, server::ServiceLimits{}), catalog, planner::Use::kStream);
   if (!input) throw std::runtime_error(file + ": " + input.error().front().description);
   planner::reserve_room(*input, 0.1);  // as Execute, with ExecuteOptions.accelerationReserve's default
-  auto planned = planner::plan(*input, planner::Budget{}, planner::Limits{}, planner::Purpose::kStream);
+  auto planned = planner::plan(*input, planner::Budget{}, planner::Limits{}, planner::Use::kStream);
   if (!planned) throw std::runtime_error(file + ": not planned");
   slot = std::make_unique<LivePlan>();
   slot->plan = std::move(*planned);

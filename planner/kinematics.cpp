@@ -1,6 +1,11 @@
 #include "planner/kinematics.hpp"
 
+#include <algorithm>
+#include <cmath>
+#include <string>
 #include <utility>
+
+#include "core/format.hpp"
 
 namespace geotraj::planner {
 namespace {
@@ -25,7 +30,68 @@ bool within_limits(const core::RobotModel& model, const core::JointVector& q) {
   return true;
 }
 
+// The request's robot, resolved, or its violations appended to `out`.
+std::shared_ptr<const Robot> robot_of(const std::optional<RobotSpec>& spec, const RobotCatalog& catalog,
+                                      const StopAt& stop_at, core::Violations& out) {
+  if (!spec) {
+    out.push_back({"robot", "is required: `name` of a built-in model (see ListRobots), an inline `model` or a `urdf` "
+                            "document"});
+    return nullptr;
+  }
+  auto robot = resolve_robot(*spec, catalog, /*motion=*/false, stop_at);
+  if (!robot) {
+    out.insert(out.end(), robot.error().begin(), robot.error().end());
+    return nullptr;
+  }
+  return std::make_shared<const Robot>(std::move(*robot));
+}
+
 }  // namespace
+
+core::Expected<ForwardRequest> admit(ForwardInput input, const RobotCatalog& catalog, const StopAt& stop_at) {
+  core::Violations out = std::move(input.violations);
+  ForwardRequest request;
+  request.robot = robot_of(input.robot, catalog, stop_at, out);
+  if (request.robot) {
+    const std::size_t n = request.robot->model.dof();
+    if (input.joints.size() != n) {
+      out.push_back({"joints", "has " + std::to_string(input.joints.size()) + " values for a " + std::to_string(n) +
+                                   "-joint robot: give one per joint, joint 0 first [rad or m]"});
+    } else {
+      request.joints.resize(static_cast<Eigen::Index>(n));
+      for (std::size_t i = 0; i < n; ++i) {
+        const double q = input.joints[i];
+        if (!(std::isfinite(q) && std::abs(q) <= core::kMaxModelMagnitude)) {
+          out.push_back({"joints[" + std::to_string(i) + "]", "must be finite with a magnitude of at most " +
+                                                                  core::number(core::kMaxModelMagnitude) + ", got " +
+                                                                  core::number(q)});
+        }
+        request.joints(static_cast<Eigen::Index>(i)) = q;
+      }
+    }
+  }
+  if (!out.empty()) return tl::unexpected(std::move(out));
+  return request;
+}
+
+core::Expected<InverseRequest> admit(InverseInput input, const RobotCatalog& catalog, const StopAt& stop_at) {
+  core::Violations out = std::move(input.violations);
+  InverseRequest request;
+  request.robot = robot_of(input.robot, catalog, stop_at, out);
+  if (!input.target) {
+    out.push_back({"target", "is required: the tool pose in W to reach (position [m], orientation)"});
+  } else {
+    request.target = *input.target;
+    const Eigen::Vector3d p = request.target.translation();
+    if (p.allFinite() && p.cwiseAbs().maxCoeff() > kMaxTargetCoordinate) {
+      out.push_back({"target.position", "coordinates must lie within " + core::number(kMaxTargetCoordinate) +
+                                            " m of the origin"});
+    }
+  }
+  request.search = std::move(input.search);
+  if (!out.empty()) return tl::unexpected(std::move(out));
+  return request;
+}
 
 Forward forward_kinematics(const ForwardRequest& request) {
   const core::RobotModel& model = request.robot->model;

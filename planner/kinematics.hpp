@@ -14,6 +14,7 @@
 #include "core/robot/kinematics.hpp"
 #include "core/robot/robot.hpp"
 #include "planner/planner.hpp"
+#include "planner/robot_spec.hpp"
 
 namespace geotraj::planner {
 
@@ -60,6 +61,34 @@ struct Inverse {
   int iterations = 0;
   bool reachable() const { return !solutions.empty(); }
 };
+
+/// ComputeForwardKinematics as given, with what the wire could not read.
+struct ForwardInput {
+  std::optional<RobotSpec> robot;
+  std::vector<double> joints;  ///< [rad or m]
+  core::Violations violations;
+};
+
+/// ComputeInverseKinematics as given: the search's options already read within the server's
+/// ranges; with what the wire could not read.
+struct InverseInput {
+  std::optional<RobotSpec> robot;
+  std::optional<Eigen::Isometry3d> target;  ///< X_WT
+  core::IkSearchOptions search;
+  core::Violations violations;
+};
+
+/// The largest |coordinate| of an IK target [m], as for a key frame (core::PathLimits).
+inline constexpr double kMaxTargetCoordinate = 1e6;
+
+/// `input` admitted, or every violation together (the wire's first): `robot` (required;
+/// resolved against `catalog` without acceleration limits, a URDF parsed within `stop_at`),
+/// `joints` (one per joint, finite, magnitude at most core::kMaxModelMagnitude).
+core::Expected<ForwardRequest> admit(ForwardInput input, const RobotCatalog& catalog, const StopAt& stop_at = {});
+
+/// `input` admitted, or every violation together: `robot` as above, `target` (required, within
+/// kMaxTargetCoordinate of the origin).
+core::Expected<InverseRequest> admit(InverseInput input, const RobotCatalog& catalog, const StopAt& stop_at = {});
 
 /// The forward kinematics of `request` (a valid robot, one value per joint).
 Forward forward_kinematics(const ForwardRequest& request);

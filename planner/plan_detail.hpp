@@ -7,6 +7,8 @@
 #include <cstddef>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "core/geometry/path.hpp"
 #include "core/planning/joint_motion.hpp"
@@ -72,11 +74,18 @@ std::optional<Error> ends_at_goal(const Geometry& geometry, const core::JointVec
 PathReport report_of(const core::Path& path);
 
 /// PlanRequest.sequence (sequence.cpp).
-Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose);
+Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const Limits& limits, Use use);
 
 /// A path with a robot that starts away from the tool pose of the robot's initial joints, and
 /// robot.approach set: the request as a sequence of the approach move (minimum time) and the
 /// path. nullopt: plan the request as it is (sequence.cpp).
 std::optional<Expected<Request>> with_approach(const Request& request);
+
+/// Whether a violation of a sequence step, named as in a request of its own
+/// (`path.frames[0]`, `motion.maxSpeed`, `robot.name`), is the step's own field: its path or
+/// move, or a motion field its own motion gives (`own_motion_fields`, API names; nullptr: the
+/// step has no motion of its own, "motion" alone: it has one). The others are the request's
+/// (admit.cpp, sequence.cpp).
+bool step_owns(std::string_view field, const std::vector<std::string>* own_motion_fields);
 
 }  // namespace geotraj::planner::detail

@@ -609,12 +609,12 @@ Expected<Plan> with_reserve_noted(Expected<Plan> result, const Request& request)
   return result;
 }
 
-Expected<Plan> plan_request(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose) {
+Expected<Plan> plan_request(const Request& request, const Budget& budget, const Limits& limits, Use use) {
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
-  if (!request.sequence.empty()) return plan_sequence(request, budget, limits, purpose);
+  if (!request.sequence.empty()) return plan_sequence(request, budget, limits, use);
   if (auto approached = with_approach(request)) {
     if (!*approached) return tl::unexpected(std::move(approached->error()));
-    return with_reserve_noted(plan_sequence(**approached, budget, limits, purpose), **approached);
+    return with_reserve_noted(plan_sequence(**approached, budget, limits, use), **approached);
   }
   const auto deadline = optimizer_deadline(request, budget);
   Plan result;
@@ -625,7 +625,7 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
     auto path = build(*spec);
     if (!path) return tl::unexpected(std::move(path.error()));
     if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
-    if (purpose == Purpose::kPlan) result.path_report = report_of(*path);
+    if (use == Use::kPlan) result.path_report = report_of(*path);
     result.path = std::move(*path);
     return result;
   }
@@ -633,7 +633,7 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
   if (!trajectory) return tl::unexpected(std::move(trajectory.error()));
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   result.trajectory = std::move(*trajectory);
-  if (purpose == Purpose::kPlan) {
+  if (use == Use::kPlan) {
     if (const core::Path* path = result.followed_path()) result.path_report = report_of(*path);
   }
   if (auto refused = sample_limit(*result.trajectory, limits)) return tl::unexpected(std::move(*refused));
@@ -648,7 +648,7 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
     const bool only_limits = std::all_of(joints.violations.begin(), joints.violations.end(), [](const auto& e) {
       return e.kind != core::LimitKind::kIk && e.kind != core::LimitKind::kBranch;
     });
-    const bool allowed = request.robot->report_only && (purpose == Purpose::kPlan || only_limits);
+    const bool allowed = request.robot->report_only && (use == Use::kPlan || only_limits);
     if (!joints.feasible() && !allowed) {
       return tl::unexpected(Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, request.robot->model.name,
                                   request.robot->report_only});
@@ -656,9 +656,9 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
     if (joints.feasible()) {
       if (auto refused = ends_at_goal(request.geometry, last)) return tl::unexpected(std::move(*refused));
     }
-    if (purpose == Purpose::kPlan) result.tool = peaks;
+    if (use == Use::kPlan) result.tool = peaks;
     result.joints = std::move(joints);
-  } else if (purpose == Purpose::kPlan) {
+  } else if (use == Use::kPlan) {
     auto peaks = tool_pass(*result.trajectory, budget);
     if (!peaks) return tl::unexpected(std::move(peaks.error()));
     result.tool = *peaks;
@@ -669,8 +669,8 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
 
 }  // namespace
 
-Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose) {
-  return with_reserve_noted(plan_request(request, budget, limits, purpose), request);
+Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& limits, Use use) {
+  return with_reserve_noted(plan_request(request, budget, limits, use), request);
 }
 
 Expected<std::vector<core::FrameConstraints>> convert(const core::PathSpec& path) {

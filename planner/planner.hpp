@@ -265,12 +265,16 @@ struct StepReport {
   ToolPeaks tool;                  ///< kPlan: the tool's peaks over the step's own samples
 };
 
-/// What a request plans for.
-enum class Purpose {
-  kPlan,    ///< PlanTrajectory: reports, the robot's joint report (reportOnly keeps every limit
-            ///< broken), the tool's peaks over the samples
-  kStream,  ///< StreamSamples: the robot must follow (reportOnly streams broken joint limits
-            ///< only, never a failed IK or a branch jump)
+/// Which call a request serves: what it needs of the request (planner::admit) and what its
+/// plan is for.
+enum class Use {
+  kPlan,     ///< PlanTrajectory: the geometry and, with `motion`, its timing (`motion` is required
+             ///< with a robot or a move); reports, the robot's joint report (reportOnly keeps every
+             ///< limit broken), the tool's peaks over the samples
+  kStream,   ///< StreamSamples and Execute: `motion` is required, and the robot must follow
+             ///< (reportOnly streams broken joint limits only, never a failed IK or a branch jump)
+  kAnalyze,  ///< AnalyzePath: the path and its optimisers only (a robot or motion is not read);
+             ///< planned by analyze(), not plan()
 };
 
 /// A plan: the trajectory (with a motion) or the path alone, and what was measured on it.
@@ -294,9 +298,8 @@ struct Plan {
   const core::Path* followed_path() const;
 };
 
-/// Plans `request` for `purpose` within `budget` and `limits`.
-Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& limits,
-                    Purpose purpose = Purpose::kPlan);
+/// Plans `request` for `use` (kPlan or kStream) within `budget` and `limits`.
+Expected<Plan> plan(const Request& request, const Budget& budget, const Limits& limits, Use use = Use::kPlan);
 
 /// The optimised path of `request` (its tangent scales and breakpoints, within the budget),
 /// sampled at `points` points uniform in u. Precondition: the geometry is a path.

@@ -38,6 +38,9 @@ struct RobotByName {
 /// the rest of the robot is still checked and every violation answered at once.
 struct InlineRobot {
   std::optional<core::RobotModel> model;
+  /// The field that wrote its chain (`robot.model.joints` or `robot.model.links`): where a
+  /// rule about its joints points.
+  std::string chain_field = "robot.model.joints";
 };
 
 /// A URDF document (RobotSpec.urdf), with RobotSpec.baseLink and tipLink.

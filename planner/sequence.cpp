@@ -38,19 +38,8 @@ Error in_step(Error error, std::size_t i, const Step& step) {
     return error;
   }
   const std::string prefix = "sequence[" + std::to_string(i) + "].";
-  // A motion field is the step's when its own motion gives it ("motion" alone: it has one).
-  const auto own_motion_field = [&step](const std::string& field) {
-    if (!step.own_motion) return false;
-    if (field == "motion") return true;
-    const std::string name = field.substr(7, field.find_first_of(".[", 7) - 7);  // after "motion."
-    return std::find(step.own_motion_fields.begin(), step.own_motion_fields.end(), name) !=
-           step.own_motion_fields.end();
-  };
   for (auto& v : error.violations) {
-    const bool motion = v.field == "motion" || v.field.rfind("motion.", 0) == 0;
-    const bool own = v.field.rfind("path", 0) == 0 || v.field.rfind("jointMove", 0) == 0 ||
-                     v.field.rfind("linearMove", 0) == 0 || (motion && own_motion_field(v.field));
-    if (own) {
+    if (step_owns(v.field, step.own_motion ? &step.own_motion_fields : nullptr)) {
       v.field = prefix + v.field;
     } else {
       v.description += " (in " + prefix.substr(0, prefix.size() - 1) + ")";
@@ -229,7 +218,7 @@ Expected<core::BlendedChain> blended_chain(const Request& request, std::size_t f
 
 }  // namespace
 
-Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const Limits& limits, Purpose purpose) {
+Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const Limits& limits, Use use) {
   const auto deadline = optimizer_deadline(request, budget);
   const Robot* robot = request.robot.get();
   Plan result;
@@ -320,7 +309,7 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     report.first_sample = first;
     report.sample_count = last_unit ? n : n - 1;
     report.arc_length = arc_length_of(motion);
-    if (path && purpose == Purpose::kPlan) report.path = report_of(std::get<core::PathMotion>(motion).path);
+    if (path && use == Use::kPlan) report.path = report_of(std::get<core::PathMotion>(motion).path);
     if (first + report.sample_count > limits.max_samples) {
       return tl::unexpected(invalid(core::Violations{
           {"sequence", "the sequence has more than " + std::to_string(limits.max_samples) +
@@ -377,14 +366,14 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     const bool only_limits = std::all_of(joints.violations.begin(), joints.violations.end(), [](const auto& e) {
       return e.kind != core::LimitKind::kIk && e.kind != core::LimitKind::kBranch;
     });
-    const bool allowed = robot->report_only && (purpose == Purpose::kPlan || only_limits);
+    const bool allowed = robot->report_only && (use == Use::kPlan || only_limits);
     if (!joints.feasible() && !allowed) {
       return tl::unexpected(
           Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, robot->model.name, robot->report_only});
     }
     result.joints = std::move(joints);
   }
-  if (purpose == Purpose::kPlan) result.tool = peaks;
+  if (use == Use::kPlan) result.tool = peaks;
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   return result;
 }

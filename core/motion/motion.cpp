@@ -114,7 +114,8 @@ bool finite_positive(double x) { return std::isfinite(x) && x > 0.0; }
 
 // ---------------------------------------------------------------------------------------
 
-Violations validate_motion(const MotionSpec& spec) {
+Violations validate_motion(const MotionSpec& spec, MotionTiming timing) {
+  const bool by_profile = timing == MotionTiming::kProfile;
   Violations v;
   if (!std::isfinite(spec.duration_s) || spec.duration_s < 0.0)
     v.push_back({"motion.durationS", "must be a finite time >= 0 s (0: as fast as the limits allow), got " +
@@ -129,7 +130,7 @@ Violations validate_motion(const MotionSpec& spec) {
       v.push_back({"motion.rampTimeS", "must be a finite time > 0 s, got " + number(*spec.ramp_time_s)});
     } else if (spec.ramp_fraction_given) {
       v.push_back({"motion.rampTimeS", "give the ramps as rampTimeS or as rampFraction, not both"});
-    } else if (!(spec.duration_s > 0.0)) {
+    } else if (by_profile && !(spec.duration_s > 0.0)) {
       v.push_back({"motion.rampTimeS", "is used with a duration only (durationS > 0); a fastest motion (durationS 0) "
                                        "takes its ramps from the limits"});
     }
@@ -153,7 +154,7 @@ Violations validate_motion(const MotionSpec& spec) {
   check_limit("motion.maxJerk", spec.max_jerk, "m/s^3");
   check_limit("motion.maxAngularSpeed", spec.max_angular_speed, "rad/s");
   check_limit("motion.maxAngularAcceleration", spec.max_angular_acceleration, "rad/s^2");
-  if (spec.duration_s == 0.0) {
+  if (by_profile && spec.duration_s == 0.0) {
     if (!spec.max_speed || !spec.max_acceleration)
       v.push_back({"motion.durationS",
                    "is 0 (as fast as the limits allow): needs maxSpeed and maxAcceleration"});

@@ -83,11 +83,20 @@ std::size_t grid_sample_count(double duration_s, double rate_hz);
 /// Time of sample k of `count` on that grid [s]: k / rate, the last one exactly at T.
 double grid_time(std::size_t k, std::size_t count, double duration_s, double rate_hz);
 
-/// Checks every field of `spec` on its own (finite numbers, ranges above) and the
-/// combinations that need no path (duration 0 needs maxSpeed and maxAcceleration, named on
-/// `motion.durationS`; the minimum-time S-curve needs maxJerk, named on `motion.maxJerk`).
-/// Field paths are `motion.durationS`, `motion.rampFraction`, ... Empty when all is well.
-Violations validate_motion(const MotionSpec& spec);
+/// What sets a motion's time.
+enum class MotionTiming {
+  kProfile,  ///< the profile: durationS, or (durationS 0) the minimum-time trapezoid or
+             ///< S-curve through maxSpeed, maxAcceleration (and maxJerk)
+  kLimits,   ///< the limits: a time-optimal timing or a joint move, whose time is the result
+};
+
+/// Checks every field of `spec` on its own (finite numbers, ranges above) and, timed by its
+/// profile, the combinations that need no path (duration 0 needs maxSpeed and
+/// maxAcceleration, named on `motion.durationS`; the minimum-time S-curve needs maxJerk, named
+/// on `motion.maxJerk`; rampTimeS needs a duration). Timed by the limits, those combinations
+/// do not apply. Field paths are `motion.durationS`, `motion.rampFraction`, ... Empty when
+/// all is well.
+Violations validate_motion(const MotionSpec& spec, MotionTiming timing = MotionTiming::kProfile);
 
 /// One rest-to-rest part of the motion.
 struct MotionPortion {

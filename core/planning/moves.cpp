@@ -105,9 +105,8 @@ Expected<JointMovePlan> plan_joint_move(const RobotModel& model, const JointMove
   check_joints(spec.goal, "jointMove.goal");
   // A joint move is bounded by the joints' limits, not by the Cartesian maxSpeed,
   // maxAcceleration and maxJerk that validate_motion asks of a minimum-time path motion.
-  MotionSpec checked = motion;
-  if (checked.duration_s == 0.0) checked.duration_s = 1.0;
-  for (auto& x : validate_motion(checked)) v.push_back(std::move(x));
+  for (auto& x : validate_motion(motion, motion.duration_s == 0.0 ? MotionTiming::kLimits : MotionTiming::kProfile))
+    v.push_back(std::move(x));
   if (!v.empty()) return tl::make_unexpected(v);
 
   JointMovePlan plan;

@@ -621,16 +621,19 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
 Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationPlan& orientation,
                                             const MotionSpec& spec, const RobotModel* robot,
                                             const JointVector& seed, const TimeOptimalOptions& options) {
-  MotionSpec checked = spec;
-  checked.duration_s = 1.0;  // the time is the result: durationS's rules do not apply
-  checked.profile = ProfileShape::kTrapezoidal;
-  if (auto v = validate_motion(checked); !v.empty()) return tl::make_unexpected(v);
+  // The time is the result: durationS's rules do not apply.
+  if (auto v = validate_motion(spec, MotionTiming::kLimits); !v.empty()) return tl::make_unexpected(v);
   if (!robot && !spec.max_acceleration)
     return tl::make_unexpected(
         Violations{{"motion.maxAcceleration", "is needed for a time-optimal motion without a robot"}});
   if (options.grid_intervals < 2)
     return tl::make_unexpected(Violations{{"motion", "a time-optimal grid needs at least 2 intervals"}});
-  auto portions_plan = plan_motion(path, checked);  // the portions between rests
+  // The portions between rests, as a motion of any duration has them (its timing unused).
+  MotionSpec any_time = spec;
+  any_time.duration_s = 1.0;
+  any_time.profile = ProfileShape::kTrapezoidal;
+  any_time.ramp_time_s.reset();
+  auto portions_plan = plan_motion(path, any_time);
   if (!portions_plan) return tl::make_unexpected(portions_plan.error());
 
   auto grids = time_optimal_grids(path, orientation, portions_plan->portions, robot, seed, options.grid_intervals,

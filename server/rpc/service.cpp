@@ -219,14 +219,19 @@ planner::Limits limits_of(const Services& services) {
   return planner::Limits{services.limits.max_stream_samples, "geotrajd --max-stream-samples"};
 }
 
-// Converts the request (once) for `use` and plans it; the status to finish with on any error.
+// The request read (once) and admitted for `use`, or every violation of it.
+core::Expected<planner::Request> admitted(const Abandon& abandon, const Services& services,
+                                          const v1::PlanRequest& request, planner::Use use) {
+  return planner::admit(request_input_from_proto(request, services.limits), services.robots, use, abandon.stop_at());
+}
+
+// Admits the request for `use` and plans it; the status to finish with on any error.
 tl::expected<planner::Plan, grpc::Status> plan_call(const Abandon& abandon, const Services& services,
-                                                    const v1::PlanRequest& request, RequestUse use,
-                                                    planner::Purpose purpose) {
+                                                    const v1::PlanRequest& request, planner::Use use) {
   if (auto stop = abandon.check()) return tl::unexpected(*stop);
-  auto input = request_from_proto(request, services.robots, services.limits, use, abandon.stop_at());
+  auto input = admitted(abandon, services, request, use);
   if (!input) return tl::unexpected(not_converted(abandon, std::move(input.error())));
-  auto plan = planner::plan(*input, budget_of(abandon, services), limits_of(services), purpose);
+  auto plan = planner::plan(*input, budget_of(abandon, services), limits_of(services), use);
   if (!plan) return tl::unexpected(to_status(plan.error(), abandon));
   return std::move(*plan);
 }
@@ -235,7 +240,7 @@ tl::expected<planner::Plan, grpc::Status> plan_call(const Abandon& abandon, cons
 // report (or FAILED_PRECONDITION when the robot cannot follow, unless reportOnly).
 grpc::Status plan_trajectory(const Abandon& abandon, const Services& services, const v1::PlanRequest& request,
                              v1::PlanResponse& response) {
-  auto plan = plan_call(abandon, services, request, RequestUse::kPlan, planner::Purpose::kPlan);
+  auto plan = plan_call(abandon, services, request, planner::Use::kPlan);
   if (!plan) return plan.error();
   to_proto(*plan, request.has_optimize(), response);
   return grpc::Status::OK;
@@ -391,7 +396,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
 // With a robot the whole motion is checked before the first sample is sent.
 tl::expected<planner::Plan, grpc::Status> plan_stream(const Abandon& abandon, const Services& services,
                                                       const v1::PlanRequest& request) {
-  return plan_call(abandon, services, request, RequestUse::kStream, planner::Purpose::kStream);
+  return plan_call(abandon, services, request, planner::Use::kStream);
 }
 
 // The planning of an Execute call (on a worker): as a stream's, with `reserve` of every
@@ -399,7 +404,7 @@ tl::expected<planner::Plan, grpc::Status> plan_stream(const Abandon& abandon, co
 tl::expected<planner::Plan, grpc::Status> plan_execution(const Abandon& abandon, const Services& services,
                                                          const v1::PlanRequest& request, double reserve) {
   if (auto stop = abandon.check()) return tl::unexpected(*stop);
-  auto input = request_from_proto(request, services.robots, services.limits, RequestUse::kStream, abandon.stop_at());
+  auto input = admitted(abandon, services, request, planner::Use::kStream);
   if (!input) return tl::unexpected(not_converted(abandon, core::prefixed(std::move(input.error()), "plan.")));
   if (input->robot && input->robot->report_only) {
     return tl::unexpected(invalid_argument(core::Violations{
@@ -413,7 +418,7 @@ tl::expected<planner::Plan, grpc::Status> plan_execution(const Abandon& abandon,
   if (services.limits.max_live_samples < limits.max_samples) {
     limits = planner::Limits{services.limits.max_live_samples, "geotrajd --max-live-samples"};
   }
-  auto plan = planner::plan(*input, budget_of(abandon, services), limits, planner::Purpose::kStream);
+  auto plan = planner::plan(*input, budget_of(abandon, services), limits, planner::Use::kStream);
   if (!plan) {
     plan.error().violations = core::prefixed(std::move(plan.error().violations), "plan.");
     return tl::unexpected(to_status(plan.error(), abandon));
@@ -425,7 +430,7 @@ tl::expected<planner::Plan, grpc::Status> plan_execution(const Abandon& abandon,
 grpc::Status analyze_path(const Abandon& abandon, const Services& services, const v1::PlanRequest& request,
                           v1::PathProfile& profile) {
   if (auto stop = abandon.check()) return *stop;
-  auto input = request_from_proto(request, services.robots, services.limits, RequestUse::kAnalyze, abandon.stop_at());
+  auto input = admitted(abandon, services, request, planner::Use::kAnalyze);
   if (!input) return not_converted(abandon, std::move(input.error()));
   auto analysis = planner::analyze(*input, analysis_points(request), budget_of(abandon, services));
   if (!analysis) return to_status(analysis.error(), abandon);
@@ -437,7 +442,7 @@ grpc::Status analyze_path(const Abandon& abandon, const Services& services, cons
 grpc::Status forward_kinematics(const Abandon& abandon, const Services& services,
                                 const v1::ForwardKinematicsRequest& request, v1::ForwardKinematicsResponse& response) {
   if (auto stop = abandon.check()) return *stop;
-  auto input = forward_request_from_proto(request, services.robots, abandon.stop_at());
+  auto input = planner::admit(forward_input_from_proto(request), services.robots, abandon.stop_at());
   if (!input) return not_converted(abandon, std::move(input.error()));
   to_proto(planner::forward_kinematics(*input), response);
   return grpc::Status::OK;
@@ -447,7 +452,7 @@ grpc::Status forward_kinematics(const Abandon& abandon, const Services& services
 grpc::Status inverse_kinematics(const Abandon& abandon, const Services& services,
                                 const v1::InverseKinematicsRequest& request, v1::InverseKinematicsResponse& response) {
   if (auto stop = abandon.check()) return *stop;
-  auto input = inverse_request_from_proto(request, services.robots, abandon.stop_at());
+  auto input = planner::admit(inverse_input_from_proto(request), services.robots, abandon.stop_at());
   if (!input) return not_converted(abandon, std::move(input.error()));
   auto answer = planner::inverse_kinematics(*input, budget_of(abandon, services));
   if (!answer) return to_status(answer.error(), abandon);

@@ -26,6 +26,7 @@
 #include "optim/breakpoints/breakpoints.hpp"
 #include "optim/tangent_scales/tangent_scales.hpp"
 #include "planner/planner.hpp"
+#include "planner/request_input.hpp"
 #include "planner/robot_spec.hpp"
 #include "planner/robots.hpp"
 #include "server/options.hpp"
@@ -56,10 +57,6 @@ inline constexpr std::size_t kDefaultSamplesPerBatch = 256;
 /// (within a gRPC client's default 4 MB receive limit), about 1.3 MB as the message the
 /// server fills, so that --max-streams streams at most stay within a few hundred MB.
 inline constexpr std::size_t kMaxSamplesPerBatch = 1024;
-
-/// PlanRequest.motion as a core MotionSpec, or every violation (`motion.rampFraction`, ...):
-/// absent optional fields take their documented defaults. Precondition: request.has_motion().
-core::Expected<core::MotionSpec> motion_from_request(const v1::PlanRequest& request);
 
 /// PlanRequest.samples_per_batch or its default.
 std::size_t samples_per_batch(const v1::PlanRequest& request);
@@ -130,20 +127,6 @@ std::string describe(const core::LimitEvent& event);
 /// One streamed sample of any trajectory, with the joints when it has them.
 void to_proto(const core::TrajectorySample& sample, v1::Sample& out);
 
-/// PlanRequest.jointMove as the planner's geometry: a core::JointMoveSpec (goal joints) or a
-/// planner::JointMoveToPose (goalPose); an empty start takes `seed` (initialJoints or the
-/// home configuration). Exactly one of `goal` and `goalPose`; sizes and limits of the joints
-/// are core::plan_joint_move's checks (`jointMove.goal[3]`, ...).
-core::Expected<planner::Geometry> joint_move_from_request(const v1::PlanRequest& request,
-                                                          const core::JointVector& seed);
-
-/// PlanRequest.linearMove as the planner's geometry: a core::LinearMoveSpec (goal pose) or a
-/// planner::LinearMoveToJoints (goalJoints, with a robot); an absent start takes the pose of
-/// the robot's seed configuration (with a robot); poses are checked
-/// (`linearMove.goal.orientation`).
-core::Expected<planner::Geometry> linear_move_from_request(const v1::PlanRequest& request,
-                                                           const planner::Robot* robot);
-
 // --- optimisation --------------------------------------------------------------------------
 
 /// Wall-clock budget of all optimisers of one request when OptimizeSpec.timeBudgetS is
@@ -165,21 +148,11 @@ core::Expected<optim::BreakpointOptions> breakpoint_options(const v1::PlanReques
 
 // --- the planner's request -------------------------------------------------------------------
 
-/// Which call reads a PlanRequest: what it needs of it and what it requires.
-enum class RequestUse {
-  kPlan,     ///< PlanTrajectory: the geometry and, with `motion`, its timing; `motion` is
-             ///< required with a robot or a move
-  kStream,   ///< StreamSamples: as kPlan with `motion` required, and `pacing` checked
-  kAnalyze,  ///< AnalyzePath: the path and its optimisers only (a robot or motion is not read)
-};
-
-/// A PlanRequest as the planner's request, converted once for `use`: the geometry (a path, or
-/// a move with its robot), the motion, the robot and the optimisers, or every violation of the
-/// request together (field paths absolute), within the server's `limits` (key frames,
-/// analysis points, optimize.timeBudgetS). A robot's URDF is parsed within `stop_at`.
-core::Expected<planner::Request> request_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
-                                                     const ServiceLimits& limits, RequestUse use,
-                                                     const planner::StopAt& stop_at = {});
+/// A PlanRequest as given (planner::RequestInput): every field read into the planner's
+/// values, with the violations of what cannot be read (unknown enum values, poses that are
+/// not rotations, key frames, the server's `limits` on key frames, analysis points,
+/// samples per batch and optimize.timeBudgetS). planner::admit checks the rest.
+planner::RequestInput request_input_from_proto(const v1::PlanRequest& request, const ServiceLimits& limits);
 
 /// The optimisers' reports.
 void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out);

@@ -8,25 +8,10 @@
 #include <utility>
 
 #include "core/format.hpp"
+#include "server/wire/wire_detail.hpp"
 
 namespace geotraj::server {
 namespace {
-
-// The request's robot, resolved, or its violations appended to `out`.
-std::shared_ptr<const planner::Robot> robot_of(bool has_robot, const v1::RobotSpec& spec, const RobotCatalog& catalog,
-                                               const planner::StopAt& stop_at, core::Violations& out) {
-  if (!has_robot) {
-    out.push_back({"robot", "is required: `name` of a built-in model (see ListRobots), an inline `model` or a `urdf` "
-                            "document"});
-    return nullptr;
-  }
-  auto robot = robot_from_request(spec, catalog, /*motion=*/false, stop_at);
-  if (!robot) {
-    out.insert(out.end(), robot.error().begin(), robot.error().end());
-    return nullptr;
-  }
-  return std::make_shared<const planner::Robot>(std::move(*robot));
-}
 
 void set_solution(const planner::IkSolution& s, v1::IkSolution& out) {
   for (Eigen::Index i = 0; i < s.joints.size(); ++i) out.add_joints(s.joints(i));
@@ -39,51 +24,19 @@ void set_solution(const planner::IkSolution& s, v1::IkSolution& out) {
 
 }  // namespace
 
-core::Expected<planner::ForwardRequest> forward_request_from_proto(const v1::ForwardKinematicsRequest& request,
-                                                                   const RobotCatalog& catalog,
-                                                                   const planner::StopAt& stop_at) {
-  core::Violations out;
-  planner::ForwardRequest converted;
-  converted.robot = robot_of(request.has_robot(), request.robot(), catalog, stop_at, out);
-  if (converted.robot) {
-    const std::size_t n = converted.robot->model.dof();
-    if (static_cast<std::size_t>(request.joints_size()) != n) {
-      out.push_back({"joints", "has " + std::to_string(request.joints_size()) + " values for a " + std::to_string(n) +
-                                   "-joint robot: give one per joint, joint 0 first [rad or m]"});
-    } else {
-      converted.joints.resize(static_cast<Eigen::Index>(n));
-      for (std::size_t i = 0; i < n; ++i) {
-        const double q = request.joints(static_cast<int>(i));
-        if (!(std::isfinite(q) && std::abs(q) <= core::kMaxModelMagnitude)) {
-          out.push_back({"joints[" + std::to_string(i) + "]", "must be finite with a magnitude of at most " +
-                                                                  core::number(core::kMaxModelMagnitude) + ", got " +
-                                                                  core::number(q)});
-        }
-        converted.joints(static_cast<Eigen::Index>(i)) = q;
-      }
-    }
-  }
-  if (!out.empty()) return tl::unexpected(std::move(out));
-  return converted;
+planner::ForwardInput forward_input_from_proto(const v1::ForwardKinematicsRequest& request) {
+  planner::ForwardInput in;
+  if (request.has_robot()) in.robot = wire_detail::robot_spec_from_proto(request.robot(), in.violations);
+  in.joints.assign(request.joints().begin(), request.joints().end());
+  return in;
 }
 
-core::Expected<planner::InverseRequest> inverse_request_from_proto(const v1::InverseKinematicsRequest& request,
-                                                                   const RobotCatalog& catalog,
-                                                                   const planner::StopAt& stop_at) {
-  core::Violations out;
-  planner::InverseRequest converted;
-  converted.robot = robot_of(request.has_robot(), request.robot(), catalog, stop_at, out);
-  if (!request.has_target()) {
-    out.push_back({"target", "is required: the tool pose in W to reach (position [m], orientation)"});
-  } else {
-    converted.target = pose_from_proto(request.target(), "target", out);
-    if (converted.target.translation().allFinite() &&
-        converted.target.translation().cwiseAbs().maxCoeff() > kMaxTargetCoordinate) {
-      out.push_back({"target.position", "coordinates must lie within " + core::number(kMaxTargetCoordinate) +
-                                            " m of the origin"});
-    }
-  }
-  auto& search = converted.search;
+planner::InverseInput inverse_input_from_proto(const v1::InverseKinematicsRequest& request) {
+  planner::InverseInput in;
+  core::Violations& out = in.violations;
+  if (request.has_robot()) in.robot = wire_detail::robot_spec_from_proto(request.robot(), out);
+  if (request.has_target()) in.target = pose_from_proto(request.target(), "target", out);
+  auto& search = in.search;
   const std::uint32_t restarts = request.has_restarts() ? request.restarts() : kDefaultIkRestarts;
   if (restarts > kMaxIkRestarts) {
     out.push_back({"restarts", "must be at most " + std::to_string(kMaxIkRestarts) + ", got " + std::to_string(restarts)});
@@ -110,8 +63,7 @@ core::Expected<planner::InverseRequest> inverse_request_from_proto(const v1::Inv
     }
     search.newton.orientation_tolerance = tol;
   }
-  if (!out.empty()) return tl::unexpected(std::move(out));
-  return converted;
+  return in;
 }
 
 void to_proto(const planner::Forward& forward, v1::ForwardKinematicsResponse& out) {

@@ -16,22 +16,13 @@ inline constexpr std::uint32_t kDefaultIkRestarts = 255;
 inline constexpr std::uint32_t kMaxIkRestarts = 100'000;
 inline constexpr std::uint32_t kDefaultIkSolutions = 16;
 inline constexpr std::uint32_t kMaxIkSolutions = 1000;
-/// The largest |coordinate| of an IK target [m], as for a key frame (core::PathLimits).
-inline constexpr double kMaxTargetCoordinate = 1e6;
+/// A ForwardKinematicsRequest as given (planner::admit checks the robot and the joints).
+planner::ForwardInput forward_input_from_proto(const v1::ForwardKinematicsRequest& request);
 
-/// A ForwardKinematicsRequest converted, or every violation: `robot` (required; as in a
-/// PlanRequest; a URDF parsed within `stop_at`), `joints` (one per joint, finite, magnitude
-/// at most 1e6).
-core::Expected<planner::ForwardRequest> forward_request_from_proto(const v1::ForwardKinematicsRequest& request,
-                                                                   const RobotCatalog& catalog,
-                                                                   const planner::StopAt& stop_at = {});
-
-/// An InverseKinematicsRequest converted, or every violation: `robot`, `target` (required;
-/// a position within 1e6 m of the origin, a unit quaternion), `restarts`, `maxSolutions`, `positionTolerance`,
-/// `orientationTolerance` (their ranges in the proto).
-core::Expected<planner::InverseRequest> inverse_request_from_proto(const v1::InverseKinematicsRequest& request,
-                                                                   const RobotCatalog& catalog,
-                                                                   const planner::StopAt& stop_at = {});
+/// An InverseKinematicsRequest as given, with the violations of what cannot be read: `target`
+/// (a unit quaternion), `restarts`, `maxSolutions`, `positionTolerance`, `orientationTolerance`
+/// (their ranges in the proto). planner::admit checks the robot and the target.
+planner::InverseInput inverse_input_from_proto(const v1::InverseKinematicsRequest& request);
 
 void to_proto(const planner::Forward& forward, v1::ForwardKinematicsResponse& out);
 void to_proto(const planner::Inverse& inverse, v1::InverseKinematicsResponse& out);

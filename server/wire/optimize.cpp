@@ -88,6 +88,32 @@ core::Expected<optim::BreakpointOptions> breakpoint_options(const v1::PlanReques
   return options;
 }
 
+planner::OptimizeInput wire_detail::optimize_input(const v1::PlanRequest& request, const ServiceLimits& limits,
+                                                   core::Violations& out) {
+  const auto& o = request.optimize();
+  planner::OptimizeInput in;
+  if (auto budget = optimize_budget(request, limits.max_optimize_seconds)) {
+    in.values.budget_s = *budget;
+  } else {
+    out = joined(std::move(out), budget.error());
+  }
+  if (o.has_tangent_scales()) {
+    in.tangent_scales = true;
+    auto options = tangent_scale_options(request);
+    if (options) in.values.tangent_scales = std::move(*options);
+    else out = joined(std::move(out), options.error());
+  }
+  if (o.has_breakpoints()) {
+    in.breakpoints = true;
+    auto options = breakpoint_options(request);
+    if (options) in.values.breakpoints = std::move(*options);
+    else out = joined(std::move(out), options.error());
+  }
+  in.values.time_optimal = o.timing().time_optimal();
+  in.values.jerk_limited = o.timing().jerk_limited();
+  return in;
+}
+
 void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out) {
   set_report(result.report, out);
   for (double scale : result.scales) out.add_tangent_scales(scale);

@@ -228,21 +228,25 @@ core::Expected<core::PathSpec> path_from_request(const v1::ConvertRequest& reque
   return read_path(request.has_path(), request.path(), limits.max_frames, [](WireCheck&) {});
 }
 
+void wire_detail::check_request_numbers(const v1::PlanRequest& request, const ServiceLimits& limits,
+                                        WireCheck& check) {
+  if (request.has_analysis_points() &&
+      (request.analysis_points() < 2 || request.analysis_points() > limits.max_analysis_points)) {
+    check.add("analysisPoints", "must be between 2 (both ends of the path) and " +
+                                    std::to_string(limits.max_analysis_points) +
+                                    " (geotrajd --max-analysis-points), got " +
+                                    std::to_string(request.analysis_points()));
+  }
+  if (request.has_samples_per_batch() &&
+      (request.samples_per_batch() == 0 || request.samples_per_batch() > kMaxSamplesPerBatch)) {
+    check.add("samplesPerBatch", "must be between 1 and " + std::to_string(kMaxSamplesPerBatch) + " when given, got " +
+                                     std::to_string(request.samples_per_batch()));
+  }
+}
+
 core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request, const ServiceLimits& limits) {
-  return read_path(request.has_path(), request.path(), limits.max_frames, [&request, &limits](WireCheck& check) {
-    if (request.has_analysis_points() &&
-        (request.analysis_points() < 2 || request.analysis_points() > limits.max_analysis_points)) {
-      check.add("analysisPoints", "must be between 2 (both ends of the path) and " +
-                                      std::to_string(limits.max_analysis_points) +
-                                      " (geotrajd --max-analysis-points), got " +
-                                      std::to_string(request.analysis_points()));
-    }
-    if (request.has_samples_per_batch() &&
-        (request.samples_per_batch() == 0 || request.samples_per_batch() > kMaxSamplesPerBatch)) {
-      check.add("samplesPerBatch", "must be between 1 and " + std::to_string(kMaxSamplesPerBatch) + " when given, got " +
-                                       std::to_string(request.samples_per_batch()));
-    }
-  });
+  return read_path(request.has_path(), request.path(), limits.max_frames,
+                   [&request, &limits](WireCheck& check) { check_request_numbers(request, limits, check); });
 }
 
 std::size_t analysis_points(const v1::PlanRequest& request) {

@@ -196,19 +196,18 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
   for (double q : model.home) out.add_home(q);
 }
 
-namespace {
-
 // RobotSpec as the planner's value: a translation, with the violations of what cannot be
 // translated (an unreadable inline model, a pose that is not one, an unknown approach) in
 // `out`; the planner checks the values (planner::resolve_robot).
-planner::RobotSpec robot_spec_from_proto(const v1::RobotSpec& spec, core::Violations& out) {
+planner::RobotSpec wire_detail::robot_spec_from_proto(const v1::RobotSpec& spec, core::Violations& out) {
   planner::RobotSpec s;
   switch (spec.model_source_case()) {
     case v1::RobotSpec::kName: s.source = planner::RobotByName{spec.name()}; break;
     case v1::RobotSpec::kModel: {
       auto model = robot_model_from_proto(spec.model(), "robot.model.");
       if (!model) out.insert(out.end(), model.error().begin(), model.error().end());
-      s.source = planner::InlineRobot{model ? std::optional<core::RobotModel>(std::move(*model)) : std::nullopt};
+      s.source = planner::InlineRobot{model ? std::optional<core::RobotModel>(std::move(*model)) : std::nullopt,
+                                      spec.model().joints_size() > 0 ? "robot.model.joints" : "robot.model.links"};
       break;
     }
     case v1::RobotSpec::kUrdf: s.source = planner::UrdfRobot{spec.urdf()}; break;
@@ -223,8 +222,15 @@ planner::RobotSpec robot_spec_from_proto(const v1::RobotSpec& spec, core::Violat
     if (l.has_max_jerk()) limits.max_jerk = l.max_jerk();
     s.joint_limits.push_back(std::move(limits));
   }
-  if (spec.has_base()) s.base = pose_from_proto(spec.base(), "robot.base", out);
-  if (spec.has_tool()) s.tool = pose_from_proto(spec.tool(), "robot.tool", out);
+  // A pose that cannot be read is left out: its violation is answered, the rest still checked.
+  const auto pose = [&out](const v1::Pose& p, const char* field) -> std::optional<Eigen::Isometry3d> {
+    const std::size_t before = out.size();
+    const Eigen::Isometry3d X = pose_from_proto(p, field, out);
+    if (out.size() != before) return std::nullopt;
+    return X;
+  };
+  if (spec.has_base()) s.base = pose(spec.base(), "robot.base");
+  if (spec.has_tool()) s.tool = pose(spec.tool(), "robot.tool");
   s.report_only = spec.report_only();
   if (spec.has_branch_tolerance()) s.branch_tolerance = spec.branch_tolerance();
   if (spec.has_start_position_tolerance()) s.start_position_tolerance = spec.start_position_tolerance();
@@ -242,8 +248,6 @@ planner::RobotSpec robot_spec_from_proto(const v1::RobotSpec& spec, core::Violat
   s.initial_joints.assign(spec.initial_joints().begin(), spec.initial_joints().end());
   return s;
 }
-
-}  // namespace
 
 core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog,
                                                   bool motion, const planner::StopAt& stop_at) {

@@ -11,6 +11,7 @@
 #include "core/error.hpp"
 #include "geotraj/v1/geotraj.pb.h"
 #include "planner/planner.hpp"
+#include "planner/request_input.hpp"
 #include "server/wire/convert.hpp"
 
 namespace geotraj::server::wire_detail {
@@ -46,17 +47,27 @@ inline core::Violations joined(core::Violations a, const core::Violations& b) {
   return a;
 }
 
-// One path, move or line (a request's, or a sequence step's); `robot`, when given, is the
-// request's robot already resolved (a sequence resolves it once for all its steps).
-core::Expected<planner::Request> single_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
-                                                   const ServiceLimits& limits, RequestUse use,
-                                                   const planner::StopAt& stop_at,
-                                                   std::shared_ptr<const planner::Robot> robot);
+// PlanRequest.analysisPoints and samplesPerBatch within the server's limits.
+void check_request_numbers(const v1::PlanRequest& request, const ServiceLimits& limits, WireCheck& check);
 
-// PlanRequest.sequence: each step converted as a request of its own (the request's robot,
-// motion unless the step gives one, optimize for paths), every violation named from the root.
-core::Expected<planner::Request> sequence_from_proto(const v1::PlanRequest& request, const RobotCatalog& catalog,
-                                                     const ServiceLimits& limits, RequestUse use,
-                                                     const planner::StopAt& stop_at);
+// PlanRequest.motion (or a sequence step's) as given; what cannot be read (unknown enum
+// values) into `out` under `prefix` ("motion", "sequence[1].motion").
+planner::MotionInput motion_input(const v1::MotionSpec& motion, const std::string& prefix, core::Violations& out);
+
+// PlanRequest.jointMove and linearMove as given; poses that cannot be read into `out` under
+// `prefix` ("" or "sequence[1].").
+planner::JointMoveInput joint_move_input(const v1::JointMove& move, const std::string& prefix, core::Violations& out);
+planner::LinearMoveInput linear_move_input(const v1::LinearMove& move);
+
+// PlanRequest.optimize as given: the budget within the server's limit, the optimisers'
+// options (optimize.cpp).
+planner::OptimizeInput optimize_input(const v1::PlanRequest& request, const ServiceLimits& limits,
+                                      core::Violations& out);
+
+// PlanRequest.sequence's steps into `in` (sequence.cpp).
+void sequence_input(const v1::PlanRequest& request, const ServiceLimits& limits, planner::RequestInput& in);
+
+// PlanRequest.robot as the planner's RobotSpec (robot.cpp).
+planner::RobotSpec robot_spec_from_proto(const v1::RobotSpec& spec, core::Violations& out);
 
 }  // namespace geotraj::server::wire_detail

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <numbers>
 #include <string>
+#include <variant>
+#include <vector>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -23,9 +25,9 @@ const server::RobotCatalog& catalog() {
   return c;
 }
 
-core::Expected<planner::Request> convert(const v1::PlanRequest& request,
-                                          server::RequestUse use = server::RequestUse::kPlan) {
-  return server::request_from_proto(request, catalog(), server::ServiceLimits{}, use);
+// The request as the wire reads it, admitted by the planner for `use`.
+core::Expected<planner::Request> convert(const v1::PlanRequest& request, planner::Use use = planner::Use::kPlan) {
+  return planner::admit(server::request_input_from_proto(request, server::ServiceLimits{}), catalog(), use);
 }
 
 // The violation of `field` in a refused conversion ("" when there is none).
@@ -91,7 +93,7 @@ TEST(WireRequest, UnknownEnumValuesAreNamedWithTheValuesThatExist) {
 
   request = demo_example('a');
   request.set_pacing(static_cast<v1::StreamPacing>(7));
-  converted = convert(request, server::RequestUse::kStream);
+  converted = convert(request, planner::Use::kStream);
   EXPECT_THAT(description_of(converted, "pacing"), HasSubstr("unknown value 7"));
 }
 
@@ -197,20 +199,76 @@ TEST(WireRequest, FollowingAPoseNeedsSixJointsNamedWhereTheModelCameFrom) {
   EXPECT_THAT(description_of(converted, "robot.model.links"), HasSubstr("5 joints"));
 }
 
-TEST(WireRequest, AStreamNeedsAMotionAndAPlanWithARobotToo) {
-  auto request = demo_example('a');
-  request.clear_motion();
-  EXPECT_THAT(description_of(convert(request, server::RequestUse::kStream), "motion"), HasSubstr("required"));
-  EXPECT_TRUE(convert(request, server::RequestUse::kPlan).has_value()) << "the geometry alone";
-  request.mutable_robot()->set_name("pa10");
-  EXPECT_THAT(description_of(convert(request, server::RequestUse::kPlan), "motion"), HasSubstr("robot"));
+// The wire reads; it does not judge: values the planner refuses (an unknown arm, a negative
+// duration, a move with two goals, a scale a duration ignores) reach planner::RequestInput as
+// given, with no violation of the wire's.
+TEST(WireRequest, ReadsEveryValueWithoutJudgingIt) {
+  auto request = example<v1::PlanRequest>("plan_pa10_path_c.json");
+  request.mutable_robot()->set_name("no such arm");
+  request.mutable_motion()->set_duration_s(-1.0);
+  request.mutable_motion()->set_acceleration_scale(0.5);
+  auto* move = request.mutable_joint_move();
+  move->add_goal(0.1);
+  move->mutable_goal_pose()->mutable_position()->set_x(0.4);
+  const planner::RequestInput in = server::request_input_from_proto(request, server::ServiceLimits{});
+  EXPECT_TRUE(in.violations.empty()) << in.violations.front().field;
+  ASSERT_TRUE(in.robot.has_value());
+  EXPECT_EQ(std::get<planner::RobotByName>(in.robot->source).name, "no such arm");
+  ASSERT_TRUE(in.motion.has_value());
+  EXPECT_EQ(in.motion->duration_s, -1.0);
+  EXPECT_EQ(in.motion->acceleration_scale, 0.5);
+  EXPECT_TRUE(in.geometry.path_given && in.geometry.path.has_value());
+  ASSERT_TRUE(in.geometry.joint_move.has_value());
+  EXPECT_EQ(in.geometry.joint_move->goal, std::vector<double>{0.1});
+  ASSERT_TRUE(in.geometry.joint_move->goal_pose.has_value());
+  EXPECT_EQ(in.geometry.joint_move->goal_pose->translation().x(), 0.4);
+  EXPECT_EQ(in.geometry.kinds(), 2) << "two kinds, for the planner to refuse";
 }
 
-TEST(WireRequest, AnAccelerationScaleWithADurationIsNamed) {
+TEST(WireRequest, AMotionGivesTheFieldsItSets) {
   auto request = demo_example('a');
-  request.mutable_motion()->set_duration_s(5.0);
-  request.mutable_motion()->set_acceleration_scale(0.5);
-  EXPECT_THAT(description_of(convert(request), "motion.accelerationScale"), HasSubstr("durationS"));
+  v1::MotionSpec m;
+  m.set_profile(v1::MOTION_PROFILE_S_CURVE);
+  m.set_max_speed(0.3);
+  *request.mutable_motion() = m;
+  const planner::RequestInput in = server::request_input_from_proto(request, server::ServiceLimits{});
+  ASSERT_TRUE(in.motion.has_value());
+  EXPECT_EQ(planner::given_fields(*in.motion), (std::vector<std::string>{"profile", "maxSpeed"}));
+  EXPECT_FALSE(in.motion->duration_s.has_value()) << "proto3: a duration of 0 is not given";
+}
+
+TEST(WireRequest, ASequencesStepsAreReadWithWhatCannotBeReadNamedFromTheRoot) {
+  auto request = example<v1::PlanRequest>("sequence_ur5.json");
+  ASSERT_GE(request.sequence_size(), 2);
+  auto* path_step = request.add_sequence();
+  *path_step->mutable_path() = demo_example('a').path();
+  path_step->mutable_path()->mutable_frames(0)->clear_tangent();
+  path_step->mutable_motion()->set_max_jerk(40.0);
+  path_step->set_blend_tolerance(0.01);
+  auto* pose_step = request.add_sequence();
+  pose_step->mutable_joint_move()->mutable_goal_pose()->mutable_orientation()->set_w(2.0);
+  const planner::RequestInput in = server::request_input_from_proto(request, server::ServiceLimits{});
+  const std::size_t steps = static_cast<std::size_t>(request.sequence_size());
+  ASSERT_EQ(in.sequence.size(), steps);
+  EXPECT_EQ(in.sequence_given, steps);
+  const planner::StepInput& p = in.sequence[steps - 2];
+  EXPECT_TRUE(p.geometry.path_given);
+  EXPECT_FALSE(p.geometry.path.has_value()) << "not readable";
+  EXPECT_EQ(p.blend_tolerance, 0.01);
+  ASSERT_TRUE(p.motion.has_value());
+  EXPECT_EQ(planner::given_fields(*p.motion), std::vector<std::string>{"maxJerk"});
+  const auto named = [&in](const std::string& field) {
+    return std::any_of(in.violations.begin(), in.violations.end(),
+                       [&field](const core::FieldViolation& v) { return v.field == field; });
+  };
+  const std::string at = "sequence[" + std::to_string(steps - 2) + "].path.frames[0].tangent";
+  EXPECT_TRUE(named(at)) << at;
+  EXPECT_TRUE(named("sequence[" + std::to_string(steps - 1) + "].jointMove.goalPose.orientation"));
+  // A sequence longer than the planner plans is not read at all.
+  for (int i = 0; i < planner::kMaxSequenceSteps; ++i) *request.add_sequence() = request.sequence(0);
+  const planner::RequestInput long_one = server::request_input_from_proto(request, server::ServiceLimits{});
+  EXPECT_TRUE(long_one.sequence.empty());
+  EXPECT_EQ(long_one.sequence_given, static_cast<std::size_t>(request.sequence_size()));
 }
 
 TEST(WireRequest, ASequenceStepTakesTheRequestsMotionFieldsItDoesNotGive) {

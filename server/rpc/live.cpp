@@ -760,23 +760,24 @@ class JogReactor final : public LiveReactor {
     if (asked >= kMinLiveRateHz && asked <= kMaxJogRateHz && !priced(asked)) return price_refusal();
     runtime().workers().submit(
         [this, request] {
-          auto settings = jog_settings(request->start(), *robots_);
-          if (!settings) {
-            fail(invalid_argument(settings.error()));
+          JogSettings settings = jog_settings(request->start());
+          auto jog = planner::admit(std::move(settings.jog), *robots_);
+          if (!jog) {
+            fail(invalid_argument(jog.error()));
             return;
           }
-          if (!priced(settings->options.cycle_rate_hz)) {
+          if (!priced(jog->options.cycle_rate_hz)) {
             fail(price_refusal());
             return;
           }
-          settings_ = std::make_unique<JogSettings>(std::move(*settings));
+          jog_ = std::make_unique<planner::Jog>(std::move(*jog));
           {
             const std::lock_guard lock(mutex_);
-            jogger_.emplace(settings_->robot.model, settings_->robot.seed, settings_->options);
+            jogger_.emplace(jog_->robot.model, jog_->robot.seed, jog_->options);
             if (stopped_) jogger_->stop();
           }
-          const double rate = settings_->options.cycle_rate_hz;
-          start(rate, live_batch_size(settings_->samples_per_batch, rate), settings_->deadman_s);
+          const double rate = jog_->options.cycle_rate_hz;
+          start(rate, live_batch_size(settings.samples_per_batch, rate), settings.deadman_s);
         },
         WorkerPool::Priority::kUrgent);
     return std::nullopt;
@@ -810,7 +811,7 @@ class JogReactor final : public LiveReactor {
   }
 
   void apply(const v1::JogRequest& request) {
-    auto command = jog_command(request, settings_->robot.model.dof());
+    auto command = jog_command(request, jog_->robot.model.dof());
     if (!command) {
       request_stop("invalid", bad_command(command.error()));
       return;
@@ -837,7 +838,7 @@ class JogReactor final : public LiveReactor {
   void status(v1::LiveStatus& out) override {
     out.set_state(stopped_ ? (jogger_->at_rest() ? v1::LIVE_STATE_STOPPED : v1::LIVE_STATE_STOPPING)
                            : v1::LIVE_STATE_JOGGING);
-    for (std::size_t j = 0; j < settings_->robot.model.dof(); ++j) {
+    for (std::size_t j = 0; j < jog_->robot.model.dof(); ++j) {
       if (sample_.limited.test(j)) out.add_limited_joints(static_cast<std::uint32_t>(j));
     }
   }
@@ -847,7 +848,7 @@ class JogReactor final : public LiveReactor {
   std::size_t first_cycle() const override { return 1; }
 
   const RobotCatalog* robots_;
-  std::unique_ptr<JogSettings> settings_;
+  std::unique_ptr<planner::Jog> jog_;  // the robot and options, from the first message
   std::optional<core::Jogger> jogger_;
   core::JogSample sample_;
   std::optional<v1::JogRequest> pending_;

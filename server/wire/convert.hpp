@@ -1,6 +1,8 @@
-// The conversion file: proto (geotraj.v1) values <-> core values, and the validation of wire
-// input that core cannot see (presence of messages, enum ranges, request-level numbers).
-// With status.hpp, the only place where proto and core types meet.
+// The conversion file: proto (geotraj.v1) values <-> planner and core values, translation
+// only. A request is read as given (planner::RequestInput) with the violations of what cannot
+// be read (a message core needs that is absent, an enum out of range, a pose that is no
+// rotation, key frames core refuses, the server's bounds on sizes); planner::admit judges the
+// rest. With status.hpp, the only place where proto and core types meet.
 //
 // Field paths in violations are complete, in proto JSON names (`path.frames[0].tangent`).
 #pragma once
@@ -105,13 +107,6 @@ core::Expected<core::RobotModel> robot_model_from_json(std::string_view json);
 void to_proto(const core::RobotModel& model, v1::RobotModel& out);
 
 
-
-/// A request's `robot` translated (planner::RobotSpec) and resolved against `catalog` by
-/// planner::resolve_robot, or every violation of both together (`robot.base.orientation`,
-/// `robot.approach` here; `robot.name` unknown, `robot.model...`, `robot.initialJoints`,
-/// `robot.urdf`, `robot.jointLimits[k]...` there). `motion` and `stop_at`: resolve_robot's.
-core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog,
-                                                  bool motion = true, const planner::StopAt& stop_at = {});
 
 /// PlanTrajectory's joint-space report.
 void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out);

@@ -5,6 +5,7 @@
 
 #include "core/format.hpp"
 #include "server/wire/convert.hpp"
+#include "server/wire/wire_detail.hpp"
 
 namespace geotraj::server {
 namespace {
@@ -70,18 +71,15 @@ core::Expected<double> speed_override(double percent) {
   return percent / 100.0;
 }
 
-core::Expected<JogSettings> jog_settings(const v1::JogStart& start, const RobotCatalog& catalog) {
-  core::Violations violations;
-  std::optional<planner::Robot> robot;
-  if (!start.has_robot()) {
-    violations.push_back({"start.robot", "is required: the robot to jog (a built-in name, a model or a URDF)"});
-  } else if (auto resolved = robot_from_request(start.robot(), catalog, true)) {
-    robot = std::move(*resolved);
-  } else {
-    for (auto& v : resolved.error()) violations.push_back({"start." + v.field, v.description, v.kind});
-  }
+JogSettings jog_settings(const v1::JogStart& start) {
   JogSettings out;
-  core::JogOptions& o = out.options;
+  core::Violations& violations = out.jog.violations;
+  if (start.has_robot()) {
+    core::Violations robot;
+    out.jog.robot = wire_detail::robot_spec_from_proto(start.robot(), robot);
+    for (auto& v : robot) violations.push_back({"start." + v.field, std::move(v.description), v.kind});
+  }
+  core::JogOptions& o = out.jog.options;
   const auto positive = [&](bool given, double value, double max, const char* field, double& into) {
     if (!given) return;
     if (!(std::isfinite(value) && value > 0.0 && value <= max)) {
@@ -112,11 +110,6 @@ core::Expected<JogSettings> jog_settings(const v1::JogStart& start, const RobotC
   if (start.has_deadman_s()) out.deadman_s = start.deadman_s();
   check_batch(start.has_samples_per_batch(), start.samples_per_batch(), "start.samplesPerBatch", violations);
   if (start.has_samples_per_batch()) out.samples_per_batch = start.samples_per_batch();
-  if (violations.empty()) {  // the per-joint bounds the jogger derives (velocityScale x maxVelocity, ...)
-    for (auto& v : core::validate_jog_limits(robot->model, o, "start")) violations.push_back(std::move(v));
-  }
-  if (!violations.empty()) return tl::unexpected(std::move(violations));
-  out.robot = std::move(*robot);
   return out;
 }
 

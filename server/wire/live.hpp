@@ -10,6 +10,7 @@
 #include "core/live/execution.hpp"
 #include "core/live/jog.hpp"
 #include "geotraj/v1/geotraj.pb.h"
+#include "planner/jog.hpp"
 #include "planner/planner.hpp"
 #include "server/options.hpp"
 #include "server/wire/convert.hpp"
@@ -37,17 +38,17 @@ core::Expected<ExecuteSettings> execute_settings(const v1::ExecuteOptions& optio
 /// ExecuteRequest.speedOverride [%] as a fraction, or the violation (`speedOverride`).
 core::Expected<double> speed_override(double percent);
 
-/// How a Jog call runs, from its first message (`start`).
+/// How a Jog call runs, from its first message (`start`): the robot and the jogger's options
+/// as given (planner::admit resolves and checks them), the deadman and the batch size.
 struct JogSettings {
-  planner::Robot robot;
-  core::JogOptions options;
+  planner::JogInput jog;
   double deadman_s = kDefaultDeadmanS;
   std::optional<std::size_t> samples_per_batch;
 };
 
-/// JogStart as settings (the robot resolved against `catalog`), or every violation
-/// (`start.robot.name`, `start.cycleRateHz`, ...).
-core::Expected<JogSettings> jog_settings(const v1::JogStart& start, const RobotCatalog& catalog);
+/// JogStart as settings, with the violations of what cannot be read or lies outside its range
+/// in `jog.violations` (`start.cycleRateHz`, `start.robot.base.orientation`, ...).
+JogSettings jog_settings(const v1::JogStart& start);
 
 /// A later Jog message's command (`joints` or `twist`) for a robot of `dof` joints, or the
 /// violations (`joints.velocities[2]`, `twist.linear.x`, `twist.frame`).

@@ -249,16 +249,6 @@ planner::RobotSpec wire_detail::robot_spec_from_proto(const v1::RobotSpec& spec,
   return s;
 }
 
-core::Expected<planner::Robot> robot_from_request(const v1::RobotSpec& spec, const RobotCatalog& catalog,
-                                                  bool motion, const planner::StopAt& stop_at) {
-  core::Violations out;
-  const planner::RobotSpec translated = robot_spec_from_proto(spec, out);
-  auto robot = planner::resolve_robot(translated, catalog, motion, stop_at);
-  if (!robot) out.insert(out.end(), robot.error().begin(), robot.error().end());
-  if (!out.empty()) return tl::unexpected(std::move(out));
-  return robot;
-}
-
 void to_proto(const core::BindingStretch& stretch, v1::BindingStretch& out) {
   switch (stretch.kind) {
     case core::BindingKind::kJointVelocity: out.set_kind(v1::BINDING_KIND_JOINT_VELOCITY); break;

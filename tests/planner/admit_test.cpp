@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "core/robot/kinematics.hpp"
+#include "planner/jog.hpp"
 #include "planner/kinematics.hpp"
 #include "planner/request_input.hpp"
 #include "planner/robots.hpp"
@@ -307,6 +308,27 @@ TEST(Admit, TheKinematicsCallsNeedARobotAndAJointEach) {
   ik = planner::admit(inverse, catalog());
   ASSERT_FALSE(ik.has_value());
   EXPECT_EQ(ik.error().front().field, "target.position");
+}
+
+TEST(Admit, AJogsRobotIsResolvedAndItsBoundsCheckedAgainstIt) {
+  planner::JogInput input;
+  auto jog = planner::admit(input, catalog());
+  ASSERT_FALSE(jog.has_value());
+  EXPECT_EQ(jog.error().front().field, "start.robot");
+  input.robot = named("no such arm");
+  jog = planner::admit(input, catalog());
+  ASSERT_FALSE(jog.has_value());
+  EXPECT_EQ(jog.error().front().field, "start.robot.name");
+  input.robot = named("ur5");
+  input.options.velocity_scale = 0.5;
+  jog = planner::admit(input, catalog());
+  ASSERT_TRUE(jog.has_value()) << jog.error().front().field;
+  EXPECT_EQ(jog->robot.model.name, "ur5");
+  EXPECT_EQ(jog->options.velocity_scale, 0.5);
+  input.options.velocity_scale = 5e-324;  // no joint could move
+  jog = planner::admit(input, catalog());
+  ASSERT_FALSE(jog.has_value());
+  EXPECT_EQ(jog.error().front().field.rfind("start.", 0), 0u) << jog.error().front().field;
 }
 
 }  // namespace

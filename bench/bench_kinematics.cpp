@@ -1,6 +1,8 @@
 // Kinematics and IK (core/robot/kinematics.hpp, core/robot/ik.hpp, core/planning/joint_motion.hpp), one thread:
-//  - forward kinematics, FK with the Jacobian, and J_dot q_dot per call, PA-10 and UR5, at
-//    64 random configurations within the limits, cycled;
+//  - forward kinematics, FK with the Jacobian, and J_dot q_dot per call, every built-in arm
+//    (PA-10, UR5, Panda, iiwa 14, UR5e), at 64 random configurations within the limits,
+//    cycled; beside them Orocos KDL's ChainFkSolverPos_recursive and ChainJntToJacSolver on
+//    the same chains and configurations (checked equal to ours first);
 //  - the IK of every sample of the thesis's demo path C (10 s, 100 Hz, 1001 samples) on the
 //    PA-10 from its home, warm-started: JointTracker::track (positions by the second-order
 //    predictor and Newton, velocities, accelerations, midpoint certificate, manipulability),
@@ -18,6 +20,7 @@
 // sample alone and reports the median, 99th percentile and worst.
 // Run: build/bench/bench_kinematics --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <random>
 #include <string>
@@ -29,8 +32,11 @@
 #include <kdl/chainfksolverpos_recursive.hpp>
 #include <kdl/chainiksolverpos_nr_jl.hpp>
 #include <kdl/chainiksolvervel_pinv.hpp>
+#include <kdl/chainjnttojacsolver.hpp>
 #include <kdl/frames.hpp>
 #include <kdl/jntarray.hpp>
+
+#include "kdl_chain.hpp"
 #endif
 
 #include "core/geometry/path.hpp"
@@ -93,6 +99,80 @@ void BM_ForwardKinematicsJacobian(benchmark::State& state) {
   state.SetLabel(m.name);
 }
 BENCHMARK(BM_ForwardKinematicsJacobian)->DenseRange(0, 4);
+
+#if GEOTRAJ_BENCH_KDL
+// The chain of robot.hpp in KDL: a DH model from its table as the KDL cross-check builds it
+// (tests/core/robot/kdl_chain.hpp, KDL's DH frames). A general chain (URDF) the way KDL runs
+// it fastest: one segment per joint (its motion, then the next joint's origin; the last one
+// ends in flange * tool), a joint about or along a coordinate axis as KDL's RotX/Y/Z or
+// TransX/Y/Z (scale -1 for a negative axis), any other as RotAxis/TransAxis. (The
+// cross-check's general chain, as KDL's URDF parser writes it, has two segments a joint.)
+KDL::Joint kdl_joint(const core::Joint& j) {
+  const bool turns = core::turns(j.type);
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(j.axis(k)) != 1.0) continue;  // a unit axis along x, y or z
+    constexpr KDL::Joint::JointType rot[] = {KDL::Joint::RotX, KDL::Joint::RotY, KDL::Joint::RotZ};
+    constexpr KDL::Joint::JointType trans[] = {KDL::Joint::TransX, KDL::Joint::TransY, KDL::Joint::TransZ};
+    return KDL::Joint(turns ? rot[k] : trans[k], j.axis(k));
+  }
+  return KDL::Joint("", KDL::Vector::Zero(), KDL::Vector(j.axis.x(), j.axis.y(), j.axis.z()),
+                    turns ? KDL::Joint::RotAxis : KDL::Joint::TransAxis);
+}
+
+KDL::Chain kdl_chain(const core::RobotModel& m) {
+  if (m.dh) return test::dh_to_kdl_chain(m);
+  KDL::Chain chain;
+  chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), test::to_kdl(m.base * m.joints.front().origin)));
+  for (std::size_t i = 0; i < m.dof(); ++i) {
+    const Eigen::Isometry3d tip = i + 1 < m.dof() ? m.joints[i + 1].origin : m.flange * m.tool;
+    chain.addSegment(KDL::Segment(kdl_joint(m.joints[i]), test::to_kdl(tip)));
+  }
+  return chain;
+}
+
+// Orocos KDL's forward kinematics on the same chain (kdl_chain), the same 64 configurations:
+// ChainFkSolverPos_recursive (argument 1: 0, the pose alone) and with ChainJntToJacSolver
+// (1: the pose and the Jacobian, the tool point's, in the base frame, rows [v; omega]: ours).
+// The solvers are built once; the joint values are KDL arrays made beforehand. Before the
+// timing, every configuration's pose and Jacobian are checked against ours (1e-12).
+void BM_KdlForwardKinematics(benchmark::State& state) {
+  const auto& m = robot(static_cast<int>(state.range(0)));
+  const bool with_jacobian = state.range(1) == 1;
+  const KDL::Chain chain = kdl_chain(m);
+  KDL::ChainFkSolverPos_recursive fk(chain);
+  KDL::ChainJntToJacSolver jac(chain);
+  std::vector<KDL::JntArray> qs;
+  double error = 0.0;
+  for (const auto& q : random_configurations(m)) {
+    qs.push_back(test::to_kdl(q));
+    KDL::Frame X;
+    KDL::Jacobian J(chain.getNrOfJoints());
+    fk.JntToCart(qs.back(), X);
+    jac.JntToJac(qs.back(), J);
+    Eigen::Isometry3d X_ours;
+    core::JointJacobian J_ours;
+    core::forward_kinematics(m, q, X_ours, J_ours);
+    error = std::max({error, (test::from_kdl(X).matrix() - X_ours.matrix()).cwiseAbs().maxCoeff(),
+                      (J.data - J_ours).cwiseAbs().maxCoeff()});
+  }
+  if (!(error <= 1e-12)) state.SkipWithError("KDL's chain does not match the model");
+  KDL::Frame X;
+  KDL::Jacobian J(chain.getNrOfJoints());
+  std::size_t k = 0;
+  for (auto _ : state) {
+    const KDL::JntArray& q = qs[k++ % qs.size()];
+    fk.JntToCart(q, X);
+    benchmark::DoNotOptimize(X);
+    if (with_jacobian) {
+      jac.JntToJac(q, J);
+      benchmark::DoNotOptimize(J.data.data());
+    }
+  }
+  state.counters["max_difference"] = error;
+  state.SetLabel(m.name + (with_jacobian ? ", KDL pose + Jacobian" : ", KDL pose"));
+}
+BENCHMARK(BM_KdlForwardKinematics)->ArgsProduct({{0, 1, 2, 3, 4}, {0, 1}});
+#endif
 
 void BM_JacobianDotQdot(benchmark::State& state) {
   const auto& m = robot(static_cast<int>(state.range(0)));
@@ -198,49 +278,6 @@ void BM_SolveIkPathC(benchmark::State& state) {
 BENCHMARK(BM_SolveIkPathC)->Unit(benchmark::kMicrosecond);
 
 #if GEOTRAJ_BENCH_KDL
-// The chain of robot.hpp in KDL: a segment's joint is at its start (pose = joint(q) * f_tip).
-// Modified DH: A_i = DH_Craig1989(link i) RotZ(q_i) (RotZ(q) commutes with the link's
-// RotZ(theta) TransZ(d)), so joint i sits at the start of the segment that ends with link
-// i+1's frame. Standard DH: A_i = RotZ(q_i) DH(link i).
-KDL::Frame to_kdl(const Eigen::Isometry3d& X) {
-  const Eigen::Matrix3d R = X.linear();
-  return KDL::Frame(KDL::Rotation(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)),
-                    KDL::Vector(X.translation().x(), X.translation().y(), X.translation().z()));
-}
-
-KDL::Chain kdl_chain(const core::RobotModel& m) {
-  if (!m.dh) {  // a general chain: per joint a fixed segment to its frame, then the joint
-    KDL::Chain chain;
-    chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(m.base)));
-    for (const auto& j : m.joints) {
-      chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(j.origin)));
-      chain.addSegment(KDL::Segment(KDL::Joint("", KDL::Vector::Zero(), KDL::Vector(j.axis.x(), j.axis.y(), j.axis.z()),
-                                               KDL::Joint::RotAxis)));
-    }
-    chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(m.flange * m.tool)));
-    return chain;
-  }
-  const bool modified = m.dh->convention == core::DhConvention::kModified;
-  auto frame = [&](const core::DhLink& l) {
-    return modified ? KDL::Frame::DH_Craig1989(l.a, l.alpha, l.d, l.theta) : KDL::Frame::DH(l.a, l.alpha, l.d, l.theta);
-  };
-  auto joint = [](const core::DhLink& l) { return KDL::Joint(KDL::Joint::RotZ, 1.0, l.offset); };
-  KDL::Chain chain;
-  chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(m.base)));
-  const auto& links = m.dh->links;
-  const std::size_t n = links.size();
-  if (modified) {
-    chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), frame(links[0])));
-    for (std::size_t i = 0; i < n; ++i) {
-      chain.addSegment(KDL::Segment(joint(links[i]), i + 1 < n ? frame(links[i + 1]) : KDL::Frame::Identity()));
-    }
-  } else {
-    for (std::size_t i = 0; i < n; ++i) chain.addSegment(KDL::Segment(joint(links[i]), frame(links[i])));
-  }
-  chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::Fixed), to_kdl(m.tool)));
-  return chain;
-}
-
 void BM_KdlNrJlPathC(benchmark::State& state) {
   const auto& m = robot(0);
   const auto& xs = path_c_samples();
@@ -255,7 +292,7 @@ void BM_KdlNrJlPathC(benchmark::State& state) {
   KDL::ChainIkSolverVel_pinv ik_vel(chain);
   KDL::ChainIkSolverPos_NR_JL ik(chain, q_min, q_max, fk, ik_vel, 100, 1e-9);
   std::vector<KDL::Frame> targets;
-  for (const auto& x : xs) targets.push_back(to_kdl(x.X_WT));
+  for (const auto& x : xs) targets.push_back(test::to_kdl(x.X_WT));
   const core::JointVector home = core::home_configuration(m);
   std::size_t samples = 0, failures = 0;
   for (auto _ : state) {

@@ -1,9 +1,18 @@
 // Motion along a path (core/motion/motion.hpp): samples per second of MotionSampler on the
 // thesis's demonstration path C (10 s move, 100 Hz and 1 kHz) for each time
 // parameterization, the cost of plan_motion (with a duration, and minimum-time, which
-// samples the curvature), and of a fastest joint move. Run: build/bench/bench_motion --benchmark_repetitions=5
+// samples the curvature), and of a fastest joint move, beside Ruckig's offline calculation of
+// the same move when built with -DGEOTRAJ_RUCKIG_SOURCE_DIR (docs/performance.md, "Peers in
+// one process"). Run: build/bench/bench_motion --benchmark_repetitions=5
 // The items-per-second counter is samples per second on one core.
+#include <cstddef>
+#include <limits>
+#include <string>
+
 #include <benchmark/benchmark.h>
+#if GEOTRAJ_BENCH_RUCKIG
+#include <ruckig/ruckig.hpp>
+#endif
 
 #include "core/geometry/path.hpp"
 #include "core/motion/motion.hpp"
@@ -72,20 +81,75 @@ BENCHMARK(BM_PlanMotion)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
 // model checked, the joints checked against its limits, the fastest trapezoid (argument 0) or
 // double S (1) within every joint's limits. What a call costs the caller of a joint move, to
 // set beside an online generator's (Ruckig's) time for the same seven joints.
+// Joints 0 and 1 are the tightest in velocity, acceleration and jerk (normalised by their
+// travel), so the straight line in joint space is also the synchronised time-optimal move:
+// the counter duration_s [s] must match Ruckig's.
+constexpr std::size_t kMoveJoints = 7;
+const core::JointMoveSpec& pa10_move() {
+  static const core::JointMoveSpec move{{0.0, 0.3, 0.0, 1.2, 0.0, 0.6, 0.0}, {0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8}};
+  return move;
+}
+
+// The PA-10 as the move sees it: its own limits (argument 0, no jerk limit), or with the
+// default jerk bound of every joint (1: max_acceleration / kDefaultJerkRampS).
+const core::RobotModel& pa10_for_move(bool jerk) {
+  static const core::RobotModel plain = *core::find_builtin_robot("pa10");
+  static const core::RobotModel with_jerk = core::with_default_jerk(plain);
+  return jerk ? with_jerk : plain;
+}
+
+const char* move_label(bool jerk) { return jerk ? "PA-10, fastest double S" : "PA-10, fastest trapezoid"; }
+
 void BM_PlanJointMove(benchmark::State& state) {
-  const core::RobotModel& pa10 = *core::find_builtin_robot("pa10");
-  const core::JointMoveSpec move{{0.0, 0.3, 0.0, 1.2, 0.0, 0.6, 0.0}, {0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8}};
+  const bool jerk = state.range(0) == 1;
+  const core::RobotModel& model = pa10_for_move(jerk);
   core::MotionSpec motion;
   motion.duration_s = 0.0;
-  if (state.range(0) == 1) motion.profile = core::ProfileShape::kSCurve;
-  const core::RobotModel model = state.range(0) == 1 ? core::with_default_jerk(pa10) : pa10;
+  if (jerk) motion.profile = core::ProfileShape::kSCurve;
   for (auto _ : state) {
-    auto plan = core::plan_joint_move(model, move, motion);
+    auto plan = core::plan_joint_move(model, pa10_move(), motion);
     benchmark::DoNotOptimize(plan);
   }
-  state.SetLabel(state.range(0) == 0 ? "PA-10, fastest trapezoid" : "PA-10, fastest double S");
+  const auto plan = core::plan_joint_move(model, pa10_move(), motion);
+  if (!plan) state.SkipWithError("plan_joint_move failed");
+  state.counters["duration_s"] = plan ? plan->duration_s : 0.0;
+  state.SetLabel(move_label(jerk));
 }
 BENCHMARK(BM_PlanJointMove)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+
+#if GEOTRAJ_BENCH_RUCKIG
+// The same move by Ruckig's offline calculation (Ruckig<7>::calculate: the input checked, every
+// joint's time-optimal profile, the synchronisation), from rest to rest with the same
+// per-joint limits: the trapezoid with an infinite jerk limit (Ruckig's second-order
+// profiles), the double S with the same jerk bounds. Arguments: profile (0 trapezoid, 1
+// double S), Ruckig's synchronisation (0 Time, its default: every joint on its own profile
+// shape, finishing together; 1 Phase: one shape scaled, a straight line in joint space as
+// plan_joint_move's).
+void BM_RuckigJointMove(benchmark::State& state) {
+  const bool jerk = state.range(0) == 1;
+  const core::RobotModel& model = pa10_for_move(jerk);
+  ruckig::Ruckig<kMoveJoints> otg;
+  ruckig::InputParameter<kMoveJoints> input;
+  for (std::size_t i = 0; i < kMoveJoints; ++i) {
+    input.current_position[i] = pa10_move().start[i];
+    input.target_position[i] = pa10_move().goal[i];
+    input.max_velocity[i] = model.limits[i].max_velocity;
+    input.max_acceleration[i] = model.limits[i].max_acceleration;
+    input.max_jerk[i] = jerk ? core::jerk_bound(model.limits[i]) : std::numeric_limits<double>::infinity();
+  }
+  input.synchronization = state.range(1) == 1 ? ruckig::Synchronization::Phase : ruckig::Synchronization::Time;
+  ruckig::Trajectory<kMoveJoints> trajectory;
+  for (auto _ : state) {
+    const ruckig::Result result = otg.calculate(input, trajectory);
+    benchmark::DoNotOptimize(result);
+    benchmark::DoNotOptimize(trajectory);
+  }
+  if (otg.calculate(input, trajectory) != ruckig::Result::Working) state.SkipWithError("Ruckig found no trajectory");
+  state.counters["duration_s"] = trajectory.get_duration();
+  state.SetLabel(std::string(move_label(jerk)) + (state.range(1) == 1 ? ", Ruckig, phase sync" : ", Ruckig, time sync"));
+}
+BENCHMARK(BM_RuckigJointMove)->ArgsProduct({{0, 1}, {0, 1}})->Unit(benchmark::kMicrosecond);
+#endif
 
 }  // namespace
 

@@ -3,7 +3,9 @@
 #include "core/robot/ik.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
 #include <utility>
@@ -59,7 +61,7 @@ SerialChain::SerialChain(const RobotModel& model)
       R_base_(model.base.linear()),
       p_base_(model.base.translation()) {
   GEOTRAJ_CHECK(model.dof() <= kMaxJoints);
-  // No trigonometry here: solve_ik and forward_kinematics build a chain per call.
+  // No trigonometry here: a per-call entry point builds a chain for every new model (cached_chain).
   Matrix3d A_prev = Matrix3d::Identity();
   bool prev_z = true;  // A_prev is the identity
   for (std::size_t i = 0; i < model.dof(); ++i) {
@@ -94,6 +96,95 @@ SerialChain::SerialChain(const RobotModel& model)
   p_tool_ = A_prev.transpose() * end.translation();
 }
 
+namespace {
+
+// Whether two fixed-size arrays of doubles are the same bit for bit.
+template <class Fixed>
+bool same_bits(const Fixed& a, const Fixed& b) {
+  return std::memcmp(a.data(), b.data(), sizeof(double) * Fixed::SizeAtCompileTime) == 0;
+}
+
+bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) == 0; }
+
+// What a SerialChain is built from, bit for bit (cached_chain).
+struct ChainSource {
+  std::size_t n = kMaxJoints + 1;  // no model's: the first call builds
+  std::array<JointType, kMaxJoints> type{};
+  std::array<Eigen::Matrix4d, kMaxJoints> origin;
+  std::array<Vector3d, kMaxJoints> axis;
+  Eigen::Matrix4d base, flange, tool;
+
+  bool same(const RobotModel& model) const {
+    if (n != model.dof() || !same_bits(base, model.base.matrix()) || !same_bits(flange, model.flange.matrix()) ||
+        !same_bits(tool, model.tool.matrix())) {
+      return false;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      const Joint& j = model.joints[i];
+      if (type[i] != j.type || !same_bits(origin[i], j.origin.matrix()) || !same_bits(axis[i], j.axis)) return false;
+    }
+    return true;
+  }
+  void record(const RobotModel& model) {
+    n = model.dof();
+    for (std::size_t i = 0; i < n; ++i) {
+      type[i] = model.joints[i].type;
+      origin[i] = model.joints[i].origin.matrix();
+      axis[i] = model.joints[i].axis;
+    }
+    base = model.base.matrix();
+    flange = model.flange.matrix();
+    tool = model.tool.matrix();
+  }
+};
+
+// What JointBounds are built from, bit for bit (cached_bounds).
+struct BoundsSource {
+  std::size_t n = kMaxJoints + 1;
+  std::array<JointType, kMaxJoints> type{};
+  std::array<double, kMaxJoints> lo{}, hi{};
+
+  bool same(const RobotModel& model) const {
+    if (n != model.dof() || model.limits.size() != n) return false;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (type[i] != model.joints[i].type || !same_bits(lo[i], model.limits[i].min_position) ||
+          !same_bits(hi[i], model.limits[i].max_position)) {
+        return false;
+      }
+    }
+    return true;
+  }
+  void record(const RobotModel& model) {
+    n = model.dof();
+    for (std::size_t i = 0; i < n; ++i) {
+      type[i] = model.joints[i].type;
+      lo[i] = model.limits[i].min_position;
+      hi[i] = model.limits[i].max_position;
+    }
+  }
+};
+
+// Value(model), kept per thread and built again when the model's Source differs.
+template <class Value, class Source>
+const Value& cached(const RobotModel& model) {
+  struct Cache {
+    Source source;
+    Value value;
+  };
+  thread_local Cache cache;
+  if (!cache.source.same(model)) {
+    cache.value = Value(model);  // checks the model before its source is recorded
+    cache.source.record(model);
+  }
+  return cache.value;
+}
+
+}  // namespace
+
+const SerialChain& cached_chain(const RobotModel& model) { return cached<SerialChain, ChainSource>(model); }
+
+const JointBounds& cached_bounds(const RobotModel& model) { return cached<JointBounds, BoundsSource>(model); }
+
 // The chain joint by joint from the base: O_i' (translation, then RotX(alpha) or the
 // general rotation) | axis | RotZ(phi + q_i) or TransZ(q_i). on_axis(i, R, p) sees the frame
 // at the bar: joint i turns about (slides along) its z column through its origin. Leaves
@@ -101,10 +192,27 @@ SerialChain::SerialChain(const RobotModel& model)
 template <class OnAxis>
 void SerialChain::walk(const JointVector& q, Matrix3d& R, Vector3d& p, OnAxis&& on_axis) const {
   GEOTRAJ_CHECK(q.size() == n_);
+  // Every joint's cos and sin first: the walk below then runs without calls (no registers
+  // saved around them).
+  std::array<double, kMaxJoints> cos_q, sin_q;
+  for (Eigen::Index i = 0; i < n_; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    const Link& l = links_[k];
+    if (!l.revolute) continue;
+    double c = std::cos(q(i)), s = std::sin(q(i));
+    if (l.phi) {  // RotZ(phi + q)
+      const double c_q = c;
+      c = l.cphi * c_q - l.sphi * s;
+      s = l.sphi * c_q + l.cphi * s;
+    }
+    cos_q[k] = c;
+    sin_q[k] = s;
+  }
   R = R_base_;
   p = p_base_;
   for (Eigen::Index i = 0; i < n_; ++i) {
-    const Link& l = links_[static_cast<std::size_t>(i)];
+    const auto k = static_cast<std::size_t>(i);
+    const Link& l = links_[k];
     p.noalias() += R * l.p;
     if (l.turn == Turn::kX) {
       rotate_x(R, l.ca, l.sa);
@@ -113,13 +221,7 @@ void SerialChain::walk(const JointVector& q, Matrix3d& R, Vector3d& p, OnAxis&& 
     }
     on_axis(i, R, p);
     if (l.revolute) {
-      double c = std::cos(q(i)), s = std::sin(q(i));
-      if (l.phi) {  // RotZ(phi + q)
-        const double c_q = c;
-        c = l.cphi * c_q - l.sphi * s;
-        s = l.sphi * c_q + l.cphi * s;
-      }
-      rotate_z(R, c, s);
+      rotate_z(R, cos_q[k], sin_q[k]);
     } else {
       p.noalias() += q(i) * R.col(2);
     }
@@ -529,16 +631,16 @@ IkSearchResult search_ik(const RobotModel& model, const Eigen::Isometry3d& X_WT_
                          const IkSearchOptions& options) {
   GEOTRAJ_CHECK(seed.size() == static_cast<Eigen::Index>(model.dof()));
   GEOTRAJ_CHECK(options.max_attempts >= 1 && options.max_solutions >= 1);
-  const detail::SerialChain chain(model);
-  const detail::JointBounds bounds(model);
+  const detail::SerialChain& chain = detail::cached_chain(model);
+  const detail::JointBounds& bounds = detail::cached_bounds(model);
   return detail::search(chain, bounds, X_WT_target.linear(), X_WT_target.translation(), seed, options);
 }
 
 IkResult solve_ik(const RobotModel& model, const Eigen::Isometry3d& X_WT_target, const JointVector& seed,
                   const IkOptions& options) {
   GEOTRAJ_CHECK(seed.size() == static_cast<Eigen::Index>(model.dof()));
-  const detail::SerialChain chain(model);
-  const detail::JointBounds bounds(model);
+  const detail::SerialChain& chain = detail::cached_chain(model);
+  const detail::JointBounds& bounds = detail::cached_bounds(model);
   const Eigen::Matrix3d R_target = X_WT_target.linear();
   const Eigen::Vector3d p_target = X_WT_target.translation();
   IkResult result;

@@ -11,9 +11,9 @@ namespace geotraj::core {
 namespace {
 
 // The tool pose and joint axes at q, by the precomputed chain (serial_chain.hpp, shared with
-// the IK): z_i unit axis of joint i, o_i the origin of its frame, in W (robot.hpp: the frame
-// O_i ends in; modified DH (1.3): frame i, reached after RotX(alpha_i) TransX(a_i); standard
-// DH: frame i-1).
+// the IK, kept per thread: cached_chain): z_i unit axis of joint i, o_i the origin of its
+// frame, in W (robot.hpp: the frame O_i ends in; modified DH (1.3): frame i, reached after
+// RotX(alpha_i) TransX(a_i); standard DH: frame i-1).
 struct Axes {
   Eigen::Matrix3d R_WT;
   Eigen::Vector3d p_WT;
@@ -23,9 +23,8 @@ struct Axes {
 
 Axes axes_at(const RobotModel& model, const JointVector& q) {
   GEOTRAJ_CHECK(q.size() == static_cast<Eigen::Index>(model.dof()));
-  const detail::SerialChain chain(model);
   Axes a;
-  chain.jacobian(q, a.R_WT, a.p_WT, a.z, a.o, a.J);
+  detail::cached_chain(model).jacobian(q, a.R_WT, a.p_WT, a.z, a.o, a.J);
   return a;
 }
 
@@ -42,7 +41,7 @@ Eigen::Isometry3d forward_kinematics(const RobotModel& model, const JointVector&
   GEOTRAJ_CHECK(q.size() == static_cast<Eigen::Index>(model.dof()));
   Eigen::Matrix3d R;
   Eigen::Vector3d p;
-  detail::SerialChain(model).pose(q, R, p);
+  detail::cached_chain(model).pose(q, R, p);
   return isometry(R, p);
 }
 
@@ -67,7 +66,7 @@ Eigen::VectorXd singular_values(const JointJacobian& J) {
 
 Vector6d jacobian_dot_qdot(const RobotModel& model, const JointVector& q, const JointVector& q_dot) {
   GEOTRAJ_CHECK(q_dot.size() == static_cast<Eigen::Index>(model.dof()));
-  const detail::SerialChain chain(model);
+  const detail::SerialChain& chain = detail::cached_chain(model);
   Axes a;
   chain.jacobian(q, a.R_WT, a.p_WT, a.z, a.o, a.J);
   JointJacobian J_dot;

@@ -26,7 +26,7 @@ using JointAxes = Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::ColMajor, 3, s
 /// flange' = A_n^T flange tool give the same poses with M_i about z. A revolute joint whose
 /// O_i' rotation is RotX(alpha) RotZ(phi) (every DH chain, most URDF joints) carries phi
 /// into its angle and turns the frame by RotX alone (4 products instead of a 3 x 3 product).
-/// Built without trigonometry (per call of forward_kinematics and solve_ik).
+/// Built without trigonometry (for every model that a per-call entry point meets: cached_chain).
 class SerialChain {
  public:
   SerialChain() = default;
@@ -70,12 +70,26 @@ class SerialChain {
   Eigen::Vector3d p_base_ = Eigen::Vector3d::Zero(), p_tool_ = Eigen::Vector3d::Zero();
 };
 
+/// The chain of `model`, as SerialChain(model) builds it, kept per thread: built again only
+/// when `model`'s chain (its joints' types, origins and axes, base, flange and tool) differs
+/// bit for bit from the one of the previous call on this thread, so the per-call entry
+/// points (forward_kinematics, solve_ik, ...) do not rebuild it (a copy of the model
+/// matches). No heap allocation. The reference is valid until the next call on this thread:
+/// take it, use it, and do not hold it across another call.
+const SerialChain& cached_chain(const RobotModel& model);
+
 /// Position limits of every joint, and their midpoints and ranges (the null-space cost).
 struct JointBounds {
   std::array<double, kMaxJoints> lo{}, hi{}, mid{}, range{};
   std::array<bool, kMaxJoints> revolute{};
+  JointBounds() = default;
   explicit JointBounds(const RobotModel& model);
 };
+
+/// The JointBounds of `model`, kept per thread as cached_chain keeps its chain (built again
+/// when the joints' types or position limits differ bit for bit from the previous call's).
+/// The reference is valid until the next call on this thread.
+const JointBounds& cached_bounds(const RobotModel& model);
 
 /// The rotation vector (angle [rad] in [0, pi] times the unit axis) of R, by the quaternion
 /// (Shepperd's method inside Eigen): accurate near 0 and near pi.

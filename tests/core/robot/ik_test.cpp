@@ -4,6 +4,7 @@
 // six joints) that is reported as not converged rather than stopping the process.
 #include <cmath>
 #include <numbers>
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -168,6 +169,42 @@ TEST(SolveIk, FewerThanSixJointsIsNotConverged) {
   core::JointSample s;
   EXPECT_FALSE(tracker.track(x, s));
   EXPECT_FALSE(s.converged);
+}
+
+
+// The per-call entry points keep each thread's chain of the model they met last
+// (detail::cached_chain): a model edited in place, two models taken in turn and other threads
+// must each get their own chain's answer, the one a fresh copy of the model gives.
+TEST(ForwardKinematics, FollowsAModelEditedInPlaceAndModelsTakenInTurn) {
+  const core::JointVector q = (core::JointVector(7) << 0.3, -0.4, 0.2, 1.1, -0.5, 0.7, 0.1).finished();
+  RobotModel m = pa10();
+  const Eigen::Isometry3d before = core::forward_kinematics(m, q);
+  m.tool.translation().z() += 0.1;  // in place: same object, same address
+  const Eigen::Isometry3d with_tool = core::forward_kinematics(m, q);
+  EXPECT_NEAR((with_tool.translation() - before.translation()).norm(), 0.1, 1e-12);
+  m.joints[3].origin.translation().x() += 0.05;
+  const RobotModel copy = m;  // a fresh model: what the edited one must give
+  EXPECT_TRUE(core::forward_kinematics(m, q).isApprox(core::forward_kinematics(copy, q), 0.0));
+  EXPECT_FALSE(core::forward_kinematics(m, q).isApprox(with_tool, 1e-6));
+  // Two models in turn, each its own answer every time.
+  const core::JointVector q6 = q.head(6);
+  const Eigen::Isometry3d ur5_pose = core::forward_kinematics(ur5(), q6);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_TRUE(core::forward_kinematics(pa10(), q).isApprox(before, 0.0));
+    EXPECT_TRUE(core::forward_kinematics(ur5(), q6).isApprox(ur5_pose, 0.0));
+  }
+  // Position limits edited in place reach the IK's bounds.
+  RobotModel narrow = pa10();
+  const auto r = core::solve_ik(narrow, before, q);
+  ASSERT_TRUE(r.converged);
+  narrow.limits[3].max_position = q(3) - 0.2;  // the solution's joint 3 is now out of range
+  const auto narrowed = core::solve_ik(narrow, before, q);
+  EXPECT_FALSE(narrowed.within_limits && narrowed.q(3) > narrow.limits[3].max_position)
+      << "a stale bound let joint 3 through at " << narrowed.q(3);
+  // Another thread: its own chain, the same answer.
+  Eigen::Isometry3d other;
+  std::thread([&] { other = core::forward_kinematics(copy, q); }).join();
+  EXPECT_TRUE(other.isApprox(core::forward_kinematics(copy, q), 0.0));
 }
 
 }  // namespace

@@ -90,7 +90,7 @@ const LivePlan& live_plan(long arm, double cycle_hz) {
   if (!planned) throw std::runtime_error(file + ": not planned");
   slot = std::make_unique<LivePlan>();
   slot->plan = std::move(*planned);
-  slot->model = slot->plan.robot ? &slot->plan.robot->model : nullptr;
+  slot->model = slot->plan.robot ? &slot->plan.robot->model.model() : nullptr;
   slot->seed = slot->plan.robot ? slot->plan.robot->seed : core::JointVector();
   slot->motion = core::motion_spec(*slot->plan.trajectory);
   return *slot;

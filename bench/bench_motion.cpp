@@ -92,9 +92,10 @@ const core::JointMoveSpec& pa10_move() {
 
 // The PA-10 as the move sees it: its own limits (argument 0, no jerk limit), or with the
 // default jerk bound of every joint (1: max_acceleration / kDefaultJerkRampS).
-const core::RobotModel& pa10_for_move(bool jerk) {
-  static const core::RobotModel plain = *core::find_builtin_robot("pa10");
-  static const core::RobotModel with_jerk = core::with_default_jerk(plain);
+// Checked once, as where a model enters the service (core::ValidRobot).
+const core::ValidRobot& pa10_for_move(bool jerk) {
+  static const core::ValidRobot plain = core::ValidRobot::check(*core::find_builtin_robot("pa10")).value();
+  static const core::ValidRobot with_jerk = core::with_default_jerk(plain);
   return jerk ? with_jerk : plain;
 }
 
@@ -102,7 +103,7 @@ const char* move_label(bool jerk) { return jerk ? "PA-10, fastest double S" : "P
 
 void BM_PlanJointMove(benchmark::State& state) {
   const bool jerk = state.range(0) == 1;
-  const core::RobotModel& model = pa10_for_move(jerk);
+  const core::ValidRobot& model = pa10_for_move(jerk);
   core::MotionSpec motion;
   motion.duration_s = 0.0;
   if (jerk) motion.profile = core::ProfileShape::kSCurve;

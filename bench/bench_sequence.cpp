@@ -51,9 +51,7 @@ BENCHMARK(BM_BlendChain)->Arg(2)->Arg(10)->Unit(benchmark::kMicrosecond);
 // UR5's joints and 0.25 m/s, 1 m/s^2 allow, at 500 Hz.
 void BM_PlanBlendedSequenceUr5(benchmark::State& state) {
   const core::RobotModel* model = core::find_builtin_robot("ur5");
-  auto robot = std::make_shared<planner::Robot>();
-  robot->model = *model;
-  robot->seed = core::home_configuration(*model);
+  auto robot = std::make_shared<planner::Robot>(core::ValidRobot::check(*model).value(), core::home_configuration(*model));
   const Eigen::Quaterniond down(0, 0, 1, 0);
   const Vector3d points[] = {{-0.3, -0.25, 0.45}, {-0.3, -0.25, 0.3}, {-0.1, -0.45, 0.3}, {-0.1, -0.45, 0.45}};
   core::MotionSpec motion;

@@ -230,8 +230,8 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
     return out;
   }
   // Following a Cartesian pose (a path or a straight line) takes six joints at least.
-  if (out.robot && out.robot->model.dof() < 6) {
-    violations.push_back({chain_field(*robot_spec), "the robot has " + std::to_string(out.robot->model.dof()) +
+  if (out.robot && out.robot->model->dof() < 6) {
+    violations.push_back({chain_field(*robot_spec), "the robot has " + std::to_string(out.robot->model->dof()) +
                                                         " joints; following a tool pose (position and orientation) "
                                                         "needs at least 6"});
   }

@@ -15,10 +15,10 @@ core::Expected<Jog> admit(JogInput input, const RobotCatalog& catalog) {
   } else {
     for (auto& v : resolved.error()) violations.push_back({"start." + v.field, std::move(v.description), v.kind});
   }
-  if (violations.empty()) {  // the per-joint bounds the jogger derives (velocityScale x maxVelocity, ...)
+  if (violations.empty() && robot) {  // the per-joint bounds the jogger derives (velocityScale x maxVelocity, ...)
     violations = core::validate_jog_limits(robot->model, input.options, "start");
   }
-  if (!violations.empty()) return tl::unexpected(std::move(violations));
+  if (!violations.empty() || !robot) return tl::unexpected(std::move(violations));
   return Jog{std::move(*robot), std::move(input.options)};
 }
 

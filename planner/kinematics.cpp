@@ -53,7 +53,7 @@ core::Expected<ForwardRequest> admit(ForwardInput input, const RobotCatalog& cat
   ForwardRequest request;
   request.robot = robot_of(input.robot, catalog, stop_at, out);
   if (request.robot) {
-    const std::size_t n = request.robot->model.dof();
+    const std::size_t n = request.robot->model->dof();
     if (input.joints.size() != n) {
       out.push_back({"joints", "has " + std::to_string(input.joints.size()) + " values for a " + std::to_string(n) +
                                    "-joint robot: give one per joint, joint 0 first [rad or m]"});

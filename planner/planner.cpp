@@ -97,7 +97,7 @@ Expected<core::MotionPlan> time_optimal_timing(const core::Path& path, const cor
         {"motion.maxAcceleration", "is needed for a time-optimal motion without a robot (and maxSpeed, optional)"}}));
   }
   const auto started = Clock::now();
-  const core::RobotModel* model = robot ? &robot->model : nullptr;
+  const core::RobotModel* model = robot ? &robot->model.model() : nullptr;
   const core::JointVector seed = robot ? robot->seed : core::JointVector();
   core::MotionPlan plan;
   TimingReport timing;
@@ -167,7 +167,7 @@ std::pair<double, std::size_t> limit_margin(const core::RobotModel& model, const
 // kUnattainable on `jointMove.goalPose` with the distance.
 Expected<ChosenGoal> resolve(const JointMoveToPose& move, const Robot& robot, const Budget& budget) {
   ChosenGoal out{core::JointMoveSpec{move.start, {}}, {}};
-  const auto n = static_cast<Eigen::Index>(robot.model.dof());
+  const auto n = static_cast<Eigen::Index>(robot.model->dof());
   if (static_cast<Eigen::Index>(move.start.size()) != n) return out;  // plan_joint_move names it
   const core::JointVector start = Eigen::Map<const Eigen::VectorXd>(move.start.data(), n);
   core::IkSearchOptions options;
@@ -201,7 +201,7 @@ Expected<ChosenGoal> resolve(const JointMoveToPose& move, const Robot& robot, co
   const core::JointVector& goal = found.solutions[best].q;
   out.spec.goal.assign(goal.data(), goal.data() + goal.size());
   const auto joint = [&](std::size_t j) {
-    return "joint " + std::to_string(j) + ", " + robot.model.joints[j].name;
+    return "joint " + std::to_string(j) + ", " + robot.model->joints[j].name;
   };
   const std::string branches = std::to_string(found.solutions.size()) +
                                (found.solutions.size() == 1 ? " IK solution found" : " IK solutions found");
@@ -221,15 +221,15 @@ Expected<ChosenGoal> resolve(const JointMoveToPose& move, const Robot& robot, co
 // The straight line to joint values: from the start pose to their forward kinematics.
 // Joint values of the wrong count or outside the limits are named on `linearMove.goalJoints`.
 Expected<core::LinearMoveSpec> resolve(const LinearMoveToJoints& move, const Robot& robot) {
-  const std::size_t n = robot.model.dof();
+  const std::size_t n = robot.model->dof();
   core::Violations v;
   if (move.goal.size() != n) {
     v.push_back({"linearMove.goalJoints", "has " + std::to_string(move.goal.size()) + " values for a " +
                                               std::to_string(n) + "-joint robot: give one per joint"});
   } else {
     for (std::size_t i = 0; i < n; ++i) {
-      const auto& l = robot.model.limits[i];
-      if (!std::isfinite(move.goal[i]) || !core::within_position_limits(robot.model.joints[i].type, l, move.goal[i])) {
+      const auto& l = robot.model->limits[i];
+      if (!std::isfinite(move.goal[i]) || !core::within_position_limits(robot.model->joints[i].type, l, move.goal[i])) {
         v.push_back({"linearMove.goalJoints[" + std::to_string(i) + "]",
                      core::number(move.goal[i]) + " is outside joint " + std::to_string(i) + "'s position limits [" +
                          core::number(l.min_position) + ", " + core::number(l.max_position) + "]"});
@@ -332,15 +332,15 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
   // the request asks for, thesis 6.4).
   const bool by_limits = robot != nullptr && time_optimally_timed(motion, true, time_optimal, jerk_limited);
   const bool angular = motion.max_angular_speed || motion.max_angular_acceleration;
-  Robot defaulted;
+  std::optional<Robot> defaulted;
   if (by_limits && !core::jerk_limited(robot->model) && !(angular && !joint) && (!time_optimal || jerk_limited)) {
     default_jerk = default_jerk_of(robot->model);
-    defaulted = *robot;
-    defaulted.model = core::with_default_jerk(robot->model, default_jerk->ramp_s);
-    robot = &defaulted;
+    defaulted.emplace(*robot);
+    defaulted->model = core::with_default_jerk(robot->model, default_jerk->ramp_s);
+    robot = &*defaulted;
   }
   const bool jerk_from_model = by_limits && !jerk_limited && robot != nullptr &&
-                               std::any_of(robot->model.limits.begin(), robot->model.limits.end(),
+                               std::any_of(robot->model->limits.begin(), robot->model->limits.end(),
                                            [](const core::JointLimits& l) { return l.max_jerk.has_value(); });
   if (jerk_from_model) {
     if (joint) {
@@ -363,7 +363,7 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
     const bool line = !std::holds_alternative<core::PathSpec>(request.geometry);
     std::string why;
     if (jerk_from_model && !joint) {
-      why = "is not imposed on the fastest motion of a robot with jerk limits (" + robot->model.name +
+      why = "is not imposed on the fastest motion of a robot with jerk limits (" + robot->model->name +
             "'s), which is timed jerk-limited (its NLP has no angular rows): drop it, or give a durationS";
     } else if (jerk_limited) {
       why = "is not imposed by optimize.timing.jerkLimited (its NLP has no angular rows): use timeOptimal, or drop it";
@@ -480,7 +480,7 @@ bool joint_geometry(const Geometry& geometry) {
 
 Expected<RobotPass> robot_pass(const core::Trajectory& trajectory, const Robot& robot,
                                const core::CartesianLimits& cartesian, const Budget& budget) {
-  core::TrajectorySampler sampler(trajectory, &robot.model, robot.seed);
+  core::TrajectorySampler sampler(trajectory, &robot.model.model(), robot.seed);
   core::JointReportBuilder builder(robot.model, robot.branch_tolerance);
   builder.set_cartesian_limits(cartesian);
   core::TrajectorySample sample;
@@ -650,7 +650,7 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
     });
     const bool allowed = request.robot->report_only && (use == Use::kPlan || only_limits);
     if (!joints.feasible() && !allowed) {
-      return tl::unexpected(Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, request.robot->model.name,
+      return tl::unexpected(Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, request.robot->model->name,
                                   request.robot->report_only});
     }
     if (joints.feasible()) {

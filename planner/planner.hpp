@@ -18,6 +18,7 @@
 #include <stop_token>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -47,15 +48,23 @@ enum class Approach {
   kLinear,  ///< a straight-line move first, to the path's first pose
 };
 
-/// The robot of a request, resolved (a catalog name looked up, base and tool applied).
+/// How far a path's first tool pose may be from the pose of the initial joints by default
+/// (RobotSpec.startPositionTolerance [m], startOrientationTolerance [rad]).
+inline constexpr double kStartPositionTolerance = 1e-4;
+inline constexpr double kStartOrientationTolerance = 1e-3;
+
+/// The robot of a request, resolved (a catalog name looked up, base, tool and limits applied)
+/// and checked once, there: `model` is the proof.
 struct Robot {
-  core::RobotModel model;
+  Robot(core::ValidRobot checked, core::JointVector initial) : model(std::move(checked)), seed(std::move(initial)) {}
+
+  core::ValidRobot model;
   core::JointVector seed;          ///< the initial joints, or the model's home [rad, m]
   bool report_only = false;        ///< report broken limits instead of refusing the plan
   double branch_tolerance = 1e-3;  ///< [m]
   /// How far a path's first tool pose may be from the pose of `seed` [m], [rad].
-  double start_position_tolerance = 1e-4;
-  double start_orientation_tolerance = 1e-3;
+  double start_position_tolerance = kStartPositionTolerance;
+  double start_orientation_tolerance = kStartOrientationTolerance;
   bool inline_model = false;       ///< given as `robot.model` (not by name): where its errors point
   Approach approach = Approach::kNone;
 };

@@ -164,37 +164,37 @@ core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& c
                                     const StopAt& stop_at) {
   core::Violations out;
   const std::vector<NamedLimits> limits = checked_joint_limits(spec.joint_limits, out);
-  Robot resolved;
-  resolved.inline_model = !std::holds_alternative<RobotByName>(spec.source) &&
-                          !std::holds_alternative<std::monostate>(spec.source);
   std::optional<core::RobotModel> model = source_model(spec, limits, catalog, motion, stop_at, out);
   if (!std::holds_alternative<UrdfRobot>(spec.source) && (!spec.base_link.empty() || !spec.tip_link.empty())) {
     out.push_back({spec.base_link.empty() ? "robot.tipLink" : "robot.baseLink", "is read with `urdf` only"});
   }
   if (model && out.empty()) apply_joint_limits(limits, *model, out);
-  if (model) resolved.model = std::move(*model);
-  if (spec.base) resolved.model.base = *spec.base;
-  if (spec.tool) resolved.model.tool = *spec.tool;
-  resolved.report_only = spec.report_only;
+  if (model && spec.base) model->base = *spec.base;
+  if (model && spec.tool) model->tool = *spec.tool;
+  double branch_tolerance = 1e-3;
   if (spec.branch_tolerance) {
-    resolved.branch_tolerance = *spec.branch_tolerance;
-    if (!(std::isfinite(resolved.branch_tolerance) && resolved.branch_tolerance > 0.0)) {
-      out.push_back({"robot.branchTolerance",
-                     "must be finite and > 0 [m], got " + core::number(resolved.branch_tolerance, 6)});
+    branch_tolerance = *spec.branch_tolerance;
+    if (!(std::isfinite(branch_tolerance) && branch_tolerance > 0.0)) {
+      out.push_back({"robot.branchTolerance", "must be finite and > 0 [m], got " + core::number(branch_tolerance, 6)});
     }
   }
-  const auto tolerance = [&out](const std::optional<double>& value, const char* field, const char* unit, double& to) {
-    if (!value) return;
+  const auto tolerance = [&out](const std::optional<double>& value, const char* field, const char* unit, double fallback) {
+    if (!value) return fallback;
     if (!(std::isfinite(*value) && *value > 0.0)) {
       out.push_back({field, std::string("must be finite and > 0 [") + unit + "], got " + core::number(*value)});
     }
-    to = *value;
+    return *value;
   };
-  tolerance(spec.start_position_tolerance, "robot.startPositionTolerance", "m", resolved.start_position_tolerance);
-  tolerance(spec.start_orientation_tolerance, "robot.startOrientationTolerance", "rad",
-            resolved.start_orientation_tolerance);
-  resolved.approach = spec.approach;
-  apply_scales(spec, resolved.model, model.has_value(), out);
+  const double start_position_tolerance =
+      tolerance(spec.start_position_tolerance, "robot.startPositionTolerance", "m", kStartPositionTolerance);
+  const double start_orientation_tolerance =
+      tolerance(spec.start_orientation_tolerance, "robot.startOrientationTolerance", "rad", kStartOrientationTolerance);
+  if (model) {
+    apply_scales(spec, *model, true, out);
+  } else {
+    core::RobotModel none;
+    apply_scales(spec, none, false, out);
+  }
   // The request's base and tool over the model's, within the bounds validate_robot keeps.
   for (const auto& [field, X] : {std::pair<const char*, const std::optional<Eigen::Isometry3d>*>{"robot.base", &spec.base},
                                  std::pair<const char*, const std::optional<Eigen::Isometry3d>*>{"robot.tool", &spec.tool}}) {
@@ -206,9 +206,23 @@ core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& c
                                                           core::number(far)});
     }
   }
-  if (resolved.model.dof() > 0) resolved.seed = initial_joints(spec.initial_joints, resolved.model, out);
-  if (!out.empty()) return tl::unexpected(std::move(out));
-  return resolved;
+  core::JointVector seed;
+  if (model && model->dof() > 0) seed = initial_joints(spec.initial_joints, *model, out);
+  // No model and nothing said: an inline model whose wire form was refused, and named there.
+  if (!model || !out.empty()) return tl::unexpected(std::move(out));
+  // Every part was checked above, each where the request wrote it; what they make together is
+  // checked once more here, and the model carries the proof from here on.
+  auto valid = core::ValidRobot::check(std::move(*model));
+  if (!valid) return tl::unexpected(core::prefixed(std::move(valid.error()), "robot.model."));
+  Robot robot(std::move(*valid), std::move(seed));
+  robot.report_only = spec.report_only;
+  robot.branch_tolerance = branch_tolerance;
+  robot.start_position_tolerance = start_position_tolerance;
+  robot.start_orientation_tolerance = start_orientation_tolerance;
+  robot.inline_model = !std::holds_alternative<RobotByName>(spec.source) &&
+                       !std::holds_alternative<std::monostate>(spec.source);
+  robot.approach = spec.approach;
+  return robot;
 }
 
 }  // namespace geotraj::planner

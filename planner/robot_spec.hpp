@@ -71,7 +71,9 @@ struct RobotSpec {
 /// `spec` resolved against `catalog`, or every violation of it together. `motion`: false for
 /// the kinematics calls, which read no acceleration limit (a URDF without them is accepted
 /// there). A URDF's parse gives up once `stop_at` is reached (UrdfOptions), with a violation
-/// of `robot.urdf`. Thread-safe.
+/// of `robot.urdf`. The model it makes is checked once, here (core::ValidRobot). An inline
+/// model the wire could not read (InlineRobot without one) adds no violation of its own: the
+/// wire named it. Thread-safe.
 core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& catalog, bool motion = true,
                                     const StopAt& stop_at = {});
 

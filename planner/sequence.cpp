@@ -93,8 +93,8 @@ Expected<Geometry> started_at(const Step& step, std::size_t i, const StepEnd& en
     }
     const double dp = (start.p_WT - end.pose.p_WT).norm();
     const double dr = start.q_WT.norm() > 0.0 ? rotation_angle(start.q_WT.normalized(), end.pose.q_WT) : 0.0;
-    const double tp = robot ? robot->start_position_tolerance : Robot{}.start_position_tolerance;
-    const double tr = robot ? robot->start_orientation_tolerance : Robot{}.start_orientation_tolerance;
+    const double tp = robot ? robot->start_position_tolerance : kStartPositionTolerance;
+    const double tr = robot ? robot->start_orientation_tolerance : kStartOrientationTolerance;
     if (dp <= tp && dr <= tr) {
       start = end.pose;  // exactly where the previous step ended
       return std::nullopt;
@@ -120,8 +120,8 @@ std::optional<Error> path_starts_at(const core::TrajectorySample& first, const S
                                     const Robot* robot) {
   const double dp = (first.tool.X_WT.translation() - end.pose.p_WT).norm();
   const double dr = rotation_angle(first.q_WT, end.pose.q_WT);
-  const double tp = robot ? robot->start_position_tolerance : Robot{}.start_position_tolerance;
-  const double tr = robot ? robot->start_orientation_tolerance : Robot{}.start_orientation_tolerance;
+  const double tp = robot ? robot->start_position_tolerance : kStartPositionTolerance;
+  const double tr = robot ? robot->start_orientation_tolerance : kStartOrientationTolerance;
   if (dp <= tp && dr <= tr) return std::nullopt;
   return invalid(core::Violations{core::unattainable(
       "sequence[" + std::to_string(i) + "].path",
@@ -192,7 +192,7 @@ Expected<core::BlendedChain> blended_chain(const Request& request, std::size_t f
     const auto& path = std::get<core::PathSpec>(g);
     if (k > first && !path.frames.empty()) {
       const double dp = (path.frames.front().p_W - at.pose.p_WT).norm();
-      const double tp = robot ? robot->start_position_tolerance : Robot{}.start_position_tolerance;
+      const double tp = robot ? robot->start_position_tolerance : kStartPositionTolerance;
       if (!(dp <= tp)) {
         return tl::unexpected(invalid(core::Violations{
             {named(k) + ".path.frames[0].position", "is " + core::number(dp, 6) + " m from where " + named(k - 1) +
@@ -323,7 +323,7 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     // The unit's samples, as the sequence streams them: the joint report and the tool's
     // peaks over the whole sequence, and where the unit ends.
     const auto ref = std::visit([](const auto& m) { return core::StepRef(&m); }, motion);
-    core::StepSampler sampler(ref, robot ? &robot->model : nullptr, end.q, {});
+    core::StepSampler sampler(ref, robot ? &robot->model.model() : nullptr, end.q, {});
     if (builder) builder->set_cartesian_limits(cartesian_limits(*sub.motion, !joint_geometry(sub.geometry)));
     core::TrajectorySample sample;
     while (sampler.next(sample)) {
@@ -369,7 +369,7 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     const bool allowed = robot->report_only && (use == Use::kPlan || only_limits);
     if (!joints.feasible() && !allowed) {
       return tl::unexpected(
-          Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, robot->model.name, robot->report_only});
+          Error{ErrorKind::kRobotCannotFollow, {}, joints.violations, robot->model->name, robot->report_only});
     }
     result.joints = std::move(joints);
   }

@@ -196,6 +196,57 @@ Expected<SpeedProfile> continuous_acceleration_profile(const std::vector<double>
   return b.finish(length);
 }
 
+namespace {
+
+// The phases of min_time_trapezoid: each ramp t_a [s], the cruise t_v [s].
+struct TrapezoidTimes {
+  double t_a = 0.0, t_v = 0.0;
+};
+
+TrapezoidTimes trapezoid_times(double length, double v_max, double a_max) {
+  double v_peak = v_max, t_v = 0.0;
+  if (length >= v_max * v_max / a_max) {
+    t_v = (length - v_max * v_max / a_max) / v_max;
+  } else {
+    v_peak = std::sqrt(length * a_max);  // triangle: L = v_peak^2 / a_max
+  }
+  return {v_peak / a_max, t_v};
+}
+
+// The phases of min_time_double_s: each jerk phase t_j, each ramp t_a (acceleration and
+// deceleration alike), the cruise t_v [s].
+struct DoubleSTimes {
+  double t_j = 0.0, t_a = 0.0, t_v = 0.0;
+};
+
+DoubleSTimes double_s_times(double length, double v_max, double a_max, double j_max) {
+  // Biagiotti & Melchiorri (3.4), rest to rest (v0 = v1 = 0), symmetric: T_d = T_a.
+  double t_j, t_a, t_v;
+  if (v_max * j_max >= a_max * a_max) {
+    t_j = a_max / j_max;
+    t_a = t_j + v_max / a_max;
+  } else {
+    t_j = std::sqrt(v_max / j_max);  // a_max not reached on the way to v_max
+    t_a = 2 * t_j;
+  }
+  t_v = length / v_max - t_a;  // L = v_max (T_a + T_v) rest to rest
+  if (t_v < 0.0) {
+    // v_max not reached: no cruise; first try with a_max reached.
+    t_v = 0.0;
+    t_j = a_max / j_max;
+    const double delta = a_max * a_max * a_max * a_max / (j_max * j_max) + 4.0 * a_max * length;
+    t_a = (a_max * a_max / j_max + std::sqrt(delta)) / (2.0 * a_max);
+    if (t_a < 2 * t_j) {
+      // a_max not reached either: two jerk phases per ramp, L = 2 j_max T_j^3.
+      t_j = std::cbrt(length / (2.0 * j_max));
+      t_a = 2 * t_j;
+    }
+  }
+  return {t_j, t_a, t_v};
+}
+
+}  // namespace
+
 Expected<SpeedProfile> min_time_trapezoid(double length, double v_max, double a_max) {
   Violations v;
   check_length(length, v);
@@ -204,17 +255,16 @@ Expected<SpeedProfile> min_time_trapezoid(double length, double v_max, double a_
   if (!v.empty()) return tl::make_unexpected(v);
   Builder b;
   if (length == 0.0) return b.finish(0.0);
-  double v_peak = v_max, t_cruise = 0.0;
-  if (length >= v_max * v_max / a_max) {
-    t_cruise = (length - v_max * v_max / a_max) / v_max;
-  } else {
-    v_peak = std::sqrt(length * a_max);  // triangle: L = v_peak^2 / a_max
-  }
-  const double t_a = v_peak / a_max;
-  b.add_with_acceleration(t_a, a_max, 0.0);
-  b.add_with_acceleration(t_cruise, 0.0, 0.0);
-  b.add_with_acceleration(t_a, -a_max, 0.0);
+  const TrapezoidTimes t = trapezoid_times(length, v_max, a_max);
+  b.add_with_acceleration(t.t_a, a_max, 0.0);
+  b.add_with_acceleration(t.t_v, 0.0, 0.0);
+  b.add_with_acceleration(t.t_a, -a_max, 0.0);
   return b.finish(length);
+}
+
+double min_time_trapezoid_duration(double length, double v_max, double a_max) {
+  const TrapezoidTimes t = trapezoid_times(length, v_max, a_max);
+  return 2.0 * t.t_a + t.t_v;
 }
 
 Expected<SpeedProfile> min_time_scurve(double length, double ramp_fraction, double v_max, double a_max) {
@@ -241,36 +291,20 @@ Expected<SpeedProfile> min_time_double_s(double length, double v_max, double a_m
   if (!v.empty()) return tl::make_unexpected(v);
   Builder b;
   if (length == 0.0) return b.finish(0.0);
-  // Biagiotti & Melchiorri (3.4), rest to rest (v0 = v1 = 0), symmetric: T_d = T_a.
-  double t_j, t_a, t_v;
-  if (v_max * j_max >= a_max * a_max) {
-    t_j = a_max / j_max;
-    t_a = t_j + v_max / a_max;
-  } else {
-    t_j = std::sqrt(v_max / j_max);  // a_max not reached on the way to v_max
-    t_a = 2 * t_j;
-  }
-  t_v = length / v_max - t_a;  // L = v_max (T_a + T_v) rest to rest
-  if (t_v < 0.0) {
-    // v_max not reached: no cruise; first try with a_max reached.
-    t_v = 0.0;
-    t_j = a_max / j_max;
-    const double delta = a_max * a_max * a_max * a_max / (j_max * j_max) + 4.0 * a_max * length;
-    t_a = (a_max * a_max / j_max + std::sqrt(delta)) / (2.0 * a_max);
-    if (t_a < 2 * t_j) {
-      // a_max not reached either: two jerk phases per ramp, L = 2 j_max T_j^3.
-      t_j = std::cbrt(length / (2.0 * j_max));
-      t_a = 2 * t_j;
-    }
-  }
-  b.add(t_j, j_max);
-  b.add(t_a - 2 * t_j, 0.0);
-  b.add(t_j, -j_max);
-  b.add_with_acceleration(t_v, 0.0, 0.0);
-  b.add_with_acceleration(t_j, 0.0, -j_max);
-  b.add(t_a - 2 * t_j, 0.0);
-  b.add(t_j, j_max);
+  const DoubleSTimes t = double_s_times(length, v_max, a_max, j_max);
+  b.add(t.t_j, j_max);
+  b.add(t.t_a - 2 * t.t_j, 0.0);
+  b.add(t.t_j, -j_max);
+  b.add_with_acceleration(t.t_v, 0.0, 0.0);
+  b.add_with_acceleration(t.t_j, 0.0, -j_max);
+  b.add(t.t_a - 2 * t.t_j, 0.0);
+  b.add(t.t_j, j_max);
   return b.finish(length);
+}
+
+double min_time_double_s_duration(double length, double v_max, double a_max, double j_max) {
+  const DoubleSTimes t = double_s_times(length, v_max, a_max, j_max);
+  return 2.0 * t.t_a + t.t_v;
 }
 
 }  // namespace geotraj::core

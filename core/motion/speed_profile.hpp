@@ -125,4 +125,10 @@ Expected<SpeedProfile> continuous_acceleration_profile(const std::vector<double>
 /// Errors name `length`, `maxSpeed`, `maxAcceleration`, `maxJerk`.
 Expected<SpeedProfile> min_time_double_s(double length, double v_max, double a_max, double j_max);
 
+/// The durations T [s] of min_time_trapezoid and min_time_double_s for valid arguments
+/// (finite, length >= 0, limits > 0), without building the profile: no allocation, for
+/// ranking many candidates (the slowest joint of a joint move).
+double min_time_trapezoid_duration(double length, double v_max, double a_max);
+double min_time_double_s_duration(double length, double v_max, double a_max, double j_max);
+
 }  // namespace geotraj::core

@@ -82,8 +82,9 @@ Expected<std::size_t> move_samples(const MotionSpec& motion, double duration, co
 // ---------------------------------------------------------------------------------------
 // Joint-interpolated move (6.2.2.1)
 
-Expected<JointMovePlan> plan_joint_move(const RobotModel& model, const JointMoveSpec& spec, const MotionSpec& motion) {
-  Violations v = prefixed(validate_robot(model), "robot.model.");
+Expected<JointMovePlan> plan_joint_move(const ValidRobot& robot, const JointMoveSpec& spec, const MotionSpec& motion) {
+  const RobotModel& model = robot;
+  Violations v;
   const std::size_t n = model.dof();
   const auto check_joints = [&](const std::vector<double>& q, const std::string& field) {
     if (q.size() != n) {
@@ -109,9 +110,16 @@ Expected<JointMovePlan> plan_joint_move(const RobotModel& model, const JointMove
     v.push_back(std::move(x));
   if (!v.empty()) return tl::make_unexpected(v);
 
-  JointMovePlan plan;
-  plan.model = model;
-  plan.spec = motion;
+  JointMovePlan plan{.model = robot,
+                     .spec = motion,
+                     .q0 = JointVector(),
+                     .q1 = JointVector(),
+                     .profile = SpeedProfile(),
+                     .duration_s = 0.0,
+                     .sample_count = 0,
+                     .limiting_joint = 0,
+                     .velocity_usage = 0.0,
+                     .acceleration_usage = 0.0};
   const auto dof = static_cast<Eigen::Index>(n);
   plan.q0.resize(dof);
   plan.q1.resize(dof);
@@ -147,10 +155,11 @@ Expected<JointMovePlan> plan_joint_move(const RobotModel& model, const JointMove
         j_x = std::min(j_x, j_i);
       }
       // This joint's own minimum time (its profile of x), to name the slowest joint.
-      const auto own = motion.profile == ProfileShape::kSCurve && lim.max_jerk ? min_time_double_s(1.0, v_i, a_i, j_i)
-                                                                               : min_time_trapezoid(1.0, v_i, a_i);
-      if (own && own->duration > slowest) {
-        slowest = own->duration;
+      const double own = motion.profile == ProfileShape::kSCurve && lim.max_jerk
+                             ? min_time_double_s_duration(1.0, v_i, a_i, j_i)
+                             : min_time_trapezoid_duration(1.0, v_i, a_i);
+      if (own > slowest) {
+        slowest = own;
         plan.limiting_joint = i;
       }
     }
@@ -181,7 +190,7 @@ Expected<JointMovePlan> plan_joint_move(const RobotModel& model, const JointMove
 }
 
 void joint_move_at(const JointMovePlan& plan, double t, ProfileCursor& cursor, MoveSample& out) {
-  GEOTRAJ_CHECK(static_cast<std::size_t>(plan.q0.size()) == plan.model.dof());
+  GEOTRAJ_CHECK(static_cast<std::size_t>(plan.q0.size()) == plan.model->dof());
   const RobotModel& model = plan.model;
   const bool at_end = t >= plan.duration_s;
   const ProfileState x = state_at(plan.profile, t, cursor, at_end);

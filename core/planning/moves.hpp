@@ -71,10 +71,10 @@ struct JointMoveSpec {
 ///   q(t) = q0 + x(t) (q1 - q0),  q_dot = x_dot (q1 - q0),  q_ddot = x_ddot (q1 - q0),
 /// with x(t) from 0 to 1 on `profile` (a SpeedProfile over the dimensionless length 1:
 /// its s is x, its v is x_dot [1/s], its a is x_ddot [1/s^2]).
-/// The plan holds the robot it was planned for by value: it stands alone, whatever becomes of
-/// the caller's model.
+/// The plan holds the robot it was planned for (shared and immutable): it stands alone,
+/// whatever becomes of the caller's copy.
 struct JointMovePlan {
-  RobotModel model;
+  ValidRobot model;
   MotionSpec spec;  ///< as given
   JointVector q0;   ///< start [rad or m]
   JointVector q1;   ///< goal [rad or m]
@@ -111,14 +111,14 @@ struct JointMovePlan {
 ///    fastest rampFraction S-curve within the speed and acceleration bounds.
 ///    The MotionSpec's Cartesian limits (maxSpeed, ...) are not used by a joint move.
 ///  - Nothing moves (q0 == q1) in minimum time: one sample at rest, duration 0.
-/// Errors (all collected): `robot.model.<field>` (validate_robot of `model`, named as the
-/// request's inline model), `jointMove.start` / `jointMove.goal` with the wrong number of
+/// The model was checked where it entered (ValidRobot): nothing of it is checked here.
+/// Errors (all collected): `jointMove.start` / `jointMove.goal` with the wrong number of
 /// values, `jointMove.start[i]` / `jointMove.goal[i]` not finite or outside joint i's
 /// position limits, the MotionSpec's own fields (validate_motion; the Cartesian maxSpeed and
 /// maxAcceleration are not needed),
 /// and `motion.durationS` when the move would have more than kMaxMotionSamples samples or
 /// its speeds overflow.
-Expected<JointMovePlan> plan_joint_move(const RobotModel& model, const JointMoveSpec& spec,
+Expected<JointMovePlan> plan_joint_move(const ValidRobot& robot, const JointMoveSpec& spec,
                                         const MotionSpec& motion);
 
 /// The joint move at time t [s]: q, q_dot, q_ddot; the tool pose X_WT = FK(q)

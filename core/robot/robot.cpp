@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <initializer_list>
+#include <memory>
 #include <numbers>
 #include <string>
 
@@ -305,6 +306,19 @@ bool jerk_limited(const RobotModel& model) {
 RobotModel with_default_jerk(RobotModel model, double ramp_s) {
   for (JointLimits& l : model.limits) l.max_jerk = jerk_bound(l, ramp_s);
   return model;
+}
+
+ValidRobot with_default_jerk(const ValidRobot& robot, double ramp_s) {
+  // max_acceleration in [kMinJointLimit, kMaxJointLimit] over ramp_s in (0, 1] is at least
+  // kMinJointLimit; jerk_bound caps it at kMaxJointLimit.
+  GEOTRAJ_CHECK(ramp_s > 0.0 && ramp_s <= 1.0);
+  if (jerk_limited(robot)) return robot;
+  return ValidRobot(std::make_shared<const RobotModel>(with_default_jerk(robot.model(), ramp_s)));
+}
+
+Expected<ValidRobot> ValidRobot::check(RobotModel model) {
+  if (Violations v = validate_robot(model); !v.empty()) return tl::make_unexpected(std::move(v));
+  return ValidRobot(std::make_shared<const RobotModel>(std::move(model)));
 }
 
 JointVector home_configuration(const RobotModel& model) {

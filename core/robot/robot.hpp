@@ -22,9 +22,11 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -167,6 +169,27 @@ void set_dh(RobotModel& model, DhTable table);
 /// Empty when the model is usable.
 Violations validate_robot(const RobotModel& model);
 
+/// A model that validate_robot accepted: immutable and shared, the proof that it was checked.
+/// Made once where a model enters (a catalogue, a request, a URDF document) and copied for the
+/// cost of a reference count; what takes one (plan_joint_move, the planner's robot) checks
+/// nothing again. Reads as the model wherever a `const RobotModel&` is asked for.
+class ValidRobot {
+ public:
+  /// `model` when validate_robot finds nothing in it, else every violation it finds (field
+  /// paths relative to the model).
+  static Expected<ValidRobot> check(RobotModel model);
+
+  const RobotModel& model() const { return *model_; }
+  const RobotModel& operator*() const { return *model_; }
+  const RobotModel* operator->() const { return model_.get(); }
+  operator const RobotModel&() const { return *model_; }  // NOLINT(google-explicit-constructor)
+
+ private:
+  explicit ValidRobot(std::shared_ptr<const RobotModel> model) : model_(std::move(model)) {}
+  friend ValidRobot with_default_jerk(const ValidRobot& robot, double ramp_s);
+  std::shared_ptr<const RobotModel> model_;
+};
+
 /// The problem with one joint rate limit `value` at `field` ("limits[2].maxVelocity"), if any:
 /// not finite, or outside [kMinJointLimit, kMaxJointLimit] in `unit` ("rad/s"); the message
 /// names the value and the bounds. What validate_robot applies to every limit, and the wire
@@ -206,5 +229,9 @@ bool jerk_limited(const RobotModel& model);
 
 /// The model with every joint without max_jerk given jerk_bound(its limits, ramp_s).
 RobotModel with_default_jerk(RobotModel model, double ramp_s = kDefaultJerkRampS);
+/// The same for a checked model, still valid: every bound it adds is within
+/// [kMinJointLimit, kMaxJointLimit] for 0 < ramp_s <= 1 (checked). `robot` itself when every
+/// joint has a max_jerk already.
+ValidRobot with_default_jerk(const ValidRobot& robot, double ramp_s = kDefaultJerkRampS);
 
 }  // namespace geotraj::core

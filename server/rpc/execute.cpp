@@ -113,7 +113,7 @@ class ExecuteReactor final : public LiveReactor {
           }
           plan_ = std::make_unique<planner::Plan>(std::move(*planned));
           const planner::Robot* robot = plan_->robot.get();
-          const core::RobotModel* model = robot ? &robot->model : nullptr;
+          const core::RobotModel* model = robot ? &robot->model.model() : nullptr;
           // The cycle rate of the plan (of its first step: a sequence's
           // steps share one cycle rate).
           const core::MotionSpec& motion = core::motion_spec(*plan_->trajectory);

@@ -93,7 +93,7 @@ class JogReactor final : public LiveReactor {
   }
 
   void apply(const v1::JogRequest& request) {
-    auto command = jog_command(request, jog_->robot.model.dof());
+    auto command = jog_command(request, jog_->robot.model->dof());
     if (!command) {
       request_stop("invalid", bad_command(command.error()));
       return;
@@ -120,7 +120,7 @@ class JogReactor final : public LiveReactor {
   void status(v1::LiveStatus& out) override {
     out.set_state(stopped_ ? (jogger_->at_rest() ? v1::LIVE_STATE_STOPPED : v1::LIVE_STATE_STOPPING)
                            : v1::LIVE_STATE_JOGGING);
-    for (std::size_t j = 0; j < jog_->robot.model.dof(); ++j) {
+    for (std::size_t j = 0; j < jog_->robot.model->dof(); ++j) {
       if (sample_.limited.test(j)) out.add_limited_joints(static_cast<std::uint32_t>(j));
     }
   }

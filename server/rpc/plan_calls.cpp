@@ -66,7 +66,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
   /// Streams `planned` (from the worker that planned it; it has a trajectory).
   void start(planner::Plan planned, std::size_t batch_size, bool real_time) {
     planned_ = std::make_unique<planner::Plan>(std::move(planned));
-    sampler_.emplace(*planned_->trajectory, planned_->robot ? &planned_->robot->model : nullptr,
+    sampler_.emplace(*planned_->trajectory, planned_->robot ? &planned_->robot->model.model() : nullptr,
                      planned_->robot ? planned_->robot->seed : core::JointVector());
     batch_size_ = batch_size;
     real_time_ = real_time;

@@ -323,7 +323,7 @@ TEST(Admit, AJogsRobotIsResolvedAndItsBoundsCheckedAgainstIt) {
   input.options.velocity_scale = 0.5;
   jog = planner::admit(input, catalog());
   ASSERT_TRUE(jog.has_value()) << jog.error().front().field;
-  EXPECT_EQ(jog->robot.model.name, "ur5");
+  EXPECT_EQ(jog->robot.model->name, "ur5");
   EXPECT_EQ(jog->options.velocity_scale, 0.5);
   input.options.velocity_scale = 5e-324;  // no joint could move
   jog = planner::admit(input, catalog());

@@ -40,9 +40,7 @@ inline constexpr std::size_t kLongAnalysisPoints = 1'000'000;
 inline std::shared_ptr<const planner::Robot> pa10() {
   const core::RobotModel* model = core::find_builtin_robot("pa10");
   if (model == nullptr) return nullptr;
-  auto robot = std::make_shared<planner::Robot>();
-  robot->model = *model;
-  robot->seed = core::home_configuration(*model);
+  auto robot = std::make_shared<planner::Robot>(core::ValidRobot::check(*model).value(), core::home_configuration(*model));
   robot->report_only = true;
   return robot;
 }

@@ -38,7 +38,7 @@ TEST(ResolveRobot, ABuiltInByNameStartsAtItsHome) {
   const auto robot = planner::resolve_robot(by_name("pa10"), catalog());
   ASSERT_TRUE(robot.has_value());
   const core::RobotModel& pa10 = *catalog().find("pa10");
-  EXPECT_EQ(robot->model.dof(), pa10.dof());
+  EXPECT_EQ(robot->model->dof(), pa10.dof());
   EXPECT_TRUE(robot->seed.isApprox(core::home_configuration(pa10)));
   EXPECT_FALSE(robot->inline_model);
   EXPECT_EQ(robot->approach, planner::Approach::kNone);
@@ -66,12 +66,12 @@ TEST(ResolveRobot, JointLimitsByNameReplaceTheModelsAndScalesApplyAfterThem) {
   spec.acceleration_scale = 0.25;
   const auto robot = planner::resolve_robot(spec, catalog());
   ASSERT_TRUE(robot.has_value());
-  const auto& l = robot->model.limits[2];
+  const auto& l = robot->model->limits[2];
   EXPECT_DOUBLE_EQ(l.max_velocity, 0.25);
   EXPECT_DOUBLE_EQ(l.max_acceleration, 0.375);
   ASSERT_TRUE(l.max_jerk.has_value());
   EXPECT_DOUBLE_EQ(*l.max_jerk, 2.5);
-  EXPECT_DOUBLE_EQ(robot->model.limits[0].max_velocity, 0.5 * ur5.limits[0].max_velocity);
+  EXPECT_DOUBLE_EQ(robot->model->limits[0].max_velocity, 0.5 * ur5.limits[0].max_velocity);
 }
 
 TEST(ResolveRobot, EveryBadValueIsNamedInOneAnswer) {
@@ -160,8 +160,8 @@ TEST(ResolveRobot, BaseAndToolReplaceTheModelsAndAreBounded) {
   spec.tool = tool;
   const auto robot = planner::resolve_robot(spec, catalog());
   ASSERT_TRUE(robot.has_value());
-  EXPECT_TRUE(robot->model.base.isApprox(base));
-  EXPECT_TRUE(robot->model.tool.isApprox(tool));
+  EXPECT_TRUE(robot->model->base.isApprox(base));
+  EXPECT_TRUE(robot->model->tool.isApprox(tool));
 
   base.translation().x() = 1e9;
   spec.base = base;
@@ -177,10 +177,10 @@ TEST(ResolveRobot, AUrdfTakesTheRequestsJointLimitsOverItsOwn) {
   const auto robot = planner::resolve_robot(spec, catalog());
   ASSERT_TRUE(robot.has_value());
   EXPECT_TRUE(robot->inline_model);
-  const auto& joints = robot->model.joints;
+  const auto& joints = robot->model->joints;
   const auto it = std::find_if(joints.begin(), joints.end(), [](const core::Joint& j) { return j.name == "panda_joint4"; });
   ASSERT_NE(it, joints.end());
-  const auto& l = robot->model.limits[static_cast<std::size_t>(it - joints.begin())];
+  const auto& l = robot->model->limits[static_cast<std::size_t>(it - joints.begin())];
   EXPECT_DOUBLE_EQ(l.max_velocity, 0.75);
   EXPECT_DOUBLE_EQ(l.max_acceleration, 2.0);
 

@@ -18,10 +18,8 @@ namespace {
 using ::testing::HasSubstr;
 
 std::shared_ptr<const planner::Robot> pa10() {
-  auto robot = std::make_shared<planner::Robot>();
-  robot->model = *planner::find_builtin_robot("pa10");
-  robot->seed = core::home_configuration(robot->model);
-  return robot;
+  const core::RobotModel& model = *planner::find_builtin_robot("pa10");
+  return std::make_shared<planner::Robot>(core::ValidRobot::check(model).value(), core::home_configuration(model));
 }
 
 planner::Step joint_step(std::vector<double> goal, double duration_s, bool start_given = false,

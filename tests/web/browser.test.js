@@ -167,9 +167,13 @@ function pageHelpers(pageOf, problems) {
   async function typeInto(testid, text) {
     const input = await pageOf().$(sel(testid));
     assert.ok(input, `no element ${testid}`);
-    await input.click({ clickCount: 3 });
+    // Focused and its text selected by the element itself: a triple click on a loaded
+    // machine can arrive as separate clicks and leave part of the old text to type after.
+    await input.click();
+    await input.evaluate((e) => e.select());
     await pageOf().keyboard.press('Backspace');
     await input.type(text);
+    assert.equal(await input.evaluate((e) => e.value), text, `${testid} after typing`);
   }
   const dataValue = (testid) => pageOf().$eval(sel(testid), (e) => Number(e.dataset.value));
   const signature = () => pageOf().$eval(sel('view3d'), (e) => e.dataset.curveSignature || '');

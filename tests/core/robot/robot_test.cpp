@@ -179,6 +179,34 @@ TEST(Robot, EveryProblemIsReportedAtOnce) {
   EXPECT_EQ(v.size(), 3u) << listed(v);
 }
 
+// ValidRobot: refused with validate_robot's violations; once made, copies share the one
+// model, and the default jerk keeps it valid (and leaves a jerk-limited model as it is).
+TEST(Robot, AValidRobotIsCheckedOnceAndShared) {
+  RobotModel bad = valid_model();
+  bad.limits[0].max_velocity = 0.0;
+  const auto refused = core::ValidRobot::check(bad);
+  ASSERT_FALSE(refused.has_value());
+  EXPECT_EQ(refused.error().size(), core::validate_robot(bad).size()) << listed(refused.error());
+  EXPECT_TRUE(names(refused.error(), "limits[0].maxVelocity")) << listed(refused.error());
+
+  RobotModel plain = valid_model();
+  for (auto& l : plain.limits) l.max_jerk.reset();
+  const auto robot = core::ValidRobot::check(plain);
+  ASSERT_TRUE(robot.has_value()) << listed(robot.error());
+  const core::ValidRobot copy = *robot;
+  EXPECT_EQ(&copy.model(), &robot->model());
+  EXPECT_EQ(copy->dof(), valid_model().dof());
+
+  const core::ValidRobot jerked = core::with_default_jerk(*robot);
+  EXPECT_NE(&jerked.model(), &robot->model());
+  EXPECT_TRUE(core::jerk_limited(jerked));
+  EXPECT_TRUE(core::validate_robot(jerked).empty()) << listed(core::validate_robot(jerked));
+  for (std::size_t i = 0; i < jerked->dof(); ++i) {
+    EXPECT_EQ(*jerked->limits[i].max_jerk, core::jerk_bound(robot->model().limits[i])) << "joint " << i;
+  }
+  EXPECT_EQ(&core::with_default_jerk(jerked).model(), &jerked.model());  // nothing to add: shared
+}
+
 // A continuous joint's position limits are not read: any finite value is within them, NaN
 // limits are not an error, and a home far outside [min, max] is fine.
 TEST(Robot, ContinuousJointsHaveNoPositionLimits) {

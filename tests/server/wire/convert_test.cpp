@@ -125,11 +125,11 @@ TEST(WireRequest, EveryRobotFieldReachesThePlanner) {
   EXPECT_EQ(robot.start_position_tolerance, 2e-4);
   EXPECT_EQ(robot.start_orientation_tolerance, 3e-3);
   EXPECT_EQ(robot.approach, planner::Approach::kLinear);
-  EXPECT_DOUBLE_EQ(robot.model.limits[0].max_velocity, 0.5 * pa10.limits[0].max_velocity);
-  EXPECT_DOUBLE_EQ(robot.model.limits[3].max_velocity, 0.4);  // the request's 0.8, scaled
-  EXPECT_DOUBLE_EQ(robot.model.limits[0].max_acceleration, 0.25 * pa10.limits[0].max_acceleration);
-  EXPECT_NEAR(robot.model.base.translation().z(), 0.1, 1e-15);
-  EXPECT_TRUE(robot.model.base.linear().isApprox(
+  EXPECT_DOUBLE_EQ(robot.model->limits[0].max_velocity, 0.5 * pa10.limits[0].max_velocity);
+  EXPECT_DOUBLE_EQ(robot.model->limits[3].max_velocity, 0.4);  // the request's 0.8, scaled
+  EXPECT_DOUBLE_EQ(robot.model->limits[0].max_acceleration, 0.25 * pa10.limits[0].max_acceleration);
+  EXPECT_NEAR(robot.model->base.translation().z(), 0.1, 1e-15);
+  EXPECT_TRUE(robot.model->base.linear().isApprox(
       Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix(), 1e-12));
   ASSERT_EQ(robot.seed.size(), 7);
   EXPECT_EQ(robot.seed(3), 1.2);

@@ -16,16 +16,14 @@
 #include "planner/kinematics.hpp"
 #include "planner/request_input.hpp"
 #include "planner/robots.hpp"
+#include "tests/planner/builtin_catalog.hpp"
 
 namespace geotraj::test {
 namespace {
 
 using ::testing::HasSubstr;
 
-const planner::RobotCatalog& catalog() {
-  static const planner::RobotCatalog c{planner::builtin_robots()};
-  return c;
-}
+constexpr auto& catalog = geotraj::testing::builtin_catalog;
 
 core::PathSpec line() {
   core::PathSpec path;

@@ -11,16 +11,14 @@
 
 #include "planner/robot_spec.hpp"
 #include "planner/robots.hpp"
+#include "tests/planner/builtin_catalog.hpp"
 
 namespace geotraj::test {
 namespace {
 
 using ::testing::HasSubstr;
 
-const planner::RobotCatalog& catalog() {
-  static const planner::RobotCatalog c{planner::builtin_robots()};
-  return c;
-}
+constexpr auto& catalog = geotraj::testing::builtin_catalog;
 
 planner::RobotSpec by_name(std::string name) {
   planner::RobotSpec spec;

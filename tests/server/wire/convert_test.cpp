@@ -13,6 +13,7 @@
 
 #include "planner/robots.hpp"
 #include "server/wire/convert.hpp"
+#include "tests/planner/builtin_catalog.hpp"
 #include "tests/server/support/test_server.hpp"
 
 namespace geotraj::testing {
@@ -20,10 +21,7 @@ namespace {
 
 using ::testing::HasSubstr;
 
-const server::RobotCatalog& catalog() {
-  static const server::RobotCatalog c{planner::builtin_robots()};
-  return c;
-}
+constexpr auto& catalog = geotraj::testing::builtin_catalog;
 
 // The request as the wire reads it, admitted by the planner for `use`.
 core::Expected<planner::Request> convert(const v1::PlanRequest& request, planner::Use use = planner::Use::kPlan) {

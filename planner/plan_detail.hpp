@@ -1,6 +1,6 @@
-// What planner.cpp (one path, move or line) and sequence.cpp (steps, the approach move) share:
-// the steps of planning one trajectory and its passes. Not the planner's interface
-// (planner.hpp).
+// What planner.cpp (one path, move or line), moves.cpp (the moves' goals, a line as a path)
+// and sequence.cpp (steps, the approach move) share: the steps of planning one trajectory and
+// its passes. Not the planner's interface (planner.hpp).
 #pragma once
 
 #include <chrono>
@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/geometry/path.hpp"
+#include "core/motion/orientation.hpp"
 #include "core/planning/joint_motion.hpp"
 #include "core/planning/moves.hpp"
 #include "core/planning/trajectory.hpp"
@@ -50,6 +51,13 @@ Expected<core::LinearMoveSpec> resolve(const LinearMoveToJoints& move, const Rob
 
 /// A linear move's poses checked as core::plan_linear_move checks them.
 std::optional<Error> pose_errors(const core::LinearMoveSpec& move, const core::MotionSpec& motion);
+
+/// A straight-line move as a path, and the tool's orientation along it.
+struct StraightPath {
+  core::Path path;
+  core::OrientationPlan orientation;
+};
+Expected<StraightPath> straight_path(const core::LinearMoveSpec& move);
 
 /// The request's geometry as a timed trajectory (its optimisers, path, orientation, timing).
 Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget& budget, Clock::time_point deadline,

@@ -1,7 +1,9 @@
+// The time-optimal plan around the sweep (time_optimal_sweep.cpp): the limits, the grids of
+// the joint path's derivatives, the portions' motion, the check of its samples and the
+// refinements. See time_optimal.hpp.
 #include "core/planning/time_optimal.hpp"
 
 #include <algorithm>
-#include <array>
 #include <optional>
 #include <cmath>
 #include <cstdio>
@@ -11,17 +13,15 @@
 #include "core/geometry/arc_length.hpp"
 #include "core/planning/joint_motion.hpp"
 #include "core/format.hpp"
+#include "core/planning/time_optimal_detail.hpp"
 
 namespace geotraj::core {
+
+using time_optimal_detail::sweep;
 
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// Directions of the angular acceleration's support rows over a half turn (two-sided rows
-// cover the other half): 16 over the full turn.
-constexpr int kAngularRows = 8;
-constexpr double kAngularInscribed = 0.98078528040323044913;  // cos(pi / 16)
 
 // The grid's continuation (time_optimal_grids): a step of the tracker is accepted when it
 // converges, on the branch it started on: its midpoint certificate
@@ -39,273 +39,6 @@ constexpr double kGridBranchTolerance = 1e-3;  // [m]
 constexpr double kGridCorrection = 1e-2;       // [rad or m]
 constexpr double kGridMinStep = 1.0 / 4096.0;
 
-
-/// Which constraint a bound comes from.
-struct Source {
-  BindingKind kind = BindingKind::kCartesianSpeed;
-  std::size_t joint = 0;
-  bool next = false;  ///< the next point's controllable set, not a limit
-};
-
-/// A bound on u linear in x = b: u >= c0 + c1 x (lower) or u <= c0 + c1 x (upper).
-struct Line {
-  double c0 = 0.0, c1 = 0.0;
-  Source src;
-};
-
-/// Scratch of one interval's polygon (fixed capacity: no allocation in the sweep).
-struct Polygon {
-  static constexpr std::size_t kCap = 2 * kMaxJoints + 4 + 2 * kAngularRows;
-  std::array<Line, kCap> lower, upper;
-  std::size_t n_lower = 0, n_upper = 0;
-  double x_max = kInf;  ///< bounds on x alone (joint acceleration with no u term)
-  Source x_max_src;
-  void clear() {
-    n_lower = n_upper = 0;
-    x_max = kInf;
-  }
-  void add_lower(double c0, double c1, Source s) { lower[n_lower++] = {c0, c1, s}; }
-  void add_upper(double c0, double c1, Source s) { upper[n_upper++] = {c0, c1, s}; }
-  void add_x_max(double x, Source s) {
-    if (x < x_max) x_max = x, x_max_src = s;
-  }
-  /// -a <= A u + C x <= a.
-  void add_two_sided(double A, double C, double a, Source s) {
-    if (!(a < kInf)) return;
-    const double scale = std::abs(C) + 1.0;
-    if (std::abs(A) <= 1e-13 * scale) {
-      if (C != 0.0) add_x_max(a / std::abs(C), s);
-      return;
-    }
-    if (A > 0.0) {
-      add_upper(a / A, -C / A, s);
-      add_lower(-a / A, -C / A, s);
-    } else {
-      add_upper(-a / A, -C / A, s);
-      add_lower(a / A, -C / A, s);
-    }
-  }
-};
-
-/// Per grid point: the largest b the point's own limits allow, and what sets it.
-struct PointCap {
-  double x = kInf;
-  Source src;
-};
-
-PointCap point_cap(const GridPoint& g, const TimeOptimalLimits& lim, double sigma) {
-  PointCap c;
-  auto take = [&](double x, Source s) {
-    if (x < c.x) c.x = x, c.src = s;
-  };
-  for (Eigen::Index j = 0; j < g.q_s.size(); ++j) {
-    const double qs = std::abs(g.q_s(j)), v = lim.joint_velocity(j) * sigma;
-    if (qs > 0.0 && v < kInf) take((v / qs) * (v / qs), {BindingKind::kJointVelocity, static_cast<std::size_t>(j)});
-  }
-  if (lim.speed < kInf) take(lim.speed * lim.speed, {BindingKind::kCartesianSpeed, 0});
-  if (g.kappa > 0.0 && lim.centripetal < kInf)
-    take(lim.centripetal * sigma * sigma / g.kappa, {BindingKind::kCentripetalAcceleration, 0});
-  const double w = g.omega_s.norm();
-  if (w > 0.0 && lim.angular_speed < kInf) {
-    const double v = lim.angular_speed * sigma / w;
-    take(v * v, {BindingKind::kAngularSpeed, 0});
-  }
-  return c;
-}
-
-// |A u + C x| <= a for vectors A, C: support rows d . (A u + C x) <= a cos(pi / 16) over
-// kAngularRows directions d of the plane of A and C (two-sided: both half turns).
-void add_norm_rows(const Eigen::Vector3d& A, const Eigen::Vector3d& C, double a, Source src, Polygon& p) {
-  if (!(a < kInf)) return;
-  const double nA = A.norm(), nC = C.norm();
-  if (!(nA > 0.0 || nC > 0.0)) return;
-  const Eigen::Vector3d e1 = nA >= nC ? Eigen::Vector3d(A / nA) : Eigen::Vector3d(C / nC);
-  Eigen::Vector3d e2 = (nA >= nC ? C : A) - e1 * e1.dot(nA >= nC ? C : A);
-  e2 = e2.norm() > 1e-12 * std::max(nA, nC) ? Eigen::Vector3d(e2.normalized()) : Eigen::Vector3d(e1.unitOrthogonal());
-  for (int k = 0; k < kAngularRows; ++k) {
-    const double th = 3.14159265358979323846 * k / kAngularRows;
-    const Eigen::Vector3d d = std::cos(th) * e1 + std::sin(th) * e2;
-    p.add_two_sided(d.dot(A), d.dot(C), a * kAngularInscribed, src);
-  }
-}
-
-/// The polygon of interval i (points g0 = s_i, g1 = s_{i+1}, ds = s_{i+1} - s_i): the joint
-/// accelerations at both ends and the tangential limit; the next set is added by the caller.
-void interval_polygon(const GridPoint& g0, const GridPoint& g1, double ds, const TimeOptimalLimits& lim, double sig0,
-                      double sig1, Polygon& p) {
-  p.clear();
-  for (Eigen::Index j = 0; j < g0.q_s.size(); ++j) {
-    const Source src{BindingKind::kJointAcceleration, static_cast<std::size_t>(j)};
-    const double a0 = lim.joint_acceleration(j) * sig0 * sig0, a1 = lim.joint_acceleration(j) * sig1 * sig1;
-    p.add_two_sided(g0.q_s(j), g0.q_ss(j), a0, src);  // q_ddot at s_i
-    // q_ddot at s_{i+1} with b_{i+1} = b_i + 2 ds u: (q_s + 2 ds q_ss) u + q_ss b_i.
-    p.add_two_sided(g1.q_s(j) + 2.0 * ds * g1.q_ss(j), g1.q_ss(j), a1, src);
-  }
-  if (lim.tangential < kInf) {
-    p.add_upper(lim.tangential, 0.0, {BindingKind::kTangentialAcceleration, 0});
-    p.add_lower(-lim.tangential, 0.0, {BindingKind::kTangentialAcceleration, 0});
-  }
-  if (lim.angular_acceleration < kInf) {  // alpha at both ends, as the joints' accelerations
-    const Source src{BindingKind::kAngularAcceleration, 0};
-    add_norm_rows(g0.omega_s, g0.omega_ss, lim.angular_acceleration * sig0 * sig0, src, p);
-    add_norm_rows(g1.omega_s + 2.0 * ds * g1.omega_ss, g1.omega_ss, lim.angular_acceleration * sig1 * sig1, src, p);
-  }
-}
-
-/// Usage of every constraint on interval i at the solution; the largest.
-struct Usage {
-  Source src;
-  double value = 0.0, limit = 0.0, ratio = -1.0;
-};
-
-Usage interval_usage(const GridPoint& g0, const GridPoint& g1, double x0, double x1, double u,
-                     const TimeOptimalLimits& lim) {
-  Usage best;
-  auto take = [&](Source s, double value, double limit) {
-    if (!(limit < kInf)) return;
-    const double r = value / limit;
-    if (r > best.ratio) best = {s, value, limit, r};
-  };
-  const double v0 = std::sqrt(x0), v1 = std::sqrt(x1);
-  for (Eigen::Index j = 0; j < g0.q_s.size(); ++j) {
-    const std::size_t jj = static_cast<std::size_t>(j);
-    take({BindingKind::kJointVelocity, jj}, std::max(std::abs(g0.q_s(j)) * v0, std::abs(g1.q_s(j)) * v1),
-         lim.joint_velocity(j));
-    take({BindingKind::kJointAcceleration, jj},
-         std::max(std::abs(g0.q_s(j) * u + g0.q_ss(j) * x0), std::abs(g1.q_s(j) * u + g1.q_ss(j) * x1)),
-         lim.joint_acceleration(j));
-  }
-  take({BindingKind::kCartesianSpeed, 0}, std::max(v0, v1), lim.speed);
-  take({BindingKind::kTangentialAcceleration, 0}, std::abs(u), lim.tangential);
-  take({BindingKind::kCentripetalAcceleration, 0}, std::max(g0.kappa * x0, g1.kappa * x1), lim.centripetal);
-  take({BindingKind::kAngularSpeed, 0}, std::max(g0.omega_s.norm() * v0, g1.omega_s.norm() * v1), lim.angular_speed);
-  take({BindingKind::kAngularAcceleration, 0},
-       std::max((g0.omega_s * u + g0.omega_ss * x0).norm(), (g1.omega_s * u + g1.omega_ss * x1).norm()),
-       lim.angular_acceleration);
-  return best;
-}
-
-std::string source_words(const Source& s) {
-  switch (s.kind) {
-    case BindingKind::kJointVelocity: return "the velocity limit of joint " + std::to_string(s.joint);
-    case BindingKind::kJointAcceleration: return "the acceleration limit of joint " + std::to_string(s.joint);
-    case BindingKind::kJointJerk: return "the jerk limit of joint " + std::to_string(s.joint);
-    case BindingKind::kCartesianSpeed: return "maxSpeed";
-    case BindingKind::kTangentialAcceleration: return "maxAcceleration (tangential)";
-    case BindingKind::kCentripetalAcceleration: return "maxAcceleration (centripetal)";
-    case BindingKind::kAngularSpeed: return "maxAngularSpeed";
-    case BindingKind::kAngularAcceleration: return "maxAngularAcceleration";
-  }
-  return "?";
-}
-
-/// The sweep with per-point limit scales sigma (joint limits and the centripetal limit at
-/// point i are multiplied by sigma_i, accelerations by sigma_i^2); sigma null: all 1.
-Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& grid, const TimeOptimalLimits& lim,
-                                    const std::vector<double>* sigma) {
-  const std::size_t n_pts = grid.size();
-  GEOTRAJ_CHECK(n_pts >= 3);
-  GEOTRAJ_CHECK(lim.joint_velocity.size() == lim.joint_acceleration.size());
-  const std::size_t N = n_pts - 1;
-  auto sig = [&](std::size_t i) { return sigma ? (*sigma)[i] : 1.0; };
-  auto fail = [&](std::size_t i, const std::string& why) {
-    return tl::make_unexpected(Violations{unattainable(
-        "motion", "no positive speed is admissible at s = " + number(grid[i].s, 6) + " m from the portion's start: " + why)});
-  };
-
-  std::vector<double> lo(n_pts, 0.0), hi(n_pts, 0.0);
-  Polygon poly;
-  // Backward: controllable sets. K_N = {0} (rest).
-  for (std::size_t k = N; k-- > 0;) {
-    const GridPoint &g0 = grid[k], &g1 = grid[k + 1];
-    const double ds = g1.s - g0.s;
-    GEOTRAJ_CHECK(ds > 0.0);
-    interval_polygon(g0, g1, ds, lim, sig(k), sig(k + 1), poly);
-    // x + 2 ds u in [lo_{k+1}, hi_{k+1}].
-    poly.add_lower(lo[k + 1] / (2.0 * ds), -1.0 / (2.0 * ds), {BindingKind::kCartesianSpeed, 0, true});
-    poly.add_upper(hi[k + 1] / (2.0 * ds), -1.0 / (2.0 * ds), {BindingKind::kCartesianSpeed, 0, true});
-    const PointCap cap = point_cap(g0, lim, sig(k));
-    double x_lo = 0.0, x_hi = std::min(cap.x, poly.x_max);
-    Source hi_src = cap.x <= poly.x_max ? cap.src : poly.x_max_src;
-    bool empty = false;
-    // Fourier-Motzkin: every (lower, upper) pair needs l(x) <= u(x).
-    for (std::size_t a = 0; a < poly.n_lower; ++a) {
-      const Line& l = poly.lower[a];
-      for (std::size_t c = 0; c < poly.n_upper; ++c) {
-        const Line& up = poly.upper[c];
-        const double slope = l.c1 - up.c1, rhs = up.c0 - l.c0;  // slope x <= rhs
-        const double tol = 1e-14 * (std::abs(l.c1) + std::abs(up.c1));
-        if (slope > tol) {
-          const double x = rhs / slope;
-          if (x < x_hi) x_hi = x, hi_src = up.src.next ? l.src : up.src;
-        } else if (slope < -tol) {
-          x_lo = std::max(x_lo, rhs / slope);
-        } else if (rhs < -1e-12 * (std::abs(up.c0) + std::abs(l.c0))) {
-          empty = true;
-        }
-      }
-    }
-    if (empty || x_hi < x_lo - 1e-12 * std::max(1.0, std::abs(x_hi)))
-      return fail(k, "the rest at the end of the portion cannot be reached within " + source_words(hi_src));
-    if (x_hi < x_lo) x_lo = x_hi;
-    if (k > 0 && !(x_hi > 0.0)) return fail(k, source_words(hi_src) + " admits only zero speed there");
-    lo[k] = x_lo;
-    hi[k] = x_hi;
-  }
-  if (lo[0] > 1e-12 * std::max(1.0, hi[0]))
-    return fail(0, "the motion cannot start from rest within the acceleration limits");
-
-  // Forward: the largest admissible u that stays controllable.
-  TimeOptimalSolution sol;
-  sol.b.assign(n_pts, 0.0);
-  sol.u.assign(N, 0.0);
-  for (std::size_t k = 0; k < N; ++k) {
-    const GridPoint &g0 = grid[k], &g1 = grid[k + 1];
-    const double ds = g1.s - g0.s, x = sol.b[k];
-    interval_polygon(g0, g1, ds, lim, sig(k), sig(k + 1), poly);
-    double u = (hi[k + 1] - x) / (2.0 * ds);
-    for (std::size_t c = 0; c < poly.n_upper; ++c) u = std::min(u, poly.upper[c].c0 + poly.upper[c].c1 * x);
-    const double x1 = std::clamp(x + 2.0 * ds * u, lo[k + 1], hi[k + 1]);
-    sol.b[k + 1] = k + 1 == N ? 0.0 : x1;
-    sol.u[k] = (sol.b[k + 1] - x) / (2.0 * ds);
-  }
-
-  // The profile: constant acceleration per interval, dt = 2 ds / (sqrt(b_i) + sqrt(b_{i+1})).
-  double t = 0.0;
-  sol.profile.length = grid.back().s;
-  for (std::size_t k = 0; k < N; ++k) {
-    const double ds = grid[k + 1].s - grid[k].s;
-    const double v0 = std::sqrt(sol.b[k]), v1 = std::sqrt(sol.b[k + 1]);
-    if (!(v0 + v1 > 0.0)) return fail(k, "the speed stays zero over an interval (grid too coarse)");
-    const double dt = 2.0 * ds / (v0 + v1);
-    sol.profile.pieces.push_back({t, grid[k].s, v0, sol.u[k], 0.0});
-    const Usage us = interval_usage(grid[k], grid[k + 1], sol.b[k], sol.b[k + 1], sol.u[k], lim);
-    BindingStretch st;
-    st.kind = us.src.kind;
-    st.joint = us.src.joint;
-    st.s_start = grid[k].s;
-    st.s_end = grid[k + 1].s;
-    st.t_start = t;
-    st.t_end = t + dt;
-    st.value = us.value;
-    st.limit = us.limit;
-    st.usage = us.ratio;
-    if (!sol.binding.empty() && sol.binding.back().kind == st.kind && sol.binding.back().joint == st.joint) {
-      BindingStretch& last = sol.binding.back();
-      last.s_end = st.s_end;
-      last.t_end = st.t_end;
-      if (st.value > last.value) last.value = st.value, last.usage = st.usage;
-    } else {
-      sol.binding.push_back(st);
-    }
-    t += dt;
-  }
-  sol.profile.duration = t;
-  sol.duration = t;
-  return sol;
-}
-
-
 }  // namespace
 
 std::string describe(const BindingStretch& st) {
@@ -321,10 +54,6 @@ std::vector<std::size_t> every_second_point(std::size_t n) {
   for (std::size_t i = 0; i < n; i += 2) points.push_back(i);
   if (n > 0 && points.back() != n - 1) points.push_back(n - 1);
   return points;
-}
-
-Expected<TimeOptimalSolution> solve_time_optimal(const std::vector<GridPoint>& grid, const TimeOptimalLimits& limits) {
-  return sweep(grid, limits, nullptr);
 }
 
 TimeOptimalLimits time_optimal_limits(const MotionSpec& spec, const RobotModel* robot) {

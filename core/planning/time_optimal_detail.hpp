@@ -1,0 +1,18 @@
+// What the time-optimal sweep (time_optimal_sweep.cpp) and the plan around it
+// (time_optimal.cpp: the grids, the sample checks, the refinements) share. Private to
+// geotraj_core; the interface is time_optimal.hpp.
+#pragma once
+
+#include <vector>
+
+#include "core/error.hpp"
+#include "core/planning/time_optimal.hpp"
+
+namespace geotraj::core::time_optimal_detail {
+
+/// solve_time_optimal with per-point limit scales `sigma` (null: all 1): the plan's
+/// refinements and its grid-error estimate (time_optimal.cpp).
+Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& grid, const TimeOptimalLimits& lim,
+                                    const std::vector<double>* sigma);
+
+}  // namespace geotraj::core::time_optimal_detail

@@ -156,6 +156,15 @@ inline long long trimmed_rss_bytes() {
   return rss_bytes();
 }
 
+/// The bytes glibc's allocator has handed out and not been given back (mallinfo2: in use in
+/// every arena, plus the blocks it mapped on its own): what a leak makes grow, without the
+/// thread stacks and free pages that move the resident set by several MB from one moment to
+/// the next on a loaded machine.
+inline long long heap_in_use_bytes() {
+  const struct mallinfo2 info = ::mallinfo2();
+  return static_cast<long long>(info.uordblks + info.hblkhd);
+}
+
 // kAddressSanitizer (tests/support/sanitizers.hpp): its quarantine keeps freed memory (up to
 // 256 MB), so the resident set says nothing about leaks there (LeakSanitizer checks them at
 // exit).

@@ -1,4 +1,4 @@
-// Private to geotraj_core (ik.cpp, joint_motion.cpp): the serial chain of a RobotModel
+// Private to geotraj_core (ik.cpp, ik_search.cpp, joint_motion.cpp): the serial chain of a RobotModel
 // (robot.hpp) with its per-joint constants precomputed, evaluated with 3 x 3 rotations and
 // 3-vectors (no 4 x 4 products), and the projected Newton iteration on the 6-D pose error
 // that solve_ik and JointTracker share. Same conventions as kinematics.hpp (robot.hpp's chain formula, the

@@ -3,6 +3,7 @@
 // robot, and a sequence's steps each with the request's motion under its own.
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <memory>
 #include <string>
 #include <utility>
@@ -92,6 +93,12 @@ void append(Violations& to, Violations from) {
   to.insert(to.end(), std::make_move_iterator(from.begin()), std::make_move_iterator(from.end()));
 }
 
+// N for a field that starts with `root` ("frames[" or "sequence["), -1 for any other.
+long index_under(const std::string& field, std::string_view root) {
+  if (!field.starts_with(root)) return -1;
+  return std::strtol(field.c_str() + root.size(), nullptr, 10);
+}
+
 // The field that wrote the robot's joints: where a rule about how many it has points.
 std::string chain_field(const RobotSpec& spec) {
   if (std::holds_alternative<UrdfRobot>(spec.source)) return "robot.urdf";
@@ -107,7 +114,7 @@ Violations check_motion(const core::MotionSpec& spec, const MotionInput& given, 
   if (given.acceleration_scale && spec.duration_s > 0.0) {
     // With a durationS it scales nothing, unless a robot.approach (timed by the limits)
     // comes first.
-    const bool approach = geometry.path_given && robot != nullptr && robot->approach != Approach::kNone;
+    const bool approach = geometry.path && robot != nullptr && robot->approach != Approach::kNone;
     if (!approach) {
       return {{"motion.accelerationScale", "scales the limits of a timing by the limits (durationS 0, or a "
                                            "robot.approach): a motion with a durationS is timed by it instead"}};
@@ -214,7 +221,7 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
     timing.jerk_limited = optimize->values.jerk_limited;
     out.optimize = timing;
   }
-  if (optimize && geometry.path_given) out.optimize = optimize->values;
+  if (optimize && geometry.path) out.optimize = optimize->values;
   const core::MotionSpec spec = motion_spec(motion);
   append(violations, check_motion(spec, motion, geometry, robot_spec, out.optimize ? &*out.optimize : nullptr));
   out.motion = spec;
@@ -243,8 +250,8 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
     return out;
   }
   if (!violations.empty()) return tl::unexpected(std::move(violations));
-  if (!geometry.path) return tl::unexpected(Violations{});  // the wire said why
-  out.geometry = *geometry.path;
+  if (!geometry.path->usable()) return tl::unexpected(Violations{});  // admit lists why
+  out.geometry = geometry.path->spec;
   return out;
 }
 
@@ -263,12 +270,10 @@ core::Expected<Request> admit_single(const RequestInput& input, const RobotCatal
   }
   // Without a motion (PlanTrajectory) or for an analysis, only the path and its optimisers.
   if (use == Use::kAnalyze || !input.motion) {
-    if (!input.geometry.path_given) {
-      return tl::unexpected(Violations{{"path", "is required: the key frames of the path (at least 2)"}});
-    }
-    if (!input.geometry.path) return tl::unexpected(Violations{});  // the wire said why
+    auto path = admit_path(input.geometry.path);
+    if (!path) return tl::unexpected(std::move(path.error()));
     Request out;
-    out.geometry = *input.geometry.path;
+    out.geometry = std::move(*path);
     if (input.optimize) out.optimize = input.optimize->values;
     return out;
   }
@@ -368,7 +373,7 @@ core::Expected<Request> admit_sequence(const RequestInput& input, const RobotCat
     if (step.motion && step.motion->duration_s.value_or(0.0) > 0.0 && !step.motion->acceleration_scale) {
       motion.acceleration_scale.reset();
     }
-    any_path = any_path || step.geometry.path_given;
+    any_path = any_path || step.geometry.path.has_value();
     any_line = any_line || step.geometry.linear_move.has_value();
     check_blend(step, i, input.sequence.size(), violations);
     check_rate(input, i, first_rate_named, violations);
@@ -417,10 +422,50 @@ core::Expected<Request> admit_sequence(const RequestInput& input, const RobotCat
 
 }  // namespace
 
+core::Violations path_violations(const PathInput& path) {
+  Violations out = path.violations;
+  if (!path.read) return out;
+  if (auto valid = core::validate_path(path.spec); !valid) {
+    for (auto& v : valid.error()) {
+      if (path.unchecked.count(v.field) == 0) out.push_back(std::move(v));
+    }
+  }
+  // In key-frame order, the wire's and core's of one frame together (the path's own fields
+  // first).
+  std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) {
+    return index_under(a.field, "frames[") < index_under(b.field, "frames[");
+  });
+  return out;
+}
+
+core::Expected<core::PathSpec> admit_path(const std::optional<PathInput>& path) {
+  if (!path) return tl::unexpected(Violations{{"path", "is required: the key frames of the path (at least 2)"}});
+  if (path->usable()) return path->spec;
+  return tl::unexpected(core::prefixed(path_violations(*path), "path."));
+}
+
 core::Expected<Request> admit(RequestInput input, const RobotCatalog& catalog, Use use, const StopAt& stop_at) {
-  Violations violations = std::move(input.violations);
   auto admitted = input.sequence_given == 0 ? admit_single(input, catalog, use, stop_at)
                                          : admit_sequence(input, catalog, use, stop_at);
+  const auto usable = [](const GeometryInput& g) { return !g.path || g.path->usable(); };
+  const bool read = input.violations.empty() && usable(input.geometry) &&
+                    std::all_of(input.sequence.begin(), input.sequence.end(),
+                                [&usable](const StepInput& step) { return usable(step.geometry); });
+  if (admitted && read) return admitted;
+  // Refused: what the wire could not read and every path's violations (core's of what could
+  // be read included, so that one answer lists everything) in the request's order, a step's
+  // after the request's own fields; then the admission's own.
+  Violations violations;
+  if (input.geometry.path) append(violations, core::prefixed(path_violations(*input.geometry.path), "path."));
+  for (std::size_t i = 0; i < input.sequence.size(); ++i) {
+    if (!input.sequence[i].geometry.path) continue;
+    append(violations, core::prefixed(path_violations(*input.sequence[i].geometry.path),
+                                      "sequence[" + std::to_string(i) + "].path."));
+  }
+  append(violations, std::move(input.violations));
+  std::stable_sort(violations.begin(), violations.end(), [](const auto& a, const auto& b) {
+    return index_under(a.field, "sequence[") < index_under(b.field, "sequence[");
+  });
   if (!admitted) {
     for (auto& v : admitted.error()) {
       const bool seen = std::any_of(violations.begin(), violations.end(), [&v](const core::FieldViolation& w) {
@@ -429,8 +474,7 @@ core::Expected<Request> admit(RequestInput input, const RobotCatalog& catalog, U
       if (!seen) violations.push_back(std::move(v));
     }
   }
-  if (!violations.empty()) return tl::unexpected(std::move(violations));
-  return admitted;
+  return tl::unexpected(std::move(violations));
 }
 
 }  // namespace geotraj::planner

@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <variant>
 #include <vector>
 
 #include "core/geometry/path.hpp"
@@ -28,6 +29,15 @@ using Clock = std::chrono::steady_clock;
 // 1,024.
 inline constexpr std::size_t kSamplesPerCheck = 16;
 inline constexpr std::size_t kToolSamplesPerCheck = 1024;
+
+/// The largest |s''| of the timing of a path or a line [m/s^2]; 0 for a joint move (and a
+/// sequence, whose steps are asked one by one).
+template <class Motion>
+double tangential_peak(const Motion& motion) {
+  if (const auto* path = std::get_if<core::PathMotion>(&motion)) return path->timing.peak_acceleration;
+  if (const auto* line = std::get_if<core::LinearMovePlan>(&motion)) return line->peak_acceleration;
+  return 0.0;
+}
 
 /// Violations as an error: kUnattainable when every one is (core::ViolationKind: the request
 /// is well-formed and cannot be carried out), kInvalidArgument otherwise (fields to change).

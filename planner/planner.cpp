@@ -380,6 +380,10 @@ std::optional<Error> ends_at_goal(const Geometry& geometry, const core::JointVec
                                    " from its goal value; reach these joints with a jointMove")});
 }
 
+MotionSummary summary_of(const core::Trajectory& trajectory, const ToolPeaks& peaks) {
+  return {core::duration(trajectory), core::sample_count(trajectory), peaks, tangential_peak(trajectory)};
+}
+
 // The tool's peaks without a robot: the samples without IK.
 Expected<ToolPeaks> tool_pass(const core::Trajectory& trajectory, const Budget& budget) {
   core::TrajectorySampler sampler(trajectory, nullptr, {});
@@ -523,12 +527,12 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
     if (joints.feasible()) {
       if (auto refused = ends_at_goal(request.geometry, last)) return tl::unexpected(std::move(*refused));
     }
-    if (use == Use::kPlan) result.tool = peaks;
+    if (use == Use::kPlan) result.summary = summary_of(*result.trajectory, peaks);
     result.joints = std::move(joints);
   } else if (use == Use::kPlan) {
     auto peaks = tool_pass(*result.trajectory, budget);
     if (!peaks) return tl::unexpected(std::move(peaks.error()));
-    result.tool = *peaks;
+    result.summary = summary_of(*result.trajectory, *peaks);
   }
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   return result;

@@ -211,6 +211,17 @@ struct ToolPeaks {
   double angular_speed = 0.0;  ///< |omega_WT| [rad/s]
 };
 
+/// A timed motion summed up (PlanResponse.motion): its duration and samples, the tool's peaks
+/// over the samples, and the timing's own peak along the path.
+struct MotionSummary {
+  double duration_s = 0.0;  ///< [s]
+  std::size_t sample_count = 0;
+  ToolPeaks tool;
+  /// The largest |s''| of the timing of a path or a line (a sequence: of its steps) [m/s^2];
+  /// 0 for a joint move, whose tool follows no path.
+  double peak_tangential_acceleration = 0.0;
+};
+
 /// What the timing optimiser did, with which limit binds where along the path, and how far
 /// its result can be trusted between the samples and from its grid.
 struct TimingReport {
@@ -266,12 +277,15 @@ struct StepReport {
   std::size_t sample_count = 0;  ///< streamed (its last rest is the next step's first sample)
   double arc_length = 0.0;    ///< [m] (paths and linear moves)
   std::optional<PathReport> path;  ///< a path or a blended chain, kPlan
-  std::vector<core::CornerBlend> corners;  ///< a blended chain: its corners
+  /// A blended chain: its corners (collinear junctions, which turn nothing and are blended
+  /// by the line itself, are not corners).
+  std::vector<core::CornerBlend> corners;
   /// A joint move to a pose: which IK branch its goal is, and why ("the largest margin to
   /// the joint limits, 0.43 rad (joint 3, panda_joint4), of 9 branches found; ...").
   std::string goal_choice;
   OptimizerReports optimizers;     ///< a path's optimisers
   ToolPeaks tool;                  ///< kPlan: the tool's peaks over the step's own samples
+  double peak_tangential_acceleration = 0.0;  ///< [m/s^2], as MotionSummary's
 };
 
 /// Which call a request serves: what it needs of the request (planner::admit) and what its
@@ -294,7 +308,7 @@ struct Plan {
   std::optional<PathReport> path_report;       ///< kPlan, when the plan follows a path
   OptimizerReports optimizers;
   std::optional<core::JointMotionReport> joints;  ///< with a robot
-  std::optional<ToolPeaks> tool;                  ///< kPlan with a motion
+  std::optional<MotionSummary> summary;           ///< kPlan with a motion
   std::vector<StepReport> steps;                  ///< a sequence: one per step
   /// With a robot whose model lacks jerk limits, when a motion (a step) is timed by the limits.
   std::optional<DefaultJerk> default_jerk;

@@ -9,6 +9,7 @@
 
 #include <cstddef>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -66,14 +67,38 @@ struct LinearMoveInput {
   std::vector<double> goal_joints;      ///< [rad or m]
 };
 
+/// A path as given (PlanRequest.path, a step's, ConvertRequest.path): its key frames as far as
+/// they could be read, and what could not be, named from the path ("frames[2].tangent").
+struct PathInput {
+  core::PathSpec spec;
+  /// What the wire could not read; the path is planned only when there is nothing here.
+  core::Violations violations;
+  /// core::validate_path's field paths that `violations` make noise (a normal checked
+  /// against a tangent the frame does not give).
+  std::set<std::string> unchecked;
+  /// false: refused before any of it was read (more key frames than the server accepts), so
+  /// that core does not check it either.
+  bool read = true;
+
+  bool usable() const { return read && violations.empty(); }
+};
+
+/// Every violation of a path the request is refused with: the wire's, and (unless the path
+/// was not read at all) core::validate_path's of what could be read but `unchecked`, in key
+/// frame order, named from the path. Empty for a path core accepts.
+core::Violations path_violations(const PathInput& path);
+
+/// A path alone (ConvertConstraints): its spec when the wire read all of it (core validates
+/// it where it is built), else every violation of it named from the request's root.
+core::Expected<core::PathSpec> admit_path(const std::optional<PathInput>& path);
+
 /// What a request (or a sequence step) plans: the kinds it gives, each as read.
 struct GeometryInput {
-  bool path_given = false;
-  std::optional<core::PathSpec> path;  ///< absent when not given or not readable (the wire said why)
+  std::optional<PathInput> path;  ///< present when given, readable or not
   std::optional<JointMoveInput> joint_move;
   std::optional<LinearMoveInput> linear_move;
 
-  int kinds() const { return int(path_given) + int(joint_move.has_value()) + int(linear_move.has_value()); }
+  int kinds() const { return int(path.has_value()) + int(joint_move.has_value()) + int(linear_move.has_value()); }
 };
 
 /// PlanRequest.optimize as given: the optimisers' options (their values checked by the
@@ -109,7 +134,9 @@ inline constexpr int kMaxSequenceSteps = 64;
 
 /// `input` admitted for `use`: the robot resolved against `catalog` (once, for every step;
 /// a URDF's parse gives up at `stop_at`), the motion checked, each step's motion merged over
-/// the request's, or every violation of the request together (the wire's first).
+/// the request's, or every violation of the request together: the wire's and, for every path
+/// given, path_violations, in the request's order (a step's after the request's own fields),
+/// then the admission's.
 core::Expected<Request> admit(RequestInput input, const RobotCatalog& catalog, Use use, const StopAt& stop_at = {});
 
 }  // namespace geotraj::planner

@@ -10,9 +10,9 @@
 
 namespace geotraj::planner {
 
-const core::RobotModel* RobotCatalog::find(std::string_view name) const {
+const core::ValidRobot* RobotCatalog::find(std::string_view name) const {
   for (const auto& m : models) {
-    if (m.name == name) return &m;
+    if (m->name == name) return &m;
   }
   return nullptr;
 }
@@ -47,29 +47,37 @@ std::vector<NamedLimits> checked_joint_limits(const std::vector<NamedLimits>& gi
   return kept;
 }
 
-// The model the source names, or nullopt with its violations in `out`.
-std::optional<core::RobotModel> source_model(const RobotSpec& spec, const std::vector<NamedLimits>& limits,
+// The model the source names, checked, or nullopt with its violations in `out`: the
+// catalogue's as it was checked when it entered, an inline model or a URDF document's checked
+// here.
+std::optional<core::ValidRobot> source_model(const RobotSpec& spec, const std::vector<NamedLimits>& limits,
                                              const RobotCatalog& catalog, bool motion, const StopAt& stop_at,
                                              core::Violations& out) {
   if (const auto* by_name = std::get_if<RobotByName>(&spec.source)) {
     if (const auto* model = catalog.find(by_name->name)) return *model;
     std::string names;
-    for (const auto& m : catalog.models) names += (names.empty() ? "" : ", ") + m.name;
+    for (const auto& m : catalog.models) names += (names.empty() ? "" : ", ") + m->name;
     out.push_back({"robot.name", "unknown robot '" + by_name->name + "'; the server knows: " + names});
     return std::nullopt;
   }
   if (const auto* written = std::get_if<InlineRobot>(&spec.source)) {
     if (!written->model) return std::nullopt;  // its wire form was refused
-    core::Violations bad = core::prefixed(core::validate_robot(*written->model), "robot.model.");
-    if (bad.empty()) return written->model;
-    out.insert(out.end(), bad.begin(), bad.end());
+    auto valid = core::ValidRobot::check(*written->model);
+    if (valid) return std::move(*valid);
+    for (auto& v : core::prefixed(std::move(valid.error()), "robot.model.")) out.push_back(std::move(v));
     return std::nullopt;
   }
   if (const auto* urdf = std::get_if<UrdfRobot>(&spec.source)) {
     const UrdfOptions options{spec.base_link, spec.tip_link, limits, motion, stop_at};
     auto model = robot_from_urdf(urdf->urdf, options);
-    if (model) return std::move(*model);
-    for (auto& v : core::prefixed(std::move(model.error()), "robot.")) out.push_back(std::move(v));
+    if (!model) {
+      for (auto& v : core::prefixed(std::move(model.error()), "robot.")) out.push_back(std::move(v));
+      return std::nullopt;
+    }
+    // robot_from_urdf checked the model it makes; the proof of it is made here.
+    auto valid = core::ValidRobot::check(std::move(*model));
+    if (valid) return std::move(*valid);
+    for (auto& v : valid.error()) out.push_back({"robot.urdf", "the chain's " + v.field + " " + v.description});
     return std::nullopt;
   }
   out.push_back({"robot", "needs a model: `name` of a built-in model (see ListRobots), an inline `model` or a "
@@ -164,10 +172,16 @@ core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& c
                                     const StopAt& stop_at) {
   core::Violations out;
   const std::vector<NamedLimits> limits = checked_joint_limits(spec.joint_limits, out);
-  std::optional<core::RobotModel> model = source_model(spec, limits, catalog, motion, stop_at, out);
+  const std::optional<core::ValidRobot> source = source_model(spec, limits, catalog, motion, stop_at, out);
   if (!std::holds_alternative<UrdfRobot>(spec.source) && (!spec.base_link.empty() || !spec.tip_link.empty())) {
     out.push_back({spec.base_link.empty() ? "robot.tipLink" : "robot.baseLink", "is read with `urdf` only"});
   }
+  // What the request changes of the source's model (joint limits, base, tool, scales) is made
+  // on a copy, checked once more below; a model the request does not change is used as it
+  // was checked.
+  const bool changes = !limits.empty() || spec.base || spec.tool || spec.velocity_scale || spec.acceleration_scale;
+  std::optional<core::RobotModel> model;
+  if (source && changes) model = source->model();
   if (model && out.empty()) apply_joint_limits(limits, *model, out);
   if (model && spec.base) model->base = *spec.base;
   if (model && spec.tool) model->tool = *spec.tool;
@@ -207,14 +221,18 @@ core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& c
     }
   }
   core::JointVector seed;
-  if (model && model->dof() > 0) seed = initial_joints(spec.initial_joints, *model, out);
+  if (source && (*source)->dof() > 0) seed = initial_joints(spec.initial_joints, model ? *model : source->model(), out);
   // No model and nothing said: an inline model whose wire form was refused, and named there.
-  if (!model || !out.empty()) return tl::unexpected(std::move(out));
-  // Every part was checked above, each where the request wrote it; what they make together is
-  // checked once more here, and the model carries the proof from here on.
-  auto valid = core::ValidRobot::check(std::move(*model));
-  if (!valid) return tl::unexpected(core::prefixed(std::move(valid.error()), "robot.model."));
-  Robot robot(std::move(*valid), std::move(seed));
+  if (!source || !out.empty()) return tl::unexpected(std::move(out));
+  core::ValidRobot valid = *source;
+  if (model) {
+    // Every change was checked above, each where the request wrote it; what they make
+    // together is checked once more here, and the model carries the proof from here on.
+    auto changed = core::ValidRobot::check(std::move(*model));
+    if (!changed) return tl::unexpected(core::prefixed(std::move(changed.error()), "robot.model."));
+    valid = std::move(*changed);
+  }
+  Robot robot(std::move(valid), std::move(seed));
   robot.report_only = spec.report_only;
   robot.branch_tolerance = branch_tolerance;
   robot.start_position_tolerance = start_position_tolerance;

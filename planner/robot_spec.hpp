@@ -22,10 +22,11 @@
 namespace geotraj::planner {
 
 /// The robot models a server knows by name: the built-in ones and those loaded from files
-/// (`geotrajd --robot-model`). Each model was validated where it entered.
+/// (`geotrajd --robot-model`), each checked once where it entered. A request that names one
+/// and changes nothing of it shares it as it is.
 struct RobotCatalog {
-  std::vector<core::RobotModel> models;
-  const core::RobotModel* find(std::string_view name) const;
+  std::vector<core::ValidRobot> models;
+  const core::ValidRobot* find(std::string_view name) const;
 };
 
 /// A model of the catalogue, by name (RobotSpec.name).

@@ -10,9 +10,9 @@
 
 namespace geotraj::planner {
 
-const std::vector<core::RobotModel>& builtin_robots() {
-  static const std::vector<core::RobotModel> robots = [] {
-    std::vector<core::RobotModel> out = core::builtin_robots();
+const std::vector<core::ValidRobot>& builtin_robots() {
+  static const std::vector<core::ValidRobot> robots = [] {
+    std::vector<core::RobotModel> models = core::builtin_robots();
     for (const BuiltinUrdf& b : kBuiltinUrdfs) {
       auto m = robot_from_urdf(b.text);
       if (!m) {  // a file of this repository: the tests read every one
@@ -20,7 +20,13 @@ const std::vector<core::RobotModel>& builtin_robots() {
         GEOTRAJ_CHECK(false && "a built-in URDF does not load");
       }
       m->name = b.name;
-      out.push_back(std::move(*m));
+      models.push_back(std::move(*m));
+    }
+    std::vector<core::ValidRobot> out;
+    for (auto& m : models) {
+      auto valid = core::ValidRobot::check(std::move(m));
+      GEOTRAJ_CHECK(valid.has_value() && "a built-in model is valid");
+      out.push_back(std::move(*valid));
     }
     return out;
   }();
@@ -29,7 +35,7 @@ const std::vector<core::RobotModel>& builtin_robots() {
 
 const core::RobotModel* find_builtin_robot(std::string_view name) {
   for (const auto& m : builtin_robots()) {
-    if (m.name == name) return &m;
+    if (m->name == name) return &m.model();
   }
   return nullptr;
 }

@@ -73,8 +73,9 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view urdf, const Ur
 
 /// The built-in models, in a fixed order: core's "pa10" and "ur5" (DH), then "panda"
 /// (Franka Emika Panda), "iiwa14" (KUKA LBR iiwa 14 R820) and "ur5e" (Universal Robots
-/// UR5e), written as URDF by the project (planner/models/*.urdf, sources cited there).
-const std::vector<core::RobotModel>& builtin_robots();
+/// UR5e), written as URDF by the project (planner/models/*.urdf, sources cited there); each
+/// checked once, when they are first asked for.
+const std::vector<core::ValidRobot>& builtin_robots();
 
 /// The built-in model called `name`, or nullptr.
 const core::RobotModel* find_builtin_robot(std::string_view name);

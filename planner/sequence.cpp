@@ -260,6 +260,9 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
       if (!chain) return tl::unexpected(std::move(chain.error()));
       sub.geometry = std::move(chain->spec);
       report.corners = std::move(chain->corners);
+      std::erase_if(report.corners, [](const core::CornerBlend& c) {
+        return c.corner <= core::kSmoothJunction && c.deviation <= 1e-9;  // collinear: no corner
+      });
       for (std::size_t piece : chain->segment_piece) segments_of_steps.push_back(i + piece);
       if (!sub.start_orientation && i > 0) sub.start_orientation = end.pose.q_WT;
       if (request.optimize) {  // the timing only: the optimisers of a path's shape would move the blends
@@ -309,6 +312,7 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     report.first_sample = first;
     report.sample_count = last_unit ? n : n - 1;
     report.arc_length = arc_length_of(motion);
+    report.peak_tangential_acceleration = tangential_peak(motion);
     if (path && use == Use::kPlan) report.path = report_of(std::get<core::PathMotion>(motion).path);
     if (first + report.sample_count > limits.max_samples) {
       return tl::unexpected(invalid(core::Violations{
@@ -373,7 +377,12 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     }
     result.joints = std::move(joints);
   }
-  if (use == Use::kPlan) result.tool = peaks;
+  if (use == Use::kPlan) {
+    double tangential = 0.0;
+    for (const StepReport& r : result.steps) tangential = std::max(tangential, r.peak_tangential_acceleration);
+    result.summary = MotionSummary{core::duration(*result.trajectory), core::sample_count(*result.trajectory), peaks,
+                                   tangential};
+  }
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   return result;
 }

@@ -170,11 +170,9 @@ class ExecuteReactor final : public LiveReactor {
   }
 
   void command(const grpc::ByteBuffer& bytes) override {
-    v1::ExecuteRequest request;
-    if (!parse(bytes, request)) {
-      request_stop("invalid", not_parsed<v1::ExecuteRequest>());
-      return;
-    }
+    const auto parsed = parsed_command<v1::ExecuteRequest>(bytes);
+    if (!parsed) return;
+    const v1::ExecuteRequest& request = *parsed;
     switch (request.command_case()) {
       case v1::ExecuteRequest::kSpeedOverride: {
         auto fraction = speed_override(request.speed_override());

@@ -66,11 +66,9 @@ class JogReactor final : public LiveReactor {
   }
 
   void command(const grpc::ByteBuffer& bytes) override {
-    v1::JogRequest request;
-    if (!parse(bytes, request)) {
-      request_stop("invalid", not_parsed<v1::JogRequest>());
-      return;
-    }
+    const auto parsed = parsed_command<v1::JogRequest>(bytes);
+    if (!parsed) return;
+    const v1::JogRequest& request = *parsed;
     switch (request.command_case()) {
       case v1::JogRequest::kJoints:
       case v1::JogRequest::kTwist: {

@@ -142,6 +142,16 @@ class LiveReactor : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteB
     stop_motion();
   }
 
+  /// The control message in `bytes`, or nullopt once the call is stopped as "invalid" because
+  /// they are not one.
+  template <class Message>
+  std::optional<Message> parsed_command(const grpc::ByteBuffer& bytes) {
+    Message message;
+    if (parse(bytes, message)) return message;
+    request_stop("invalid", not_parsed<Message>());
+    return std::nullopt;
+  }
+
   std::stop_token stop_token() const { return stop_.get_token(); }
   // The status of a call whose client is gone: its deadline passed, or it was cancelled.
   grpc::Status gone() const {

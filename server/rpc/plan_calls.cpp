@@ -198,7 +198,7 @@ class SampleStreamer final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
 grpc::Status convert_constraints(const Abandon& abandon, const Services& services, const v1::ConvertRequest& request,
                                  v1::ConvertResponse& response) {
   if (auto stop = abandon.check()) return *stop;
-  const auto spec = path_from_request(request, services.limits);
+  const auto spec = planner::admit_path(path_input(request, services.limits));
   if (!spec) return invalid_argument(spec.error());
   const auto frames = planner::convert(*spec);
   if (!frames) return invalid_argument(frames.error().violations);

@@ -152,14 +152,16 @@ tl::expected<RobotCatalog, std::string> robot_catalog(const ServerOptions& optio
     // A URDF document (by its extension, or its first character) or a RobotModel in JSON.
     const auto first = text->find_first_not_of(" \t\r\n");
     const bool urdf = file.ends_with(".urdf") || (first != std::string::npos && (*text)[first] == '<');
-    auto model = urdf ? planner::robot_from_urdf(*text) : robot_model_from_json(*text);
+    auto read = urdf ? planner::robot_from_urdf(*text) : robot_model_from_json(*text);
+    // Checked once, here: the catalogue's models carry the proof to every request.
+    auto model = read.and_then([](core::RobotModel m) { return core::ValidRobot::check(std::move(m)); });
     if (!model) {
       std::string why;
       for (const auto& v : model.error()) why += (why.empty() ? "" : "; ") + (v.field.empty() ? "" : v.field + ": ") + v.description;
       return tl::unexpected("robot model file \"" + file + "\": " + why);
     }
-    if (robots.find(model->name) != nullptr) {
-      return tl::unexpected("robot model file \"" + file + "\": a model named \"" + model->name + "\" is already known");
+    if (robots.find((*model)->name) != nullptr) {
+      return tl::unexpected("robot model file \"" + file + "\": a model named \"" + (*model)->name + "\" is already known");
     }
     robots.models.push_back(std::move(*model));
   }

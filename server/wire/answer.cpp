@@ -63,72 +63,53 @@ void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanRespons
     for (double j : plan.default_jerk->max_jerk) out.add_max_jerk(j);
     out.set_message(plan.default_jerk->message);
   }
-  if (!plan.trajectory) return;
-  const auto& trajectory = *plan.trajectory;
-  const auto tool = plan.tool.value_or(planner::ToolPeaks{});
-  auto& summary = *response.mutable_motion();
-  summary.set_duration_s(core::duration(trajectory));
-  summary.set_sample_count(core::sample_count(trajectory));
-  summary.set_peak_speed(tool.speed);
-  summary.set_peak_acceleration(tool.acceleration);
-  summary.set_peak_angular_speed(tool.angular_speed);
-  const auto tangential = [](const auto& motion) {
-    if (const auto* path = std::get_if<core::PathMotion>(&motion)) return path->timing.peak_acceleration;
-    if (const auto* linear = std::get_if<core::LinearMovePlan>(&motion)) return linear->peak_acceleration;
-    return 0.0;
+  if (!plan.summary) return;
+  const auto set_summary = [](const planner::MotionSummary& from, v1::MotionSummary& out) {
+    out.set_duration_s(from.duration_s);
+    out.set_sample_count(from.sample_count);
+    out.set_peak_speed(from.tool.speed);
+    out.set_peak_acceleration(from.tool.acceleration);
+    out.set_peak_angular_speed(from.tool.angular_speed);
+    out.set_peak_tangential_acceleration(from.peak_tangential_acceleration);
   };
-  if (const auto* sequence = std::get_if<core::SequenceMotion>(&trajectory)) {
-    double peak = 0.0;
-    for (const auto& step : sequence->steps) peak = std::max(peak, tangential(step));
-    summary.set_peak_tangential_acceleration(peak);
-    for (std::size_t i = 0; i < plan.steps.size(); ++i) {
-      const auto& s = plan.steps[i];
-      auto& out = *response.add_steps();
-      out.set_index(static_cast<std::uint32_t>(s.index));
-      out.set_last_index(static_cast<std::uint32_t>(s.last_index));
-      out.set_kind(s.kind);
-      out.set_goal_choice(s.goal_choice);
-      for (const auto& c : s.corners) {
-        // Collinear lines: no corner, and their blend is the line itself.
-        if (c.corner <= core::kSmoothJunction && c.deviation <= 1e-9) continue;
-        auto& corner = *out.add_corners();
-        corner.set_after_step(static_cast<std::uint32_t>(s.index + c.after));
-        corner.set_segment(static_cast<std::uint32_t>(c.segment));
-        corner.set_tolerance(c.tolerance);
-        corner.set_deviation(c.deviation);
-        corner.set_cut_before(c.cut_before);
-        corner.set_cut_after(c.cut_after);
-        corner.set_corner(c.corner);
-      }
-      out.set_start_time_s(s.start_time_s);
-      out.set_duration_s(s.duration_s);
-      out.set_first_sample(s.first_sample);
-      out.set_sample_count(s.sample_count);
-      out.set_arc_length(s.arc_length);
-      auto& step_summary = *out.mutable_motion();
-      step_summary.set_duration_s(s.duration_s);
-      step_summary.set_sample_count(s.sample_count);
-      step_summary.set_peak_speed(s.tool.speed);
-      step_summary.set_peak_acceleration(s.tool.acceleration);
-      step_summary.set_peak_angular_speed(s.tool.angular_speed);
-      step_summary.set_peak_tangential_acceleration(tangential(sequence->steps[i]));
-      if (s.path) {
-        const auto* path = std::get_if<core::PathMotion>(&sequence->steps[i]);
-        if (path != nullptr) {
-          v1::PlanResponse one;
-          to_proto(path->path, s.path->achieved, s.path->closed_loop, s.path->geometry, one);
-          *out.mutable_segments() = std::move(*one.mutable_segments());
-          *out.mutable_frames() = std::move(*one.mutable_frames());
-          *out.mutable_closed_loop() = std::move(*one.mutable_closed_loop());
-          *out.mutable_warnings() = std::move(*one.mutable_warnings());
-        }
-      }
-      if (with_optimization && (s.optimizers.tangent_scales || s.optimizers.breakpoints || s.optimizers.timing)) {
-        to_proto(s.optimizers, *out.mutable_optimization());
-      }
+  set_summary(*plan.summary, *response.mutable_motion());
+  const auto* sequence = plan.trajectory ? std::get_if<core::SequenceMotion>(&*plan.trajectory) : nullptr;
+  for (std::size_t i = 0; i < plan.steps.size(); ++i) {
+    const auto& s = plan.steps[i];
+    auto& out = *response.add_steps();
+    out.set_index(static_cast<std::uint32_t>(s.index));
+    out.set_last_index(static_cast<std::uint32_t>(s.last_index));
+    out.set_kind(s.kind);
+    out.set_goal_choice(s.goal_choice);
+    for (const auto& c : s.corners) {
+      auto& corner = *out.add_corners();
+      corner.set_after_step(static_cast<std::uint32_t>(s.index + c.after));
+      corner.set_segment(static_cast<std::uint32_t>(c.segment));
+      corner.set_tolerance(c.tolerance);
+      corner.set_deviation(c.deviation);
+      corner.set_cut_before(c.cut_before);
+      corner.set_cut_after(c.cut_after);
+      corner.set_corner(c.corner);
     }
-  } else {
-    summary.set_peak_tangential_acceleration(tangential(trajectory));
+    out.set_start_time_s(s.start_time_s);
+    out.set_duration_s(s.duration_s);
+    out.set_first_sample(s.first_sample);
+    out.set_sample_count(s.sample_count);
+    out.set_arc_length(s.arc_length);
+    set_summary(planner::MotionSummary{s.duration_s, s.sample_count, s.tool, s.peak_tangential_acceleration},
+                *out.mutable_motion());
+    const auto* path = sequence != nullptr && s.path ? std::get_if<core::PathMotion>(&sequence->steps[i]) : nullptr;
+    if (path != nullptr) {
+      v1::PlanResponse one;
+      to_proto(path->path, s.path->achieved, s.path->closed_loop, s.path->geometry, one);
+      *out.mutable_segments() = std::move(*one.mutable_segments());
+      *out.mutable_frames() = std::move(*one.mutable_frames());
+      *out.mutable_closed_loop() = std::move(*one.mutable_closed_loop());
+      *out.mutable_warnings() = std::move(*one.mutable_warnings());
+    }
+    if (with_optimization && (s.optimizers.tangent_scales || s.optimizers.breakpoints || s.optimizers.timing)) {
+      to_proto(s.optimizers, *out.mutable_optimization());
+    }
   }
 }
 

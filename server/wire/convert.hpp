@@ -38,19 +38,11 @@ namespace geotraj::server {
 /// AnalyzePath's point count when PlanRequest.analysis_points is absent.
 inline constexpr std::size_t kDefaultAnalysisPoints = 101;
 
-/// The path of a ConvertRequest as a core PathSpec, or every violation of the request:
-/// the wire checks here plus (when those fail) core's validate_path on what could be read,
-/// so that one answer lists everything. A path of more than `limits.max_frames` key frames is
-/// refused before anything else is read. On success the spec still needs core validation
-/// (build_path and convert_path do it); core's field paths are then relative to `path`.
-core::Expected<core::PathSpec> path_from_request(const v1::ConvertRequest& request, const ServiceLimits& limits);
+/// The path of a ConvertRequest as given (nullopt when it has none): every field read, and
+/// what could not be read named from the path; planner::admit_path decides the rest.
+std::optional<planner::PathInput> path_input(const v1::ConvertRequest& request, const ServiceLimits& limits);
 
-/// The same for a PlanRequest; also checks analysisPoints (2 to limits.max_analysis_points)
-/// and samplesPerBatch.
-core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request, const ServiceLimits& limits);
-
-/// PlanRequest.analysis_points or its default. Precondition: the request passed
-/// path_from_request.
+/// PlanRequest.analysis_points or its default. Precondition: the request was admitted.
 std::size_t analysis_points(const v1::PlanRequest& request);
 
 /// Samples per SampleBatch when PlanRequest.samples_per_batch is absent.

@@ -10,7 +10,6 @@
 #include <variant>
 
 #include "core/format.hpp"
-#include "core/geometry/validate.hpp"
 #include "server/wire/convert.hpp"
 #include "server/wire/wire_detail.hpp"
 
@@ -131,48 +130,25 @@ core::PathSpec to_core(const v1::PathSpec& p) {
   return spec;
 }
 
-// N for a field path under `path.frames[N]`, -1 for the path's other fields.
-long frame_index(const std::string& field) {
-  static const std::string prefix = "path.frames[";
-  if (field.rfind(prefix, 0) != 0) return -1;
-  return std::strtol(field.c_str() + prefix.size(), nullptr, 10);
-}
-
-// The path of a request after every wire check: the path's own, then `request_checks` on
-// the request's other fields. When any fails, core's validation of what could be read
-// joins them (after the path's wire checks, before the request's), so that one answer
-// lists everything.
-template <class RequestChecks>
-core::Expected<core::PathSpec> read_path(bool has_path, const v1::PathSpec& path, int max_frames,
-                                         RequestChecks request_checks) {
-  // A path longer than the server accepts is refused before any of it is read.
-  if (has_path && path.frames_size() > max_frames) {
-    return tl::unexpected(core::Violations{
-        {"path.frames", "has " + std::to_string(path.frames_size()) + " key frames; this server accepts at most " +
-                            std::to_string(max_frames) + " (geotrajd --max-frames)"}});
+// The path as given, what could not be read named from the path (the wire checks' field
+// paths less their root "path."). A path of more than `max_frames` key frames is refused
+// before any of it is read.
+planner::PathInput read_path(const v1::PathSpec& path, int max_frames) {
+  planner::PathInput in;
+  if (path.frames_size() > max_frames) {
+    in.read = false;
+    in.violations.push_back({"frames", "has " + std::to_string(path.frames_size()) +
+                                           " key frames; this server accepts at most " + std::to_string(max_frames) +
+                                           " (geotrajd --max-frames)"});
+    return in;
   }
   WireCheck check;
-  if (has_path) {
-    check_path(check, path);
-  } else {
-    check.add("path", "is required: the key frames of the path (at least 2)");
-  }
-  WireCheck request_level;
-  request_checks(request_level);
-  if (check.violations.empty() && request_level.violations.empty()) return to_core(path);
-  if (has_path) {
-    auto validated = core::validate_path(to_core(path));
-    if (!validated) {
-      for (auto& v : validated.error()) {
-        if (check.suppressed.count(v.field) == 0) check.add("path." + v.field, std::move(v.description));
-      }
-    }
-  }
-  // The path's violations in frame order (the wire checks and core's interleaved).
-  std::stable_sort(check.violations.begin(), check.violations.end(),
-                   [](const auto& a, const auto& b) { return frame_index(a.field) < frame_index(b.field); });
-  for (auto& v : request_level.violations) check.violations.push_back(std::move(v));
-  return tl::unexpected(std::move(check.violations));
+  check_path(check, path);
+  in.spec = to_core(path);
+  static constexpr std::string_view root = "path.";
+  for (auto& v : check.violations) in.violations.push_back({v.field.substr(root.size()), std::move(v.description)});
+  in.unchecked = std::move(check.suppressed);
+  return in;
 }
 
 // --- core -> proto --------------------------------------------------------------------------
@@ -224,8 +200,13 @@ void wire_detail::check_enum(WireCheck& check, const std::string& field, int val
   check.add(field, "unknown value " + std::to_string(value) + "; use one of " + names);
 }
 
-core::Expected<core::PathSpec> path_from_request(const v1::ConvertRequest& request, const ServiceLimits& limits) {
-  return read_path(request.has_path(), request.path(), limits.max_frames, [](WireCheck&) {});
+std::optional<planner::PathInput> path_input(const v1::ConvertRequest& request, const ServiceLimits& limits) {
+  if (!request.has_path()) return std::nullopt;
+  return path_input(request.path(), limits);
+}
+
+planner::PathInput wire_detail::path_input(const v1::PathSpec& path, const ServiceLimits& limits) {
+  return read_path(path, limits.max_frames);
 }
 
 void wire_detail::check_request_numbers(const v1::PlanRequest& request, const ServiceLimits& limits,
@@ -242,11 +223,6 @@ void wire_detail::check_request_numbers(const v1::PlanRequest& request, const Se
     check.add("samplesPerBatch", "must be between 1 and " + std::to_string(kMaxSamplesPerBatch) + " when given, got " +
                                      std::to_string(request.samples_per_batch()));
   }
-}
-
-core::Expected<core::PathSpec> path_from_request(const v1::PlanRequest& request, const ServiceLimits& limits) {
-  return read_path(request.has_path(), request.path(), limits.max_frames,
-                   [&request, &limits](WireCheck& check) { check_request_numbers(request, limits, check); });
 }
 
 std::size_t analysis_points(const v1::PlanRequest& request) {

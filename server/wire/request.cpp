@@ -14,18 +14,10 @@ using namespace wire_detail;
 planner::RequestInput request_input_from_proto(const v1::PlanRequest& request, const ServiceLimits& limits) {
   planner::RequestInput in;
   core::Violations& out = in.violations;
-  if (request.has_path()) {
-    in.geometry.path_given = true;
-    if (auto path = path_from_request(request, limits)) {
-      in.geometry.path = std::move(*path);
-    } else {
-      out = joined(std::move(out), path.error());
-    }
-  } else {
-    WireCheck numbers;
-    check_request_numbers(request, limits, numbers);
-    out = joined(std::move(out), numbers.violations);
-  }
+  if (request.has_path()) in.geometry.path = path_input(request.path(), limits);
+  WireCheck numbers;
+  check_request_numbers(request, limits, numbers);
+  out = joined(std::move(out), numbers.violations);
   if (!v1::StreamPacing_IsValid(request.pacing())) {
     out.push_back({"pacing", "unknown value " + std::to_string(request.pacing()) +
                                  "; use STREAM_PACING_AS_FAST_AS_POSSIBLE or STREAM_PACING_REAL_TIME"});

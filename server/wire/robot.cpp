@@ -151,10 +151,7 @@ core::Expected<core::RobotModel> robot_model_from_json(std::string_view json) {
     return tl::unexpected(core::Violations{{"", "is not a RobotModel in proto3 JSON: " + std::string(status.message())}});
   }
   if (model.name().empty()) return tl::unexpected(core::Violations{{"name", "is required: the model's name"}});
-  auto read = robot_model_from_proto(model, "");
-  if (!read) return read;
-  if (core::Violations bad = core::validate_robot(*read); !bad.empty()) return tl::unexpected(std::move(bad));
-  return read;
+  return robot_model_from_proto(model, "");
 }
 
 void to_proto(const core::RobotModel& model, v1::RobotModel& out) {

@@ -21,16 +21,7 @@ void wire_detail::sequence_input(const v1::PlanRequest& request, const ServiceLi
     const auto& step = request.sequence(i);
     const std::string prefix = "sequence[" + std::to_string(i) + "].";
     planner::StepInput s;
-    if (step.has_path()) {
-      s.geometry.path_given = true;
-      v1::PlanRequest alone;
-      *alone.mutable_path() = step.path();
-      if (auto path = path_from_request(alone, limits)) {
-        s.geometry.path = std::move(*path);
-      } else {
-        in.violations = joined(std::move(in.violations), core::prefixed(std::move(path.error()), prefix));
-      }
-    }
+    if (step.has_path()) s.geometry.path = path_input(step.path(), limits);
     if (step.has_joint_move()) s.geometry.joint_move = joint_move_input(step.joint_move(), prefix, in.violations);
     if (step.has_linear_move()) s.geometry.linear_move = linear_move_input(step.linear_move());
     if (step.has_motion()) s.motion = motion_input(step.motion(), prefix + "motion", in.violations);

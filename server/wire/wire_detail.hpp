@@ -47,6 +47,11 @@ inline core::Violations joined(core::Violations a, const core::Violations& b) {
   return a;
 }
 
+// A path as given (PlanRequest.path, a step's, ConvertRequest.path): every field read, what
+// could not be named from the path ("frames[2].tangent"), the core checks that makes noise.
+// A path of more than `limits.max_frames` key frames is refused before any of it is read.
+planner::PathInput path_input(const v1::PathSpec& path, const ServiceLimits& limits);
+
 // PlanRequest.analysisPoints and samplesPerBatch within the server's limits.
 void check_request_numbers(const v1::PlanRequest& request, const ServiceLimits& limits, WireCheck& check);
 

@@ -1,5 +1,6 @@
 // fuzz_robot_model_json: bytes as a robot model file (geotrajd --robot-model FILE), parsed by
-// robot_model_from_json, the start-up parser. A model it accepts must
+// robot_model_from_json, the start-up parser, then checked (core::ValidRobot::check) as geotrajd
+// does before the model enters its catalogue. A model both accept must
 //  - have a finite tool pose and Jacobian at its home configuration and at the middle of
 //    its joint ranges (a model whose kinematics overflow must be refused, not served);
 //  - be accepted again after the round trip through its wire form (to_proto, then
@@ -43,11 +44,18 @@ void require_finite_kinematics(const geotraj::core::RobotModel& model, const geo
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view input(reinterpret_cast<const char*>(data), size);
-  auto model = geotraj::server::robot_model_from_json(input);
-  if (!model) {
-    if (model.error().empty()) fail("refused without a reason", input);
+  // As geotrajd reads a model file: read, then checked where it enters the catalogue.
+  auto read = geotraj::server::robot_model_from_json(input);
+  if (!read) {
+    if (read.error().empty()) fail("refused without a reason", input);
     return 0;
   }
+  auto checked = geotraj::core::ValidRobot::check(*read);
+  if (!checked) {
+    if (checked.error().empty()) fail("refused by the check without a reason", input);
+    return 0;
+  }
+  const geotraj::core::RobotModel* model = &checked->model();
   const auto home = geotraj::core::home_configuration(*model);
   if (static_cast<std::size_t>(home.size()) != model->dof()) fail("home_configuration has the wrong size", input);
   require_finite_kinematics(*model, home, "home", input);

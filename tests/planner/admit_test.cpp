@@ -36,8 +36,7 @@ core::PathSpec line() {
 
 planner::GeometryInput path_geometry() {
   planner::GeometryInput g;
-  g.path_given = true;
-  g.path = line();
+  g.path = planner::PathInput{line(), {}, {}, true};
   return g;
 }
 
@@ -196,6 +195,60 @@ TEST(Admit, TheWiresViolationsComeFirstAndEveryOtherIsListedWithThem) {
   EXPECT_EQ(admitted.error().front().field, "robot.base.orientation");
   EXPECT_THAT(description_of(admitted, "robot.name"), HasSubstr("no such arm"));
   EXPECT_THAT(description_of(admitted, "motion.cycleRateHz"), HasSubstr("Hz"));
+}
+
+// A path the wire could not read in full: its violations and core's of what it could read,
+// in key-frame order, before the request's other fields; a step's after the request's own.
+TEST(Admit, APartlyReadPathIsListedWithCoresViolationsInFrameOrder) {
+  planner::PathInput path{line(), {}, {}, true};
+  path.spec.frames.push_back(path.spec.frames.back());
+  path.spec.frames[2].p_W.x() = 0.8;
+  path.spec.frames[0].kappa = -1.0;                     // core: frames[0].curvature
+  path.spec.frames[1].N_W = Eigen::Vector3d::UnitX();   // core, but noise beside the wire's
+  path.violations.push_back({"frames[1].tangent", "is required"});
+  path.unchecked.insert("frames[1].normal");
+  path.spec.frames[2].tangent_scale = -1.0;             // core: frames[2].tangentScale
+
+  planner::RequestInput in;
+  in.geometry.path = path;
+  in.motion = timed(2.0);
+  in.violations.push_back({"pacing", "unknown value 7"});
+  auto admitted = planner::admit(in, catalog(), planner::Use::kPlan);
+  ASSERT_FALSE(admitted.has_value());
+  std::vector<std::string> fields;
+  for (const auto& v : admitted.error()) fields.push_back(v.field);
+  EXPECT_THAT(fields, ::testing::ElementsAre("path.frames[0].curvature", "path.frames[1].tangent",
+                                             "path.frames[2].tangentScale", "pacing"))
+      << listed(admitted);
+
+  // The same path as a sequence's step: the request's own fields first, then the step's path
+  // and the step's other fields.
+  planner::RequestInput sequence;
+  sequence.motion = timed(2.0);
+  sequence.sequence.resize(2);
+  sequence.sequence_given = 2;
+  sequence.sequence[0].geometry.path = path;
+  sequence.sequence[1].geometry.path = planner::PathInput{line(), {}, {}, true};
+  sequence.violations.push_back({"sequence[0].motion.profile", "unknown value 9"});
+  sequence.violations.push_back({"pacing", "unknown value 7"});
+  admitted = planner::admit(sequence, catalog(), planner::Use::kPlan);
+  ASSERT_FALSE(admitted.has_value());
+  fields.clear();
+  for (const auto& v : admitted.error()) fields.push_back(v.field);
+  ASSERT_GE(fields.size(), 5u) << listed(admitted);
+  EXPECT_THAT(std::vector<std::string>(fields.begin(), fields.begin() + 5),
+              ::testing::ElementsAre("pacing", "sequence[0].path.frames[0].curvature", "sequence[0].path.frames[1].tangent",
+                                     "sequence[0].path.frames[2].tangentScale", "sequence[0].motion.profile"))
+      << listed(admitted);
+
+  // A path refused before it was read (too many key frames) is not checked further.
+  planner::PathInput unread{path.spec, {{"frames", "has 3 key frames; this server accepts at most 2"}}, {}, false};
+  EXPECT_THAT(planner::path_violations(unread), ::testing::SizeIs(1));
+  const auto alone = planner::admit_path(unread);
+  ASSERT_FALSE(alone.has_value());
+  EXPECT_EQ(alone.error().front().field, "path.frames");
+  EXPECT_EQ(planner::admit_path(std::nullopt).error().front().field, "path");
+  EXPECT_TRUE(planner::path_violations(planner::PathInput{line(), {}, {}, true}).empty());
 }
 
 planner::StepInput line_step(Eigen::Vector3d goal) {

@@ -40,6 +40,16 @@ TEST(ResolveRobot, ABuiltInByNameStartsAtItsHome) {
   EXPECT_TRUE(robot->seed.isApprox(core::home_configuration(pa10)));
   EXPECT_FALSE(robot->inline_model);
   EXPECT_EQ(robot->approach, planner::Approach::kNone);
+  // Unchanged, the catalogue's model is shared as it was checked when it entered; a request
+  // that changes it (here a tool) gets its own, checked again.
+  EXPECT_EQ(&robot->model.model(), &catalog().find("pa10")->model());
+  auto tooled = by_name("pa10");
+  tooled.tool = Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, 0.123));
+  const auto with_tool = planner::resolve_robot(tooled, catalog());
+  ASSERT_TRUE(with_tool.has_value());
+  EXPECT_NE(&with_tool->model.model(), &catalog().find("pa10")->model());
+  EXPECT_TRUE(with_tool->model->tool.isApprox(*tooled.tool));
+  EXPECT_FALSE(catalog().find("pa10")->model().tool.isApprox(*tooled.tool)) << "the catalogue's model is unchanged";
 }
 
 TEST(ResolveRobot, AnUnknownNameListsTheNamesTheServerKnows) {
@@ -47,7 +57,7 @@ TEST(ResolveRobot, AnUnknownNameListsTheNamesTheServerKnows) {
   ASSERT_FALSE(robot.has_value());
   const auto v = violation_of(robot.error(), "robot.name");
   EXPECT_THAT(v.description, HasSubstr("'pa11'"));
-  for (const auto& m : catalog().models) EXPECT_THAT(v.description, HasSubstr(m.name));
+  for (const auto& m : catalog().models) EXPECT_THAT(v.description, HasSubstr(m->name));
 }
 
 TEST(ResolveRobot, NoSourceIsRefusedNamingTheThreeWays) {
@@ -100,7 +110,7 @@ TEST(ResolveRobot, AJointLimitNamingNoJointListsTheModelsJoints) {
   ASSERT_FALSE(robot.has_value());
   const auto v = violation_of(robot.error(), "robot.jointLimits[0].joint");
   EXPECT_THAT(v.description, HasSubstr("'elbow'"));
-  EXPECT_THAT(v.description, HasSubstr(catalog().find("pa10")->joints[0].name));
+  EXPECT_THAT(v.description, HasSubstr((*catalog().find("pa10"))->joints[0].name));
 }
 
 TEST(ResolveRobot, AScaleThatTakesALimitOutOfRangeNamesTheJoint) {

@@ -152,13 +152,13 @@ TEST(Urdf, BuiltinArmsLoad) {
   const std::pair<const char*, std::size_t> expected[] = {{"pa10", 7}, {"ur5", 6}, {"panda", 7}, {"iiwa14", 7}, {"ur5e", 6}};
   for (std::size_t i = 0; i < robots.size(); ++i) {
     SCOPED_TRACE(expected[i].first);
-    EXPECT_EQ(robots[i].name, expected[i].first);
-    EXPECT_EQ(robots[i].dof(), expected[i].second);
-    EXPECT_TRUE(core::validate_robot(robots[i]).empty()) << listed(core::validate_robot(robots[i]));
-    EXPECT_FALSE(robots[i].description.empty());
-    EXPECT_EQ(robots[i].dh.has_value(), i < 2);  // the thesis's PA-10 and the UR5 stay DH tables
-    EXPECT_EQ(planner::builtin_urdf(robots[i].name).empty(), i < 2);
-    ASSERT_EQ(robots[i].home.size(), robots[i].dof());
+    EXPECT_EQ(robots[i]->name, expected[i].first);
+    EXPECT_EQ(robots[i]->dof(), expected[i].second);
+    EXPECT_TRUE(core::validate_robot(*robots[i]).empty()) << listed(core::validate_robot(*robots[i]));
+    EXPECT_FALSE(robots[i]->description.empty());
+    EXPECT_EQ(robots[i]->dh.has_value(), i < 2);  // the thesis's PA-10 and the UR5 stay DH tables
+    EXPECT_EQ(planner::builtin_urdf(robots[i]->name).empty(), i < 2);
+    ASSERT_EQ(robots[i]->home.size(), robots[i]->dof());
   }
   const RobotModel& panda = *planner::find_builtin_robot("panda");
   EXPECT_EQ(panda.joints[0].name, "panda_joint1");

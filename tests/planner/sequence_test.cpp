@@ -1,6 +1,8 @@
 // planner::plan of a sequence (planner/sequence.cpp), without the wire: steps one after the
 // other, each from where the previous one ends, with their own reports; a given start away
 // from the previous end named by its step.
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <variant>
@@ -87,6 +89,51 @@ TEST(PlannerSequence, AStepThatCannotBePlannedIsNamedFromTheRequestsRoot) {
   ASSERT_FALSE(plan.has_value());
   ASSERT_FALSE(plan.error().violations.empty()) << described(plan.error());
   EXPECT_THAT(plan.error().violations.front().field, HasSubstr("sequence[0]"));
+}
+
+planner::Step line_step(Eigen::Vector3d start, Eigen::Vector3d goal, double blend_tolerance) {
+  planner::Step step;
+  core::LinearMoveSpec line;
+  line.start.p_WT = start;
+  line.goal.p_WT = goal;
+  step.geometry = line;
+  step.motion.max_speed = 0.1;
+  step.motion.max_acceleration = 0.5;
+  step.motion.max_jerk = 10.0;
+  step.blend_tolerance = blend_tolerance;
+  return step;
+}
+
+// A chain of blended lines whose first junction is straight on: only the turn is a corner, and
+// the plan sums the motion up (the whole's peaks are the steps' largest).
+TEST(PlannerSequence, AStraightJunctionIsNoCornerAndThePlanSumsTheMotionUp) {
+  const Eigen::Vector3d a(0.4, 0.0, 0.5), b(0.5, 0.0, 0.5), c(0.6, 0.0, 0.5), d(0.6, 0.1, 0.5);
+  planner::Request request;
+  request.motion = request.sequence.emplace_back(line_step(a, b, 0.01)).motion;
+  request.sequence.push_back(line_step(b, c, 0.01));
+  request.sequence.push_back(line_step(c, d, 0.0));
+  request.sequence.push_back(line_step(d, a, 0.0));
+  const auto plan = planner::plan(request, {}, {});
+  ASSERT_TRUE(plan.has_value()) << (plan ? "" : described(plan.error()));
+  ASSERT_EQ(plan->steps.size(), 2u);
+  EXPECT_EQ(plan->steps[0].kind, "blended");
+  ASSERT_EQ(plan->steps[0].corners.size(), 1u) << "a -> b -> c is straight on";
+  EXPECT_EQ(plan->steps[0].corners[0].after, 1u);
+  EXPECT_NEAR(plan->steps[0].corners[0].corner, std::acos(0.0), 1e-9);
+  ASSERT_TRUE(plan->summary.has_value());
+  const planner::MotionSummary& whole = *plan->summary;
+  EXPECT_NEAR(whole.duration_s, plan->steps[1].start_time_s + plan->steps[1].duration_s, 1e-12);
+  EXPECT_EQ(whole.sample_count, plan->steps[1].first_sample + plan->steps[1].sample_count);
+  double tangential = 0.0, speed = 0.0;
+  for (const auto& step : plan->steps) {
+    EXPECT_GT(step.peak_tangential_acceleration, 0.0);
+    EXPECT_LE(step.peak_tangential_acceleration, 0.5 + 1e-9);
+    tangential = std::max(tangential, step.peak_tangential_acceleration);
+    speed = std::max(speed, step.tool.speed);
+  }
+  EXPECT_EQ(whole.peak_tangential_acceleration, tangential);
+  EXPECT_EQ(whole.tool.speed, speed);
+  EXPECT_LE(whole.tool.speed, 0.1 + 1e-9);
 }
 
 }  // namespace

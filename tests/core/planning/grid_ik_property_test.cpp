@@ -508,7 +508,7 @@ TEST_P(GridIk, RandomPathsThatStreamAtAFixedDurationTimeOptimally) {
 
 std::vector<std::string> builtin_arm_names() {
   std::vector<std::string> names;
-  for (const auto& m : planner::builtin_robots()) names.push_back(m.name);
+  for (const auto& m : planner::builtin_robots()) names.push_back(m->name);
   return names;
 }
 

@@ -95,6 +95,17 @@ ProfileState evaluate(const SpeedProfile& profile, double t) {
   return evaluate(profile, t, cursor);
 }
 
+SpeedProfile time_scaled(SpeedProfile profile, double c) {
+  for (ProfilePiece& piece : profile.pieces) {
+    piece.t0 *= c;
+    piece.v0 /= c;
+    piece.a0 /= c * c;
+    piece.j /= c * c * c;
+  }
+  profile.duration *= c;
+  return profile;
+}
+
 double peak_speed(const SpeedProfile& profile) {
   double peak = 0.0;
   const auto& pcs = profile.pieces;

@@ -62,6 +62,12 @@ double peak_speed(const SpeedProfile& profile);
 double peak_acceleration(const SpeedProfile& profile);
 double peak_jerk(const SpeedProfile& profile);
 
+/// The same motion `c` >= 1 times slower: s_c(t) = s(t / c), so every piece starts at c t0
+/// with speed v0 / c, acceleration a0 / c^2 and jerk j / c^3, and the duration is c T. Along
+/// a path every derivative of the pose (and of the joints that follow it) scales the same
+/// way: velocities 1 / c, accelerations 1 / c^2, jerks 1 / c^3.
+SpeedProfile time_scaled(SpeedProfile profile, double c);
+
 /// Trapezoidal speed for a given duration (thesis Eqs. 6.11-6.13). With t_b = f T:
 ///   v_max = L / (T - t_b)  (6.11),  a_max = v_max / t_b  (6.12),
 ///   v(t) = a_max t for t < t_b;  v_max between;  a_max (T - t) for t > T - t_b  (6.13).

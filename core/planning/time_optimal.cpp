@@ -347,6 +347,17 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
   return out;
 }
 
+void tighten_limits(const SampleCheck& check, int round, int uniform_from, std::vector<std::vector<double>>& sigma,
+                    std::vector<std::vector<double>>* jerk_sigma) {
+  const double uniform = round >= uniform_from && check.worst_usage > 1.0 ? (1.0 / check.worst_usage) * (1.0 - 1e-6) : 1.0;
+  for (std::size_t p = 0; p < sigma.size(); ++p) {
+    for (std::size_t i = 0; i < sigma[p].size(); ++i) {
+      sigma[p][i] *= check.shrink[p][i] * uniform;
+      if (jerk_sigma != nullptr) (*jerk_sigma)[p][i] *= check.jerk_shrink[p][i] * uniform * uniform * uniform;
+    }
+  }
+}
+
 Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationPlan& orientation,
                                             const MotionSpec& spec, const RobotModel* robot,
                                             const JointVector& seed, const TimeOptimalOptions& options) {
@@ -413,8 +424,7 @@ Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationP
                                      number(100.0 * (out.worst_sample_usage - 1.0), 6) + " % after " +
                                      std::to_string(round) + " refinements (" + check->worst +
                                      "): use a finer grid")});
-    for (std::size_t p = 0; p < P; ++p)
-      for (std::size_t i = 0; i < sigma[p].size(); ++i) sigma[p][i] *= check->shrink[p][i];
+    tighten_limits(*check, round, options.uniform_refinement_from, sigma, nullptr);
   }
 
   // The grid error of the duration: the same limits on every second grid point.

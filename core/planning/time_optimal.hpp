@@ -109,9 +109,11 @@ struct TimeOptimalOptions {
   std::size_t grid_intervals = 1000;
   /// Stream the result through MotionSampler (and JointTracker with a robot) and check
   /// every sample; where one breaks a limit, tighten the limits at that interval by the
-  /// ratio and solve again (at most `max_refinements` times).
+  /// ratio and solve again (at most `max_refinements` times; from round
+  /// `uniform_refinement_from` on, every point's limits also tighten: see tighten_limits).
   bool verify_samples = true;
   int max_refinements = 8;
+  int uniform_refinement_from = 4;
   /// Relative slack of the sample check: a sample passes when value <= limit (1 + slack)
   /// (the IK's rounding; 1e-9).
   double sample_tolerance = 1e-9;
@@ -233,6 +235,19 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
                                                  const std::vector<std::vector<GridPoint>>& grids,
                                                  const TimeOptimalLimits& limits, const RobotModel* robot,
                                                  const JointVector& seed, const TimeOptimalOptions& options);
+
+/// The limits' factors after a sample check that found the motion over a limit, in round
+/// `round` of the refinements (from 0): each grid point's `sigma` (velocities scale by it,
+/// accelerations by its square) times `check.shrink`, and each point's jerk factor (where
+/// `jerk_sigma` is given) times `check.jerk_shrink`. From round `uniform_from` on, the local
+/// tightening has not settled (the excess moved on to neighbouring samples or grid
+/// intervals), so every point of every portion also takes the factor 1 / worst_usage (its
+/// cube for the jerk factors): the same limits on the same grid with every sigma scaled by
+/// 1 / c time the motion c times slower, velocities 1 / c, accelerations 1 / c^2, jerks
+/// 1 / c^3 as fast, so the worst sample comes within its limit whatever its order, at the
+/// cost of at most that factor in duration.
+void tighten_limits(const SampleCheck& check, int round, int uniform_from, std::vector<std::vector<double>>& sigma,
+                    std::vector<std::vector<double>>* jerk_sigma);
 
 /// A one-line description of a stretch ("joint 3 velocity 1.99 of 1.99 rad/s on s 0.1-0.4 m").
 std::string describe(const BindingStretch& stretch);

@@ -285,16 +285,53 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
     out.worst_sample_usage = check->worst_usage;
     out.check_rate_hz = check->check_rate_hz;
     if (!check->broken) break;
-    if (round >= exact_options.max_refinements)
-      return tl::make_unexpected(core::Violations{core::unattainable(
-          "motion", "the sampled jerk-limited motion still exceeds a limit by " +
-                        core::number(100.0 * (check->worst_usage - 1.0), 6) + " % after " + std::to_string(round) +
-                        " refinements (" + check->worst + "): use a finer grid")});
-    for (std::size_t p = 0; p < P; ++p)
-      for (std::size_t i = 0; i < sigma[p].size(); ++i) {
-        sigma[p][i] *= check->shrink[p][i];
-        jerk_sigma[p][i] *= check->jerk_shrink[p][i];
+    if (round >= options.max_refinements) {
+      // Not settled: the NLP meets its limits at the grid points, and a sample between them
+      // still passes one. The last result c = r times slower (r the worst usage) has every
+      // velocity 1 / c, acceleration 1 / c^2 and jerk 1 / c^3 of what was sampled: within
+      // every limit whatever its order, for a duration c times longer. Checked again, at the
+      // check rate too (a check that fails at the cycle rate does not go on to the finer
+      // rate, whose worst usage may be larger): slowed again by what that finds, at most
+      // kMaxSlowDowns times.
+      constexpr int kMaxSlowDowns = 3;
+      double slowed_by = 1.0;
+      for (int k = 0; k < kMaxSlowDowns && check->broken; ++k) {
+        const double c = check->worst_usage * (1.0 + 1e-9);
+        slowed_by *= c;
+        std::vector<core::SpeedProfile> slower;
+        for (JerkTiming& jt : out.portions) {
+          jt.profile = core::time_scaled(std::move(jt.profile), c);
+          jt.duration *= c;
+          for (double& b : jt.b) b /= c * c;
+          for (double& u : jt.u) u /= c * c;
+          for (double& dt : jt.dt) dt *= c;
+          for (double& j : jt.jerk) j /= c * c * c;
+          slower.push_back(jt.profile);
+        }
+        auto slowed = core::assemble_motion(spec, exact->motion.portions, slower);
+        if (!slowed) return tl::make_unexpected(slowed.error());
+        out.motion = std::move(*slowed);
+        out.motion.spec.duration_s = 0.0;
+        if (cancelled()) return tl::make_unexpected(stopped());
+        check = core::check_time_optimal_samples(path, orientation, out.motion, exact->grids, checked, robot, seed,
+                                                 exact_stoppable);
+        if (!check) return tl::make_unexpected(check.error());
       }
+      if (check->broken)
+        return tl::make_unexpected(core::Violations{core::unattainable(
+            "motion", "the sampled jerk-limited motion still exceeds a limit by " +
+                          core::number(100.0 * (check->worst_usage - 1.0), 6) + " % after " + std::to_string(round) +
+                          " refinements and slowing it by " + core::number(100.0 * (slowed_by - 1.0), 6) + " % (" +
+                          check->worst + "): use a finer grid")});
+      out.worst_sample_usage = check->worst_usage;
+      out.check_rate_hz = check->check_rate_hz;
+      out.slowed_by = slowed_by;
+      out.report.message += (out.report.message.empty() ? "" : "; ") + std::string("slowed by ") +
+                            core::number(100.0 * (slowed_by - 1.0), 3) + " % after " + std::to_string(round) +
+                            " refinements that did not settle, so that every sample is within its limits";
+      break;
+    }
+    core::tighten_limits(*check, round, options.uniform_refinement_from, sigma, &jerk_sigma);
   }
   out.report.objective_after = 0.0;
   for (const JerkTiming& jt : out.portions) out.report.objective_after += jt.report.objective_after;

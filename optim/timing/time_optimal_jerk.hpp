@@ -95,6 +95,11 @@ struct JerkTimingOptions {
   /// imply (they cannot bind, so the feasible set and the optimum are unchanged; each
   /// solver's system shrinks by two rows each). Off: every row, for comparison.
   bool drop_implied_jerk_rows = true;
+  /// plan_time_optimal_jerk: the re-solves after a sample check that found a limit broken
+  /// (from round `uniform_refinement_from` on, every grid point also tightens:
+  /// core::tighten_limits); still broken after the last, the result is slowed uniformly.
+  int max_refinements = 8;
+  int uniform_refinement_from = 4;
   /// Run Ipopt's second-order derivative checker at the start point and print its report
   /// (and Ipopt's iteration log) on stdout: a debug aid, slow (Ipopt runs, whatever `solver`).
   bool derivative_test = false;
@@ -144,6 +149,9 @@ struct JerkLimitedPlan {
   std::vector<JerkTiming> portions;
   OptimizerReport report;                ///< summed iterations, the worst status, wall time [s]
   int refinements = 0;                   ///< re-solves after the sample check
+  /// > 1 when the refinements did not settle and the last result was slowed uniformly by
+  /// this factor to bring every sample within its limits (core::time_scaled); else 1.
+  double slowed_by = 1.0;
   double worst_sample_usage = 0.0;       ///< largest value / limit over every sample checked
   double check_rate_hz = 0.0;            ///< the rate of the last sample check [Hz]
   /// |T(N) - T(N / 2)| [s]: the duration against that of the same programme (limits and
@@ -169,13 +177,16 @@ inline core::TimeOptimalOptions jerk_exact_options() {
 /// (core::check_time_optimal_samples: the jerk as the difference of successive
 /// accelerations over the period) and, where one breaks a limit, the limits at that
 /// interval's grid points are tightened (JerkTimingOptions::limit_scale, jerk_scale) and the
-/// NLP runs again from its last result, at most exact_options.max_refinements times.
+/// NLP runs again from its last result, at most options.max_refinements times; if a sample
+/// still breaks a limit by the ratio r, the last result is slowed uniformly r times
+/// (core::time_scaled: velocities 1 / r, accelerations 1 / r^2, jerks 1 / r^3), checked
+/// again, and JerkLimitedPlan::slowed_by and the report's message say so.
 /// Guarantee: every sample at the cycle rate and at the check rate within every limit to
 /// exact_options.sample_tolerance, the jerk included (so a controller differentiating the
 /// accelerations at any rate dividing the check rate sees at most the limit: the mean of
 /// the jerk over a period is a mean of the checked ones); maxSpeed everywhere.
 /// Errors: plan_time_optimal's; `motion` when the samples still break a limit after the
-/// last refinement, or the IK fails at a sample; `motion` "stopped" once options.stop (or
+/// slow-down, or the IK fails at a sample; `motion` "stopped" once options.stop (or
 /// exact_options.stop) is requested: checked between the steps and every 256 samples of the
 /// sample check, so a degenerate limit (maxJerk 1e-10 m/s^3: a motion of hours) ends at the
 /// call's deadline or cancellation.

@@ -134,6 +134,26 @@ TEST(SpeedProfile, ZeroLengthIsAnEmptyRest) {
   EXPECT_EQ(core::evaluate(*p, 1.0).v, 0.0);
 }
 
+// s_c(t) = s(t / c): the same arc length at c times the time, speed 1 / c, acceleration
+// 1 / c^2, jerk 1 / c^3, at every instant (a double S: every piece has a jerk).
+TEST(SpeedProfile, TimeScaledIsTheSameMotionSlower) {
+  const auto p = core::min_time_double_s(0.7, 0.5, 2.0, 20.0);
+  ASSERT_TRUE(p.has_value());
+  const double c = 1.7;
+  const core::SpeedProfile slow = core::time_scaled(*p, c);
+  EXPECT_DOUBLE_EQ(slow.duration, c * p->duration);
+  EXPECT_EQ(slow.length, p->length);
+  for (int k = 0; k <= 200; ++k) {
+    const double t = p->duration * k / 200.0;
+    const core::ProfileState a = core::evaluate(*p, t), b = core::evaluate(slow, c * t);
+    EXPECT_NEAR(b.s, a.s, 1e-12) << t;
+    EXPECT_NEAR(b.v, a.v / c, 1e-12) << t;
+    EXPECT_NEAR(b.a, a.a / (c * c), 1e-10) << t;
+    EXPECT_NEAR(b.j, a.j / (c * c * c), 1e-9) << t;
+  }
+  EXPECT_NEAR(core::peak_jerk(slow), core::peak_jerk(*p) / (c * c * c), 1e-9);
+}
+
 // Short (triangle), medium and long (cruise) portions.
 TEST(SpeedProfile, MinTimeTrapezoidRespectsAndReachesLimits) {
   const double v = 0.5, a = 2.0;  // v^2 / a = 0.125 m

@@ -13,6 +13,7 @@
 //  - limit_scale tightens the limits at single grid points;
 //  - a degenerate limit (maxJerk 1e-10 m/s^3: a motion of hours to check sample by sample)
 //    ends when its stop token is requested (the call's deadline or cancellation).
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -23,6 +24,7 @@
 #include <thread>
 #include <vector>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "core/geometry/path.hpp"
@@ -370,6 +372,67 @@ TEST(JerkTiming, Pa10DemoPathCEverySampleWithinTheLimitsAtAnyRate) {
     std::printf("  sampled at 20 kHz: worst use of the stated bounds %.6f\n", excess);
     EXPECT_LE(excess, 1.0);
   }
+}
+
+// Refinements that do not settle end in a uniform slow-down of the last result, not in an
+// error: with no refinement allowed, the PA-10's first jerk-limited result along demo path C
+// (its jerk 2-3 times the limit between grid points) is slowed by the worst usage, and every
+// sample streamed from the result, independently of the planner's check, is within the joint
+// velocity, acceleration and jerk limits. With the refinements allowed it settles unslowed.
+TEST(JerkTiming, RefinementsThatDoNotSettleSlowTheLastResultUniformly) {
+  auto path = core::build_path(testing::thesis_demo_path('C'));
+  ASSERT_TRUE(path);
+  auto orientation = core::plan_orientation(*path);
+  ASSERT_TRUE(orientation);
+  core::RobotModel robot = *core::find_builtin_robot("pa10");
+  for (auto& l : robot.limits) l.max_jerk = 4.0 * l.max_acceleration;  // [rad/s^3]
+  const JointVector seed = core::home_configuration(robot);
+  JerkTimingOptions opt;
+  opt.time_budget_s = 30.0;
+  core::MotionSpec spec;
+  spec.duration_s = 0.0;
+  const auto settled = plan_time_optimal_jerk(*path, *orientation, spec, &robot, seed, jerk_exact_options(), opt);
+  ASSERT_TRUE(settled) << settled.error()[0].description;
+  EXPECT_EQ(settled->slowed_by, 1.0);
+  EXPECT_GT(settled->refinements, 0) << "the first result breaks a limit: the case tests the fallback";
+
+  JerkTimingOptions once = opt;
+  once.max_refinements = 0;
+  const auto plan = plan_time_optimal_jerk(*path, *orientation, spec, &robot, seed, jerk_exact_options(), once);
+  ASSERT_TRUE(plan) << plan.error()[0].description;
+  EXPECT_EQ(plan->refinements, 0);
+  EXPECT_GT(plan->slowed_by, 1.0);
+  std::printf("no refinement: slowed by %.4f, %.4f s (refined: %d rounds, %.4f s)\n", plan->slowed_by,
+              plan->motion.duration_s, settled->refinements, settled->motion.duration_s);
+  EXPECT_LE(plan->worst_sample_usage, 1.0 + 1e-9);
+  EXPECT_THAT(plan->report.message, ::testing::HasSubstr("slowed by"));
+  double portions = 0.0;
+  for (const auto& jt : plan->portions) portions += jt.profile.duration;
+  EXPECT_NEAR(plan->motion.duration_s, portions, 1e-6);
+  EXPECT_GT(plan->motion.duration_s, settled->motion.duration_s) << "slower than the refined result";
+
+  core::MotionSampler sampler(*path, plan->motion);
+  core::JointTracker tracker(robot, seed);
+  core::MotionSample ms;
+  core::JointSample js;
+  JointVector q_ddot_prev;
+  double t_prev = 0.0, worst = 0.0;
+  std::size_t samples = 0;
+  while (sampler.next(ms)) {
+    ASSERT_TRUE(tracker.track(core::cartesian_state(*path, *orientation, ms), js)) << "t " << ms.t;
+    for (std::size_t j = 0; j < robot.dof(); ++j) {
+      const auto jj = static_cast<Eigen::Index>(j);
+      const auto& l = robot.limits[j];
+      worst = std::max({worst, std::abs(js.q_dot(jj)) / l.max_velocity, std::abs(js.q_ddot(jj)) / l.max_acceleration});
+      if (samples > 0) worst = std::max(worst, std::abs(js.q_ddot(jj) - q_ddot_prev(jj)) / (ms.t - t_prev) / *l.max_jerk);
+    }
+    q_ddot_prev = js.q_ddot;
+    t_prev = ms.t;
+    ++samples;
+  }
+  EXPECT_EQ(samples, plan->motion.sample_count);
+  EXPECT_LE(worst, 1.0 + 1e-9);
+  EXPECT_GT(worst, 0.3) << "slowed by the worst usage, not more: some limit is still well used";
 }
 
 // limit_scale at one grid point: that point's velocity cap scales by sigma^2 in b, the rest

@@ -256,16 +256,30 @@ TEST(JerkTiming, TinyBudgetIsReportedAsTimeLimit) {
   EXPECT_NE(r.report.status, OptimizerStatus::kConverged);
 }
 
-TEST(JerkTiming, Pa10DemoPathCWithJointJerkLimits) {
-  auto path = core::build_path(testing::thesis_demo_path('C'));
-  ASSERT_TRUE(path);
-  auto orientation = core::plan_orientation(*path);
-  ASSERT_TRUE(orientation);
+// The thesis's demo path C (Table 7.18) and its orientation plan.
+struct DemoPathC {
+  core::Path path;
+  core::OrientationPlan orientation;
+};
+DemoPathC demo_path_c() {
+  core::Path path = core::build_path(testing::thesis_demo_path('C')).value();
+  core::OrientationPlan orientation = core::plan_orientation(path).value();
+  return {std::move(path), std::move(orientation)};
+}
+
+// The PA-10 with joint jerk limits of 4 maxAcceleration [rad/s^3].
+core::RobotModel pa10_with_jerk_limits() {
   core::RobotModel robot = *core::find_builtin_robot("pa10");
-  for (auto& l : robot.limits) l.max_jerk = 4.0 * l.max_acceleration;  // [rad/s^3]
+  for (auto& l : robot.limits) l.max_jerk = 4.0 * l.max_acceleration;
+  return robot;
+}
+
+TEST(JerkTiming, Pa10DemoPathCWithJointJerkLimits) {
+  const DemoPathC c = demo_path_c();
+  const core::RobotModel robot = pa10_with_jerk_limits();
   JerkTimingOptions opt;
   opt.time_budget_s = 30.0;
-  const auto plan = plan_time_optimal_jerk(*path, *orientation, core::MotionSpec{}, &robot,
+  const auto plan = plan_time_optimal_jerk(c.path, c.orientation, core::MotionSpec{}, &robot,
                                            core::home_configuration(robot), jerk_exact_options(), opt);
   ASSERT_TRUE(plan) << plan.error()[0].description;
   std::printf("PA-10, demo path C: exact %.4f s, jerk-limited %.4f s, %d iterations, %.1f ms, %s\n",
@@ -286,12 +300,8 @@ TEST(JerkTiming, Pa10DemoPathCWithJointJerkLimits) {
 // joint velocity, acceleration and jerk limits to 1e-9 relative, and the motion starts and
 // ends with zero acceleration.
 TEST(JerkTiming, Pa10DemoPathCEverySampleWithinTheLimitsAtAnyRate) {
-  auto path = core::build_path(testing::thesis_demo_path('C'));
-  ASSERT_TRUE(path);
-  auto orientation = core::plan_orientation(*path);
-  ASSERT_TRUE(orientation);
-  core::RobotModel robot = *core::find_builtin_robot("pa10");
-  for (auto& l : robot.limits) l.max_jerk = 4.0 * l.max_acceleration;  // [rad/s^3]
+  const DemoPathC c = demo_path_c();
+  const core::RobotModel robot = pa10_with_jerk_limits();
   const JointVector seed = core::home_configuration(robot);
   const std::size_t n = robot.dof();
   for (const double rate : {100.0, 1000.0, 10000.0}) {
@@ -300,7 +310,7 @@ TEST(JerkTiming, Pa10DemoPathCEverySampleWithinTheLimitsAtAnyRate) {
     spec.cycle_rate_hz = rate;
     JerkTimingOptions opt;
     opt.time_budget_s = 30.0;
-    const auto plan = plan_time_optimal_jerk(*path, *orientation, spec, &robot, seed, jerk_exact_options(), opt);
+    const auto plan = plan_time_optimal_jerk(c.path, c.orientation, spec, &robot, seed, jerk_exact_options(), opt);
     ASSERT_TRUE(plan) << plan.error()[0].description;
     EXPECT_EQ(plan->report.status, OptimizerStatus::kConverged) << plan->report.message;
     std::printf("%g Hz: %d refinements, worst sample usage %.12f, %.4f s, checked at %g Hz\n", rate,
@@ -309,7 +319,7 @@ TEST(JerkTiming, Pa10DemoPathCEverySampleWithinTheLimitsAtAnyRate) {
     EXPECT_EQ(plan->check_rate_hz, std::max(2000.0, rate));
 
     // Stream it independently of the planner's own check.
-    core::MotionSampler sampler(*path, plan->motion);
+    core::MotionSampler sampler(c.path, plan->motion);
     core::JointTracker tracker(robot, seed);
     core::MotionSample ms;
     core::JointSample js;
@@ -317,7 +327,7 @@ TEST(JerkTiming, Pa10DemoPathCEverySampleWithinTheLimitsAtAnyRate) {
     double t_prev = 0.0, worst = 0.0, worst_jerk = 0.0;
     std::size_t samples = 0;
     while (sampler.next(ms)) {
-      ASSERT_TRUE(tracker.track(core::cartesian_state(*path, *orientation, ms), js)) << "t " << ms.t;
+      ASSERT_TRUE(tracker.track(core::cartesian_state(c.path, c.orientation, ms), js)) << "t " << ms.t;
       if (samples == 0 || samples + 1 == plan->motion.sample_count) {
         EXPECT_EQ(ms.s_ddot, 0.0) << "the motion starts and ends without acceleration, t " << ms.t;
         EXPECT_LE(js.q_ddot.cwiseAbs().maxCoeff(), 1e-9) << "t " << ms.t;
@@ -351,12 +361,12 @@ TEST(JerkTiming, Pa10DemoPathCEverySampleWithinTheLimitsAtAnyRate) {
     fine.spec.cycle_rate_hz = 20000.0;
     fine.sample_count = core::grid_sample_count(fine.duration_s, fine.spec.cycle_rate_hz);
     const double h = 1.0 / 2000.0;
-    core::MotionSampler fine_sampler(*path, fine);
+    core::MotionSampler fine_sampler(c.path, fine);
     core::JointTracker fine_tracker(robot, seed);
     samples = 0;
     double excess = 0.0;
     while (fine_sampler.next(ms)) {
-      ASSERT_TRUE(fine_tracker.track(core::cartesian_state(*path, *orientation, ms), js)) << "t " << ms.t;
+      ASSERT_TRUE(fine_tracker.track(core::cartesian_state(c.path, c.orientation, ms), js)) << "t " << ms.t;
       for (std::size_t j = 0; j < n; ++j) {
         const auto jj = static_cast<Eigen::Index>(j);
         const auto& l = robot.limits[j];
@@ -380,25 +390,21 @@ TEST(JerkTiming, Pa10DemoPathCEverySampleWithinTheLimitsAtAnyRate) {
 // sample streamed from the result, independently of the planner's check, is within the joint
 // velocity, acceleration and jerk limits. With the refinements allowed it settles unslowed.
 TEST(JerkTiming, RefinementsThatDoNotSettleSlowTheLastResultUniformly) {
-  auto path = core::build_path(testing::thesis_demo_path('C'));
-  ASSERT_TRUE(path);
-  auto orientation = core::plan_orientation(*path);
-  ASSERT_TRUE(orientation);
-  core::RobotModel robot = *core::find_builtin_robot("pa10");
-  for (auto& l : robot.limits) l.max_jerk = 4.0 * l.max_acceleration;  // [rad/s^3]
+  const DemoPathC c = demo_path_c();
+  const core::RobotModel robot = pa10_with_jerk_limits();
   const JointVector seed = core::home_configuration(robot);
   JerkTimingOptions opt;
   opt.time_budget_s = 30.0;
   core::MotionSpec spec;
   spec.duration_s = 0.0;
-  const auto settled = plan_time_optimal_jerk(*path, *orientation, spec, &robot, seed, jerk_exact_options(), opt);
+  const auto settled = plan_time_optimal_jerk(c.path, c.orientation, spec, &robot, seed, jerk_exact_options(), opt);
   ASSERT_TRUE(settled) << settled.error()[0].description;
   EXPECT_EQ(settled->slowed_by, 1.0);
   EXPECT_GT(settled->refinements, 0) << "the first result breaks a limit: the case tests the fallback";
 
   JerkTimingOptions once = opt;
   once.max_refinements = 0;
-  const auto plan = plan_time_optimal_jerk(*path, *orientation, spec, &robot, seed, jerk_exact_options(), once);
+  const auto plan = plan_time_optimal_jerk(c.path, c.orientation, spec, &robot, seed, jerk_exact_options(), once);
   ASSERT_TRUE(plan) << plan.error()[0].description;
   EXPECT_EQ(plan->refinements, 0);
   EXPECT_GT(plan->slowed_by, 1.0);
@@ -411,7 +417,7 @@ TEST(JerkTiming, RefinementsThatDoNotSettleSlowTheLastResultUniformly) {
   EXPECT_NEAR(plan->motion.duration_s, portions, 1e-6);
   EXPECT_GT(plan->motion.duration_s, settled->motion.duration_s) << "slower than the refined result";
 
-  core::MotionSampler sampler(*path, plan->motion);
+  core::MotionSampler sampler(c.path, plan->motion);
   core::JointTracker tracker(robot, seed);
   core::MotionSample ms;
   core::JointSample js;
@@ -419,7 +425,7 @@ TEST(JerkTiming, RefinementsThatDoNotSettleSlowTheLastResultUniformly) {
   double t_prev = 0.0, worst = 0.0;
   std::size_t samples = 0;
   while (sampler.next(ms)) {
-    ASSERT_TRUE(tracker.track(core::cartesian_state(*path, *orientation, ms), js)) << "t " << ms.t;
+    ASSERT_TRUE(tracker.track(core::cartesian_state(c.path, c.orientation, ms), js)) << "t " << ms.t;
     for (std::size_t j = 0; j < robot.dof(); ++j) {
       const auto jj = static_cast<Eigen::Index>(j);
       const auto& l = robot.limits[j];

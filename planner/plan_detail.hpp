@@ -39,6 +39,11 @@ double tangential_peak(const Motion& motion) {
   return 0.0;
 }
 
+/// A jerk-limited timing's binding stretches: those measured on the plan's samples.
+inline void measured_binding(OptimizerReports& reports, const std::vector<core::BindingStretch>& measured) {
+  if (reports.timing && reports.timing->jerk_limited) reports.timing->binding = measured;
+}
+
 /// Violations as an error: kUnattainable when every one is (core::ViolationKind: the request
 /// is well-formed and cannot be carried out), kInvalidArgument otherwise (fields to change).
 Error invalid(core::Violations violations);

@@ -111,9 +111,10 @@ Expected<core::MotionPlan> time_optimal_timing(const core::Path& path, const cor
       return tl::unexpected(invalid(std::move(result.error())));
     }
     plan = std::move(result->motion);
-    // No binding stretches: the exact sweep's (its warm start) describe another, faster motion
-    // (the PA-10's path C: stretches to 5.67 s of a 5.98 s plan). RobotReport.binding measures
-    // this one on its samples.
+    // Its binding stretches are measured on its samples after the plan's pass (measured_binding):
+    // the exact sweep's (its warm start) describe another, faster motion (the PA-10's path C:
+    // stretches to 5.67 s of a 5.98 s plan).
+    timing.jerk_limited = true;
     timing.report = result->report;
     timing.check_rate_hz = result->check_rate_hz;
     timing.worst_limit_usage = result->worst_sample_usage;
@@ -381,21 +382,30 @@ std::optional<Error> ends_at_goal(const Geometry& geometry, const core::JointVec
 }
 
 MotionSummary summary_of(const core::Trajectory& trajectory, const ToolPeaks& peaks) {
-  return {core::duration(trajectory), core::sample_count(trajectory), peaks, tangential_peak(trajectory)};
+  return {core::duration(trajectory), core::sample_count(trajectory), peaks, tangential_peak(trajectory), {}};
 }
 
-// The tool's peaks without a robot: the samples without IK.
-Expected<ToolPeaks> tool_pass(const core::Trajectory& trajectory, const Budget& budget) {
+// The tool's pass without a robot (the samples without IK): its peaks and which of its
+// Cartesian limits binds.
+struct ToolPass {
+  ToolPeaks peaks;
+  std::vector<core::BindingStretch> binding;
+};
+Expected<ToolPass> tool_pass(const core::Trajectory& trajectory, const core::CartesianLimits& cartesian,
+                             const Budget& budget) {
   core::TrajectorySampler sampler(trajectory, nullptr, {});
+  core::ToolBindingBuilder binding;
+  binding.set_cartesian_limits(cartesian);
   core::TrajectorySample sample;
   ToolPeaks peaks;
   while (sampler.next(sample)) {
     add(peaks, sample);
+    binding.add(sampler.index() - 1, sample.t, sample.s, sample.tool);
     if (sampler.index() % kToolSamplesPerCheck == 0) {
       if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
     }
   }
-  return peaks;
+  return ToolPass{peaks, binding.binding()};
 }
 
 // A motion with more samples than the server allows: it is streamed, followed by a robot
@@ -528,11 +538,15 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
       if (auto refused = ends_at_goal(request.geometry, last)) return tl::unexpected(std::move(*refused));
     }
     if (use == Use::kPlan) result.summary = summary_of(*result.trajectory, peaks);
+    measured_binding(result.optimizers, joints.binding);
     result.joints = std::move(joints);
   } else if (use == Use::kPlan) {
-    auto peaks = tool_pass(*result.trajectory, budget);
-    if (!peaks) return tl::unexpected(std::move(peaks.error()));
-    result.summary = summary_of(*result.trajectory, *peaks);
+    auto pass = tool_pass(*result.trajectory,
+                          cartesian_limits(*request.motion, !joint_geometry(request.geometry)), budget);
+    if (!pass) return tl::unexpected(std::move(pass.error()));
+    result.summary = summary_of(*result.trajectory, pass->peaks);
+    result.summary->binding = pass->binding;
+    measured_binding(result.optimizers, pass->binding);
   }
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   return result;

@@ -220,15 +220,22 @@ struct MotionSummary {
   /// The largest |s''| of the timing of a path or a line (a sequence: of its steps) [m/s^2];
   /// 0 for a joint move, whose tool follows no path.
   double peak_tangential_acceleration = 0.0;
+  /// Without a robot: which of the tool's Cartesian limits (maxSpeed, the tangential and
+  /// centripetal parts of maxAcceleration, the angular limits) is the most used, stretch by
+  /// stretch, measured on the samples (core::ToolBindingBuilder). With a robot,
+  /// JointMotionReport::binding has them beside the joints'.
+  std::vector<core::BindingStretch> binding;
 };
 
 /// What the timing optimiser did, with which limit binds where along the path, and how far
 /// its result can be trusted between the samples and from its grid.
 struct TimingReport {
   optim::OptimizerReport report;
-  /// The time-optimal sweep's; empty for a jerk-limited timing (the sweep is its warm start,
-  /// a faster motion: JointMotionReport::binding measures this one on its samples).
+  /// The time-optimal sweep's (the limit active on each grid interval); for a jerk-limited
+  /// timing, the stretches measured on its samples (the sweep is only its warm start, a
+  /// faster motion): the joint-space report's with a robot, the tool's without.
   std::vector<core::BindingStretch> binding;
+  bool jerk_limited = false;  ///< the timing is the jerk-limited one
   /// The finest rate at which every limit was checked on the result (the cycle rate, then
   /// core::TimeOptimalOptions::check_rate_hz) [Hz].
   double check_rate_hz = 0.0;

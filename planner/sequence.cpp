@@ -228,6 +228,7 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
   std::vector<std::vector<std::size_t>> segment_steps;
   std::optional<core::JointReportBuilder> builder;
   if (robot) builder.emplace(robot->model, robot->branch_tolerance);
+  core::ToolBindingBuilder tool_binding;  // without a robot
   ToolPeaks peaks;
   StepEnd end;
   if (robot) {
@@ -328,7 +329,9 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     // peaks over the whole sequence, and where the unit ends.
     const auto ref = std::visit([](const auto& m) { return core::StepRef(&m); }, motion);
     core::StepSampler sampler(ref, robot ? &robot->model.model() : nullptr, end.q, {});
-    if (builder) builder->set_cartesian_limits(cartesian_limits(*sub.motion, !joint_geometry(sub.geometry)));
+    const core::CartesianLimits cartesian = cartesian_limits(*sub.motion, !joint_geometry(sub.geometry));
+    if (builder) builder->set_cartesian_limits(cartesian);
+    tool_binding.set_cartesian_limits(cartesian);
     core::TrajectorySample sample;
     while (sampler.next(sample)) {
       const std::size_t j = sampler.index() - 1;
@@ -338,6 +341,7 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
       if (last_unit || j + 1 < n) {
         const double t = report.start_time_s + sample.t;
         if (builder) builder->add(first + j, t, sample.s, sample.joints, &sample.tool);
+        else if (use == Use::kPlan) tool_binding.add(first + j, t, sample.s, sample.tool);
         add(peaks, sample);
       }
       add(report.tool, sample);  // the step's own, its last rest included
@@ -377,11 +381,21 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     }
     result.joints = std::move(joints);
   }
+  // A jerk-limited step's binding: the stretches measured on the sequence's samples that
+  // overlap the step.
+  const auto& measured = result.joints ? result.joints->binding : tool_binding.binding();
+  for (StepReport& r : result.steps) {
+    std::vector<core::BindingStretch> own;
+    for (const auto& stretch : measured) {
+      if (stretch.t_end > r.start_time_s && stretch.t_start < r.start_time_s + r.duration_s) own.push_back(stretch);
+    }
+    measured_binding(r.optimizers, own);
+  }
   if (use == Use::kPlan) {
     double tangential = 0.0;
     for (const StepReport& r : result.steps) tangential = std::max(tangential, r.peak_tangential_acceleration);
     result.summary = MotionSummary{core::duration(*result.trajectory), core::sample_count(*result.trajectory), peaks,
-                                   tangential};
+                                   tangential, robot ? std::vector<core::BindingStretch>{} : tool_binding.binding()};
   }
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   return result;

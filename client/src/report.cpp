@@ -37,6 +37,23 @@ std::string short_enum(const std::string& name, const std::string& prefix) {
   return name.rfind(prefix, 0) == 0 ? name.substr(prefix.size()) : name;
 }
 
+// The most used limit, stretch by stretch, measured on the samples (RobotReport.binding,
+// MotionSummary.binding); "binding" only of a limit used whole (it sets the pace there).
+void print_binding(const google::protobuf::RepeatedPtrField<v1::BindingStretch>& binding, std::ostream& out) {
+  if (binding.empty()) return;
+  out << "the most used limit, stretch by stretch (binding: at 100 %):\n";
+  for (const auto& b : binding) {
+    char row[200];
+    const std::string kind = short_enum(v1::BindingKind_Name(b.kind()), "BINDING_KIND_");
+    const bool joint = kind.rfind("JOINT_", 0) == 0;  // a Cartesian limit is the tool's
+    std::snprintf(row, sizeof row, "  t %8.3f .. %8.3f s  %-24s %-8s peak %.4g of limit %.4g (%.1f%%)%s\n",
+                  b.t_start(), b.t_end(), kind.c_str(), joint ? ("joint " + std::to_string(b.joint())).c_str() : "tool",
+                  b.value(), b.limit(), 100.0 * b.usage(),
+                  b.usage() > 1.001 ? "  above it" : b.usage() >= 0.999 ? "  binding" : "");
+    out << row;
+  }
+}
+
 void print_geometry_row(const std::string& label, const v1::FrenetGeometry& g, std::ostream& out) {
   out << label << num(g.speed()) << (g.has_curvature() ? num(g.curvature()) : absent())
       << (g.has_torsion() ? num(g.torsion()) : absent())
@@ -178,6 +195,7 @@ void print_motion_and_reports(const v1::PlanResponse& response, std::ostream& ou
         << " m/s, peak acceleration" << num(m.peak_acceleration(), 1) << " m/s^2 (tangential"
         << num(m.peak_tangential_acceleration(), 1) << "), peak angular speed" << num(m.peak_angular_speed(), 1)
         << " rad/s, " << m.sample_count() << " samples\n";
+    print_binding(m.binding(), out);
   }
   if (response.has_optimization()) print_table(response.optimization(), out);
   if (response.has_robot()) print_table(response.robot(), out);
@@ -278,18 +296,7 @@ void print_table(const v1::RobotReport& robot, std::ostream& out) {
   out << buf;
   for (const auto& v : robot.violations()) out << "VIOLATION " << event_text(v) << '\n';
   if (robot.has_default_jerk()) out << "default jerk: " << robot.default_jerk().message() << '\n';
-  if (robot.binding_size() > 0) out << "the most used limit, stretch by stretch (binding: at 100 %):\n";
-  for (const auto& b : robot.binding()) {
-    char row[200];
-    const std::string kind = short_enum(v1::BindingKind_Name(b.kind()), "BINDING_KIND_");
-    const bool joint = kind.rfind("JOINT_", 0) == 0;  // a Cartesian limit is the tool's
-    // "binding" only of a limit used whole (it sets the pace there).
-    std::snprintf(row, sizeof row, "  t %8.3f .. %8.3f s  %-24s %-8s peak %.4g of limit %.4g (%.1f%%)%s\n",
-                  b.t_start(), b.t_end(), kind.c_str(), joint ? ("joint " + std::to_string(b.joint())).c_str() : "tool",
-                  b.value(), b.limit(), 100.0 * b.usage(),
-                  b.usage() > 1.001 ? "  above it" : b.usage() >= 0.999 ? "  binding" : "");
-    out << row;
-  }
+  print_binding(robot.binding(), out);
 }
 
 void print_table(const v1::ListRobotsResponse& robots, std::ostream& out) {

@@ -423,6 +423,50 @@ ToolValues tool_values(const CartesianState& tool) {
   return v;
 }
 
+// `top` becomes the tool limit whose usage at this sample is the largest, where it passes
+// top's.
+void take_tool_limits(BindingStretch& top, const ToolValues& values, const CartesianLimits& limits) {
+  const auto take = [&top](BindingKind kind, double value, double limit) {
+    if (limit > 0.0 && value / limit > top.usage) {
+      top.kind = kind, top.joint = 0, top.usage = value / limit, top.value = value, top.limit = limit;
+    }
+  };
+  take(BindingKind::kCartesianSpeed, values.speed, limits.speed);
+  take(BindingKind::kTangentialAcceleration, values.tangential, limits.acceleration);
+  take(BindingKind::kCentripetalAcceleration, values.centripetal, limits.acceleration);
+  take(BindingKind::kAngularSpeed, values.angular_speed, limits.angular_speed);
+  take(BindingKind::kAngularAcceleration, values.angular_acceleration, limits.angular_acceleration);
+}
+
+// One sample's part of the binding stretches: `top` its most used limit, own(last) its value
+// of the current stretch's limit. The stretch goes on (its largest usage kept) unless `top`
+// is another limit used more than kUsageHysteresis times as much; at most
+// kMaxBindingStretches.
+template <class Own>
+void extend_binding(std::vector<BindingStretch>& stretches, std::size_t sample, double t, double s_path,
+                    BindingStretch top, Own own_value_of) {
+  if (!stretches.empty()) {
+    BindingStretch& last = stretches.back();
+    last.sample_end = sample;
+    last.t_end = t;
+    last.s_end = s_path;
+    const double own_value = own_value_of(last);
+    const double own = own_value / last.limit;
+    if (own > last.usage) {
+      last.usage = own;
+      last.value = own_value;
+    }
+    const bool same = top.kind == last.kind && top.joint == last.joint;
+    if (same || top.usage <= kUsageHysteresis * own || stretches.size() == kMaxBindingStretches) return;
+  } else if (top.usage == 0.0) {
+    return;  // at rest before anything moves
+  }
+  top.sample_start = top.sample_end = sample;
+  top.t_start = top.t_end = t;
+  top.s_start = top.s_end = s_path;
+  stretches.push_back(top);
+}
+
 double tool_value(const ToolValues& v, BindingKind kind) {
   switch (kind) {
     case BindingKind::kCartesianSpeed: return v.speed;
@@ -454,41 +498,26 @@ void JointReportBuilder::update_binding(std::size_t sample, double t, double s_p
   }
   const bool cartesian = tool != nullptr && cartesian_.any();
   const ToolValues values = cartesian ? tool_values(*tool) : ToolValues{};
-  if (cartesian) {
-    take(BindingKind::kCartesianSpeed, 0, values.speed, cartesian_.speed);
-    take(BindingKind::kTangentialAcceleration, 0, values.tangential, cartesian_.acceleration);
-    take(BindingKind::kCentripetalAcceleration, 0, values.centripetal, cartesian_.acceleration);
-    take(BindingKind::kAngularSpeed, 0, values.angular_speed, cartesian_.angular_speed);
-    take(BindingKind::kAngularAcceleration, 0, values.angular_acceleration, cartesian_.angular_acceleration);
-  }
-  auto& stretches = report_.binding;
-  if (!stretches.empty()) {
-    BindingStretch& last = stretches.back();
-    last.sample_end = sample;
-    last.t_end = t;
-    last.s_end = s_path;
-    // The current stretch's own limit at this sample (a Cartesian one counts where this
-    // sample has Cartesian limits; a joint move after a path does not measure the path's).
+  if (cartesian) take_tool_limits(top, values, cartesian_);
+  // The current stretch's own limit at this sample (a Cartesian one counts where this sample
+  // has Cartesian limits; a joint move after a path does not measure the path's).
+  extend_binding(report_.binding, sample, t, s_path, top, [&](const BindingStretch& last) {
     const auto i = static_cast<Eigen::Index>(last.joint);
-    const double own_value = last.kind == BindingKind::kJointVelocity       ? std::abs(s.q_dot(i))
-                             : last.kind == BindingKind::kJointAcceleration ? std::abs(s.q_ddot(i))
-                             : last.kind == BindingKind::kJointJerk         ? jerk_(i)
-                             : cartesian                                   ? tool_value(values, last.kind)
-                                                                           : 0.0;
-    const double own = own_value / last.limit;
-    if (own > last.usage) {
-      last.usage = own;
-      last.value = own_value;
-    }
-    const bool same = top.kind == last.kind && top.joint == last.joint;
-    if (same || top.usage <= kUsageHysteresis * own || stretches.size() == kMaxBindingStretches) return;
-  } else if (top.usage == 0.0) {
-    return;  // at rest before anything moves
-  }
-  top.sample_start = top.sample_end = sample;
-  top.t_start = top.t_end = t;
-  top.s_start = top.s_end = s_path;
-  stretches.push_back(top);
+    return last.kind == BindingKind::kJointVelocity       ? std::abs(s.q_dot(i))
+           : last.kind == BindingKind::kJointAcceleration ? std::abs(s.q_ddot(i))
+           : last.kind == BindingKind::kJointJerk         ? jerk_(i)
+           : cartesian                                   ? tool_value(values, last.kind)
+                                                         : 0.0;
+  });
+}
+
+void ToolBindingBuilder::add(std::size_t sample, double t, double s_path, const CartesianState& tool) {
+  BindingStretch top;
+  const ToolValues values = limits_.any() ? tool_values(tool) : ToolValues{};
+  take_tool_limits(top, values, limits_);
+  extend_binding(binding_, sample, t, s_path, top, [&](const BindingStretch& last) {
+    return limits_.any() ? tool_value(values, last.kind) : 0.0;
+  });
 }
 
 }  // namespace geotraj::core

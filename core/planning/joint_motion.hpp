@@ -265,4 +265,23 @@ class JointReportBuilder {
   JointVector jerk_;            ///< |q_ddot - q_ddot_prev| / dt at the sample being added (0 at the first)
 };
 
+/// The binding stretches of a motion without a robot: the tool's Cartesian limits alone, by
+/// JointMotionReport::binding's rule (the most used limit at each sample, a new stretch only
+/// where another is used kUsageHysteresis times as much; at most kMaxBindingStretches).
+/// Allocates only when a stretch begins.
+class ToolBindingBuilder {
+ public:
+  /// The Cartesian limits of the samples that follow (a path's or a line's; none for a
+  /// joint move: CartesianLimits{}).
+  void set_cartesian_limits(const CartesianLimits& limits) { limits_ = limits; }
+  /// Adds sample number `sample` (zero-based, increasing) at time t [s] and arc length
+  /// s_path [m] with the tool's state there.
+  void add(std::size_t sample, double t, double s_path, const CartesianState& tool);
+  const std::vector<BindingStretch>& binding() const { return binding_; }
+
+ private:
+  CartesianLimits limits_;
+  std::vector<BindingStretch> binding_;
+};
+
 }  // namespace geotraj::core

@@ -71,6 +71,7 @@ void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanRespons
     out.set_peak_acceleration(from.tool.acceleration);
     out.set_peak_angular_speed(from.tool.angular_speed);
     out.set_peak_tangential_acceleration(from.peak_tangential_acceleration);
+    for (const auto& stretch : from.binding) to_proto(stretch, *out.add_binding());
   };
   set_summary(*plan.summary, *response.mutable_motion());
   const auto* sequence = plan.trajectory ? std::get_if<core::SequenceMotion>(&*plan.trajectory) : nullptr;
@@ -96,7 +97,7 @@ void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanRespons
     out.set_first_sample(s.first_sample);
     out.set_sample_count(s.sample_count);
     out.set_arc_length(s.arc_length);
-    set_summary(planner::MotionSummary{s.duration_s, s.sample_count, s.tool, s.peak_tangential_acceleration},
+    set_summary(planner::MotionSummary{s.duration_s, s.sample_count, s.tool, s.peak_tangential_acceleration, {}},
                 *out.mutable_motion());
     const auto* path = sequence != nullptr && s.path ? std::get_if<core::PathMotion>(&sequence->steps[i]) : nullptr;
     if (path != nullptr) {

@@ -7,6 +7,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <future>
 #include <stop_token>
@@ -107,6 +108,51 @@ TEST(Planner, FieldPathsAreAbsoluteFromTheRequestRoot) {
   ASSERT_FALSE(plan.has_value());
   ASSERT_FALSE(plan.error().violations.empty());
   EXPECT_THAT(plan.error().violations, Each(Field(&core::FieldViolation::field, StartsWith("path."))));
+}
+
+// Without a robot, which of the tool's limits sets the pace is measured on the samples, as
+// the robot report measures it with one: the thesis's path A at maxSpeed 0.05 m/s cruises at
+// that speed (CARTESIAN_SPEED at 100 %), and a jerk-limited timing's report carries the
+// stretches measured on its own samples (its warm start's belong to a faster motion).
+TEST(Planner, WithoutARobotTheToolLimitThatBindsIsMeasuredOnTheSamples) {
+  planner::Request request;
+  request.geometry = testing::thesis_demo_path('A');
+  request.motion = core::MotionSpec{};
+  request.motion->duration_s = 0.0;
+  request.motion->max_speed = 0.05;
+  request.motion->max_acceleration = 0.5;
+  request.motion->max_jerk = 5.0;
+  auto plan = planner::plan(request, planner::Budget{}, planner::Limits{});
+  ASSERT_TRUE(plan.has_value());
+  ASSERT_TRUE(plan->summary.has_value());
+  const auto& binding = plan->summary->binding;
+  ASSERT_FALSE(binding.empty());
+  const auto speed = std::find_if(binding.begin(), binding.end(), [](const core::BindingStretch& b) {
+    return b.kind == core::BindingKind::kCartesianSpeed;
+  });
+  ASSERT_NE(speed, binding.end());
+  EXPECT_NEAR(speed->usage, 1.0, 1e-6);
+  EXPECT_NEAR(speed->value, 0.05, 1e-8);
+  EXPECT_GT(speed->t_end - speed->t_start, 0.5 * plan->summary->duration_s) << "it cruises most of the way";
+  EXPECT_LE(plan->summary->tool.speed, 0.05 * (1.0 + 1e-9));
+  for (const auto& b : binding) EXPECT_LE(b.usage, 1.0 + 1e-6) << core::name(b.kind);
+
+  request.optimize = planner::Optimize{};
+  request.optimize->jerk_limited = true;
+  plan = planner::plan(request, planner::Budget{}, planner::Limits{});
+  ASSERT_TRUE(plan.has_value());
+  ASSERT_TRUE(plan->optimizers.timing.has_value());
+  EXPECT_TRUE(plan->optimizers.timing->jerk_limited);
+  const auto& measured = plan->summary->binding;
+  ASSERT_FALSE(measured.empty());
+  ASSERT_EQ(plan->optimizers.timing->binding.size(), measured.size());
+  EXPECT_EQ(plan->optimizers.timing->binding.back().t_end, measured.back().t_end);
+  EXPECT_NEAR(measured.back().t_end, plan->summary->duration_s, 1e-9) << "the stretches cover this motion";
+  const double most = std::max_element(measured.begin(), measured.end(), [](const auto& a, const auto& b) {
+                        return a.usage < b.usage;
+                      })->usage;
+  EXPECT_GT(most, 0.99) << "some limit sets the pace";
+  EXPECT_LE(most, 1.0 + 1e-6);
 }
 
 TEST(Planner, ConvertNamesFieldsFromTheRequestRoot) {

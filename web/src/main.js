@@ -196,8 +196,9 @@ async function replan() {
     plots.setFrameMarks(frameArcLengths(report, frames.length));
     const names = robotInfo(request.robot)?.names || [];
     const timing = response.optimization?.timing;
-    if (timing?.binding?.length) plots.setBinding(timing.binding, response.motion?.durationS, names, 'time-optimal timing');
+    if (timing?.binding?.length) plots.setBinding(timing.binding, response.motion?.durationS, names, 'timing report');
     else if (response.robot?.binding?.length) plots.setBinding(response.robot.binding, response.motion?.durationS, names, 'robot report');
+    else if (response.motion?.binding?.length) plots.setBinding(response.motion.binding, response.motion.durationS, names, 'tool limits, measured on the samples');
     else plots.setBinding(null, 0);
   }
   if (profile) plots.setProfile(profile.points || []);

@@ -228,7 +228,7 @@ export class Plots {
       (l) => [-(l.maxAcceleration ?? 0) * (robot.accelerationScale ?? 1), (l.maxAcceleration ?? 0) * (robot.accelerationScale ?? 1)]);
   }
 
-  // stretches: BindingStretch[] (RobotReport.binding or TimingReport.binding); names: joint
+  // stretches: BindingStretch[] (RobotReport.binding, TimingReport.binding or MotionSummary.binding); names: joint
   // names; duration [s].
   setBinding(stretches, duration, names = [], source = '') {
     const card = this.binding;

@@ -725,8 +725,8 @@ def binding_label(stretch, names=()):
 def binding_figure(title, stretches, names=(), notes=(), duration=None):
     """Which limit binds where: one row per limit with its stretches as bars over time, and
     each stretch's usage (value / limit) [%] against time, the limit at 100 %.
-    stretches: BindingStretch JSON (PlanResponse.optimization.timing.binding or
-    .robot.binding)."""
+    stretches: BindingStretch JSON (PlanResponse.optimization.timing.binding, .robot.binding
+    or, without a robot, .motion.binding)."""
     labels = []
     for st in stretches:
         lab = binding_label(st, names)
@@ -909,7 +909,9 @@ def request_figures(request, plan, profiles, samples, model, out_dir, stem, png=
     timing = ((plan.get("optimization") or {}).get("timing") or {}).get("binding", [])
     time_optimal = bool(((request.get("optimize") or {}).get("timing") or {}).get("timeOptimal")) or (
         "motion" in request and float(motion.get("durationS", 0.0)) == 0.0)
-    stretches = timing or ((plan.get("robot") or {}).get("binding", []) if time_optimal else [])
+    # Measured on the samples: the robot report's (joints and tool), else the tool's alone.
+    measured = (plan.get("robot") or {}).get("binding") or (plan.get("motion") or {}).get("binding", [])
+    stretches = timing or (measured if time_optimal else [])
     if stretches:
         names = joint_names(model) if model else []
         fig = binding_figure(f"{subject}: which limit binds, time-optimal in {duration:.4g} s", stretches, names,

@@ -145,6 +145,24 @@ TEST_F(CliPlot, APathWithoutARobotHasNoJointFigure) {
   EXPECT_EQ(count(path, "id=\"keyframe-top-"), 4u);
 }
 
+// Without a robot, a path timed by the tool's limits has a binding figure too: the tool's
+// limits measured on the samples (PlanResponse.motion.binding), the speed limit binding.
+TEST_F(CliPlot, APathTimedByTheToolsLimitsWithoutARobotDrawsWhatBinds) {
+  std::string request = read_file(build_paths::examples_dir() + std::string("/plan_demo_path_a.json"));
+  const std::string timed = "\"durationS\": 10,";
+  ASSERT_NE(request.find(timed), std::string::npos);
+  request.replace(request.find(timed), timed.size(), "\"durationS\": 0, \"maxSpeed\": 0.05, \"maxAcceleration\": 0.5,");
+  const fs::path file = dir_ / "path_a_by_speed.json";
+  std::ofstream(file) << request;
+  const CliRun run = run_cli("plot " + out_flag() + " '" + file.string() + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const fs::path figure = dir_ / "path_a_by_speed_binding.svg";
+  ASSERT_TRUE(fs::exists(figure)) << run.out;
+  const std::string svg = read_file(figure);
+  EXPECT_THAT(svg, HasSubstr("id=\"binding-0\""));
+  EXPECT_THAT(svg, HasSubstr("speed"));
+}
+
 TEST_F(CliPlot, BadRequestNamesTheFieldsAndDrawsNothing) {
   const CliRun run = run_cli("plot " + out_flag() + " " + example_path("bad_request.json"));
   EXPECT_EQ(run.exit_code, 1) << run.out;

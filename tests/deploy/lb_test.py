@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Scaling out on one machine: three geotrajd behind a load balancer, calls spread and kept.
 
-Three geotrajd on 127.0.0.1 ephemeral ports, each serving one extra robot model named after
+Three geotrajd on 127.0.0.1 ports the kernel chooses (port 0, read back from their logs), each serving one extra robot model named after
 it (lb-backend-0/1/2, a renamed copy of the built-in ur5), so that a ListRobots answer says
 which backend served the call. Then, per --mode:
 
@@ -74,24 +74,42 @@ def health_check(channel, service, timeout=5.0):
     return answer[1] if len(answer) >= 2 and answer[0] == 0x08 else 0
 
 
+def started_geotrajd(argv, env, log_path, timeout=60):
+    """Runs geotrajd with its ports chosen by the kernel (port 0: no other process can take
+    them between a probe and the bind) and reads the bound ports from its first lines:
+    returns (process, log file, gRPC port, metrics port or None)."""
+    log_file = open(log_path, "w")
+    proc = subprocess.Popen(argv, env=env, stdout=log_file, stderr=subprocess.STDOUT)
+    deadline = time.monotonic() + timeout
+    while True:
+        text = open(log_path).read()
+        grpc_port = re.search(r"serving geotraj\.v1\.TrajectoryService on [^\s]*:(\d+)", text)
+        metrics_port = re.search(r"metrics on http port (\d+)", text)
+        wants_metrics = "--metrics-address" in argv
+        if grpc_port and (metrics_port or not wants_metrics):
+            return proc, log_file, int(grpc_port.group(1)), int(metrics_port.group(1)) if metrics_port else None
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            proc.wait()
+            log_file.close()
+            raise RuntimeError(f"geotrajd did not start (exit {proc.returncode}):\n{text[-2000:]}")
+        time.sleep(0.05)
+
+
 class Backend:
     def __init__(self, index, args, model_file):
         self.index = index
         self.name = f"lb-backend-{index}"
-        self.port = free_port()
-        self.metrics_port = free_port()
         env = dict(os.environ)
         env.update({
-            "GEOTRAJ_ADDRESS": f"127.0.0.1:{self.port}",
+            "GEOTRAJ_ADDRESS": "127.0.0.1:0",
             "GEOTRAJ_PLAINTEXT": "true",
             # A short drain keeps the test short; calls here last milliseconds.
             "GEOTRAJ_DRAIN_SECONDS": "5",
         })
-        argv = [args.server, "--robot-model", model_file,
-                "--metrics-address", f"127.0.0.1:{self.metrics_port}"]
+        argv = [args.server, "--robot-model", model_file, "--metrics-address", "127.0.0.1:0"]
         self.log_path = os.path.join(args.work, f"{self.name}.log")
-        self.log_file = open(self.log_path, "w")
-        self.proc = subprocess.Popen(argv, env=env, stdout=self.log_file, stderr=subprocess.STDOUT)
+        self.proc, self.log_file, self.port, self.metrics_port = started_geotrajd(argv, env, self.log_path)
 
     @property
     def address(self):
@@ -136,9 +154,8 @@ class Backend:
 def robot_model_files(args):
     """lb-backend-0/1/2: the built-in ur5 under three names, as --robot-model files, taken
     from the ListRobots answer of a throw-away geotrajd."""
-    port = free_port()
-    env = dict(os.environ, GEOTRAJ_ADDRESS=f"127.0.0.1:{port}")
-    probe = subprocess.Popen([args.server], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    env = dict(os.environ, GEOTRAJ_ADDRESS="127.0.0.1:0")
+    probe, probe_log, port, _ = started_geotrajd([args.server], env, os.path.join(args.work, "probe.log"))
     try:
         with grpc.insecure_channel(f"127.0.0.1:{port}") as channel:
             grpc.channel_ready_future(channel).result(timeout=60)
@@ -146,6 +163,7 @@ def robot_model_files(args):
     finally:
         probe.kill()
         probe.wait()
+        probe_log.close()
     ur5 = next(m for m in robots if m.name == "ur5")
     files = []
     for i in range(3):
@@ -353,19 +371,40 @@ def nginx_conf(args, backends, port):
     return text
 
 
-def nginx_mode(args, backends, req):
-    port = free_port()
+def started_nginx(args, backends):
+    """nginx on a free port: nginx cannot listen on port 0 and say which it got, so a port
+    another process took between the probe and nginx's bind is met by trying another.
+    Returns (process, port)."""
     os.makedirs(os.path.join(args.work, "nginx-tmp"), exist_ok=True)
-    with open(os.path.join(args.work, "geotraj.conf"), "w") as f:
-        f.write(nginx_conf(args, backends, port))
     main_conf = os.path.join(args.work, "nginx.conf")
     with open(main_conf, "w") as f:
         f.write(NGINX_MAIN.format(work=args.work))
-    base = [args.nginx, "-p", args.work, "-c", main_conf, "-e", os.path.join(args.work, "nginx-error.log")]
-    test = subprocess.run(base + ["-t"], capture_output=True, text=True)
-    if test.returncode != 0:
-        raise SystemExit(f"nginx -t rejected the configuration:\n{test.stderr}")
-    proc = subprocess.Popen(base, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    error_log = os.path.join(args.work, "nginx-error.log")
+    base = [args.nginx, "-p", args.work, "-c", main_conf, "-e", error_log]
+    for attempt in range(5):
+        port = free_port()
+        with open(os.path.join(args.work, "geotraj.conf"), "w") as f:
+            f.write(nginx_conf(args, backends, port))
+        test = subprocess.run(base + ["-t"], capture_output=True, text=True)
+        if test.returncode != 0:
+            raise SystemExit(f"nginx -t rejected the configuration:\n{test.stderr}")
+        proc = subprocess.Popen(base, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        deadline = time.monotonic() + 30
+        while proc.poll() is None and time.monotonic() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                return proc, port
+            except OSError:
+                time.sleep(0.05)
+        proc.kill()
+        proc.wait()
+        tail = "".join(open(error_log).readlines()[-3:]) if os.path.exists(error_log) else ""
+        log(f"nginx did not listen on port {port} (attempt {attempt + 1}): {tail}")
+    raise RuntimeError("nginx did not start in 5 attempts; see nginx-error.log")
+
+
+def nginx_mode(args, backends, req):
+    proc, port = started_nginx(args, backends)
     try:
         channel = grpc.insecure_channel(f"127.0.0.1:{port}")
         grpc.channel_ready_future(channel).result(timeout=60)

@@ -43,6 +43,7 @@
 #include "core/motion/motion.hpp"
 #include "core/motion/orientation.hpp"
 #include "core/planning/joint_motion.hpp"
+#include "core/planning/trajectory.hpp"
 #include "core/robot/ik.hpp"
 #include "core/robot/kinematics.hpp"
 #include "planner/robots.hpp"
@@ -230,6 +231,33 @@ void BM_TrackPathC(benchmark::State& state) {
   state.SetLabel("pa10, JointTracker::track");
 }
 BENCHMARK(BM_TrackPathC)->Unit(benchmark::kMicrosecond);
+
+// The stream a client gets: TrajectorySampler over path C with the PA-10 (the path's sample,
+// the orientation, the tracker's continuation: JointTracker::follow with the samples' rule),
+// at 100 Hz, where every sample follows in one stride, and at 2 Hz, where strides of 0.5 s
+// are walked through the motion's states between samples (Arg: the rate [Hz]).
+void BM_StreamPathC(benchmark::State& state) {
+  const auto& m = robot(0);
+  const core::Path path = *core::build_path(testing::thesis_demo_path('C'));
+  core::MotionSpec spec;
+  spec.duration_s = 10.0;
+  spec.cycle_rate_hz = static_cast<double>(state.range(0));
+  const core::Trajectory trajectory(std::in_place_type<core::PathMotion>,
+                                    core::PathMotion{path, *core::plan_motion(path, spec), *core::plan_orientation(path)});
+  core::TrajectorySample s;
+  std::size_t samples = 0, failures = 0;
+  for (auto _ : state) {
+    core::TrajectorySampler sampler(trajectory, &m, core::home_configuration(m));
+    while (sampler.next(s)) {
+      failures += s.joints.converged ? 0 : 1;
+      ++samples;
+      benchmark::DoNotOptimize(s);
+    }
+  }
+  per_sample_counters(state, samples, failures);
+  state.SetLabel("pa10, TrajectorySampler with the IK");
+}
+BENCHMARK(BM_StreamPathC)->Arg(100)->Arg(2)->Unit(benchmark::kMicrosecond);
 
 // The same, each sample timed on its own (steady_clock, ~20 ns of overhead per sample):
 // the median, 99th percentile and worst sample [s], the first (cold) sample included.

@@ -28,6 +28,13 @@ CartesianState cartesian_state(const Path& path, const OrientationPlan& orientat
   return x;
 }
 
+bool PathMotionSource::state_at(double t, CartesianState& x) {
+  scratch_ = sampler_;
+  scratch_.at(t, sample_);
+  x = cartesian_state(*path_, *orientation_, sample_);
+  return true;
+}
+
 // ---------------------------------------------------------------------------------------
 // JointTracker
 
@@ -55,6 +62,15 @@ struct JointTracker::State {
   double t_prev = 0.0;
   JointVector q_prev, q_dot_prev, q_ddot_prev;
   Vector3d p_prev = Vector3d::Zero();
+  // The last attempt: its tool position (FK at its q) and the Newton correction of the
+  // predictor (largest |q_j - q_pred,j|; 0 for a cold solve).
+  Vector3d p_attempt = Vector3d::Zero();
+  double correction = 0.0;
+  // follow(): the last good sample before the walk (the midpoint certificate's start, and
+  // where a walk that fails starts again).
+  double t_walk = 0.0;
+  JointVector q_walk, qd_walk, qdd_walk;
+  Vector3d p_walk = Vector3d::Zero();
   // Scratch.
   JointVector q_guess, z, xi;
   JointJacobian J_dot;
@@ -76,6 +92,88 @@ void JointTracker::reset(const JointVector& q_seed) {
 }
 
 bool JointTracker::track(const CartesianState& x, JointSample& out) {
+  if (!attempt(x, out)) return false;
+  commit(x, out);
+  return true;
+}
+
+FollowResult JointTracker::follow(const CartesianState& x, CartesianSource& between, JointSample& out,
+                                  const ContinuationRule& rule) {
+  State& st = *state_;
+  if (st.first || st.chain.dof() < 6) {
+    const bool ok = track(x, out);
+    return FollowResult{ok, 0, false, ok ? 0.0 : x.t};
+  }
+  st.t_walk = st.t_prev;
+  st.q_walk = st.q_prev;
+  st.qd_walk = st.q_dot_prev;
+  st.qdd_walk = st.q_ddot_prev;
+  st.p_walk = st.p_prev;
+  const double t_end = x.t;
+  const double min_step = rule.min_fraction * (t_end - st.t_prev);
+  double t_good = st.t_prev, step = t_end - t_good;
+  FollowResult result;
+  CartesianState x_try;
+  for (;;) {
+    const bool at_end = !(step < t_end - t_good);
+    const double t_try = at_end ? t_end : t_good + step;
+    if (!at_end && !between.state_at(t_try, x_try)) {
+      out.converged = false;
+      return FollowResult{false, result.substeps, false, t_try};
+    }
+    const CartesianState& target = at_end ? x : x_try;
+    const bool converged = attempt(target, out);
+    const bool last_try = !(step > min_step);
+    if (converged && (last_try || (out.midpoint_deviation <= rule.branch_tolerance &&
+                                   st.correction <= rule.max_correction))) {
+      commit(target, out);
+      if (at_end) break;
+      t_good = t_try;  // accepted: on from here, in a stride twice as long
+      ++result.substeps;
+      step *= 2.0;
+      continue;
+    }
+    if (!last_try) {
+      step = 0.5 * std::min(step, t_end - t_good);
+      continue;
+    }
+    // The smallest stride does not converge (a singularity the branch crosses with unbounded
+    // joint rates, or the workspace's edge): the sample in one stride from the last state
+    // accepted, else from the last good sample (what track() does), the midpoint certificate
+    // then telling whether it stayed on the branch.
+    if (!at_end && attempt(x, out)) {
+      commit(x, out);
+      result.jumped = true;
+      break;
+    }
+    if (result.substeps > 0) {  // from the last good sample
+      st.t_prev = st.t_walk;
+      st.q_prev = st.q_walk;
+      st.q_dot_prev = st.qd_walk;
+      st.q_ddot_prev = st.qdd_walk;
+      st.p_prev = st.p_walk;
+      if (attempt(x, out)) {
+        commit(x, out);
+        result.substeps = 0;
+        result.jumped = true;
+        break;
+      }
+    }
+    out.converged = false;
+    return FollowResult{false, result.substeps, false, t_try};
+  }
+  if (result.substeps > 0) {  // the certificate of the interval streamed, not of the last stride
+    st.q_guess = 0.5 * (st.q_walk + out.q);
+    Matrix3d R_mid;
+    Vector3d p_mid;
+    st.chain.pose(st.q_guess, R_mid, p_mid);
+    out.midpoint_deviation = (p_mid - 0.5 * (st.p_walk + st.p_prev)).norm();
+  }
+  result.converged = true;
+  return result;
+}
+
+bool JointTracker::attempt(const CartesianState& x, JointSample& out) {
   State& st = *state_;
   const Eigen::Index n = st.chain.dof();
   const Matrix3d R_target = x.X_WT.linear();
@@ -88,6 +186,7 @@ bool JointTracker::track(const CartesianState& x, JointSample& out) {
 
   // Positions: a cold solve on the first sample, else the Newton projection of the predictor.
   detail::NewtonOutcome ik;
+  st.correction = 0.0;
   if (n < 6) {  // a general pose has no solution (ik.hpp)
     out.q = st.first ? st.seed_q : st.q_prev;
     st.chain.pose(out.q, ws.R, ws.p);
@@ -110,6 +209,7 @@ bool JointTracker::track(const CartesianState& x, JointSample& out) {
       ik = detail::newton(st.chain, st.bounds, R_target, p_target, st.options, false, out.q, ws);
       ik.iterations += first_iterations;
     }
+    st.correction = (out.q - st.q_guess).cwiseAbs().maxCoeff();
   }
   // Polish: up to two more Newton steps towards kTrackingPolish. The IK tolerance (1e-9) lets
   // a sample's joints sit anywhere in that band, and differences of streamed joints amplify
@@ -207,14 +307,18 @@ bool JointTracker::track(const CartesianState& x, JointSample& out) {
     st.chain.pose(st.q_guess, R_mid, p_mid);
     out.midpoint_deviation = (p_mid - 0.5 * (st.p_prev + p)).norm();
   }
+  st.p_attempt = p;
+  return true;
+}
 
+void JointTracker::commit(const CartesianState& x, const JointSample& out) {
+  State& st = *state_;
   st.first = false;
   st.t_prev = x.t;
   st.q_prev = out.q;
   st.q_dot_prev = out.q_dot;
   st.q_ddot_prev = out.q_ddot;
-  st.p_prev = p;
-  return true;
+  st.p_prev = st.p_attempt;
 }
 
 // ---------------------------------------------------------------------------------------

@@ -36,6 +36,7 @@
 #include <cstddef>
 #include <limits>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -102,6 +103,98 @@ struct JointSample {
 /// follow the tool with the same formulas on the reduced arm J W (W = diag(1, .., 0, ..)):
 /// the motion stays consistent, and the report shows a zero position margin. A motion that
 /// needs more than the remaining joints can give fails the IK (kIk).
+/// The tool's Cartesian states between two samples, for JointTracker::follow: a motion that
+/// can be evaluated at any time after the tracker's last good sample.
+class CartesianSource {
+ public:
+  /// Writes the tool's state at time t [s] (t increases from call to call within one
+  /// follow(), between the tracker's last good sample and the state followed); false where
+  /// the motion has none (then the follow fails there).
+  virtual bool state_at(double t, CartesianState& x) = 0;
+
+ protected:
+  CartesianSource() = default;
+  CartesianSource(const CartesianSource&) = default;
+  CartesianSource& operator=(const CartesianSource&) = default;
+  ~CartesianSource() = default;
+};
+
+/// A CartesianSource from a callable bool(double t, CartesianState& x).
+template <class F>
+class CallableSource final : public CartesianSource {
+ public:
+  explicit CallableSource(F f) : f_(std::move(f)) {}
+  bool state_at(double t, CartesianState& x) override { return f_(t, x); }
+
+ private:
+  F f_;
+};
+template <class F>
+CallableSource<F> cartesian_source(F f) {
+  return CallableSource<F>(std::move(f));
+}
+
+/// The states of a path motion between its samples (motion.hpp): a copy of the motion's
+/// sampler as it was after the tracker's last good sample, evaluated off the grid from there
+/// (a fresh copy per state: MotionSampler::at steps forwards only, and a walk tries shorter
+/// strides after longer ones). mark() after each good sample keeps it there. Copies are
+/// small (no heap); `path` and `orientation` must outlive it.
+class PathMotionSource final : public CartesianSource {
+ public:
+  PathMotionSource(const Path& path, const OrientationPlan& orientation, const MotionSampler& sampler)
+      : path_(&path), orientation_(&orientation), sampler_(sampler), scratch_(sampler) {}
+  /// The sampler has just written the last good sample.
+  void mark(const MotionSampler& sampler) { sampler_ = sampler; }
+  bool state_at(double t, CartesianState& x) override;
+
+ private:
+  const Path* path_;
+  const OrientationPlan* orientation_;
+  MotionSampler sampler_, scratch_;
+  MotionSample sample_;
+};
+
+/// When JointTracker::follow accepts a step (the continuation of the samples and of the
+/// timing grids, time_optimal.hpp). A step converges, and stays on the branch it started
+/// on: its midpoint certificate (JointSample::midpoint_deviation) within branch_tolerance,
+/// and the Newton correction of the tracker's predictor (the largest |q_j - q_pred,j|)
+/// within max_correction. On one branch that correction is third order in the step (at most
+/// 7e-3 rad on the thesis's demo paths at 200 grid intervals, 1e-4 at 1,000; far less between
+/// samples at a cycle rate); a predictor that left the branch's basin (a singularity passed in
+/// one stride, a self-motion or a wrist flipped) is corrected by a sizeable fraction of a
+/// radian (0.08 to 0.9 rad on random paths). Otherwise the interval is walked in steps halved
+/// down to min_fraction of it, and doubled again after each accepted one, as a sampler slow
+/// enough to follow the path would have tracked it; at the smallest step a converged step is
+/// kept.
+struct ContinuationRule {
+  double branch_tolerance = 1e-3;        ///< [m], JointReportBuilder's default
+  double max_correction = 1e-2;          ///< [rad or m]
+  double min_fraction = 1.0 / 4096.0;    ///< the smallest step, a fraction of the interval
+};
+
+/// The timing grids' rule (time_optimal.hpp): the defaults above. A grid's strides are 10 to
+/// 100 times a sample's, and the correction bound keeps them on the samples' branch.
+inline constexpr ContinuationRule kGridContinuation{};
+/// The samples' rule (TrajectorySampler, the timing's sample checks): a sample that converges
+/// within the midpoint certificate is kept, whatever the correction. Between samples at a
+/// cycle rate the correction is far below the grid's bound on a branch, except close to a
+/// singularity, where a redundant arm's joints depend on the strides taken (each Newton
+/// projection moves them in the row space of J): subdividing there changed which samples
+/// converged further on (a Panda path that streams in one stride per sample failed after
+/// such a walk), and the midpoint certificate already tells a branch change.
+inline constexpr ContinuationRule kSampleContinuation{1e-3, std::numeric_limits<double>::infinity(), 1.0 / 4096.0};
+
+/// What JointTracker::follow did.
+struct FollowResult {
+  bool converged = false;
+  int substeps = 0;       ///< intermediate states tracked on the way (0: in one step)
+  /// The walk did not converge at its smallest stride and the sample was reached in one
+  /// stride from the last state accepted (or, that failing, from the last good sample), as
+  /// track() would have: the sample's midpoint certificate says whether it kept the branch.
+  bool jumped = false;
+  double t_failed = 0.0;  ///< where the walk stopped when it did not converge [s]
+};
+
 class JointTracker {
  public:
   /// `model` must outlive the tracker and be valid (validate_robot); q_seed.size() == dof.
@@ -116,10 +209,24 @@ class JointTracker {
   /// into `out`; returns out.converged. After a failure the tracker keeps the last good
   /// configuration (and the next call predicts from it); out holds the failed attempt.
   bool track(const CartesianState& x, JointSample& out);
+  /// track() with the continuation of ContinuationRule: where the step from the last good
+  /// sample to `x` does not converge or leaves its branch, the interval is walked through
+  /// states of `between` (the same motion at times between the two samples) in smaller
+  /// steps. The first call after construction or reset() solves from the seed, as track().
+  /// `out` is the joint sample at x; its midpoint_deviation is measured against the last good
+  /// sample before the walk, whatever the walk tracked in between. On failure the tracker
+  /// keeps the last configuration it accepted (possibly within the interval) and `out` holds
+  /// the failed attempt. Never fails where track() would have converged (FollowResult::jumped).
+  /// No heap allocation.
+  FollowResult follow(const CartesianState& x, CartesianSource& between, JointSample& out,
+                      const ContinuationRule& rule);
   /// Starts again from a new seed (the next track() is a first call).
   void reset(const JointVector& q_seed);
 
  private:
+  bool attempt(const CartesianState& x, JointSample& out);
+  void commit(const CartesianState& x, const JointSample& out);
+
   struct State;
   std::unique_ptr<State> state_;
 };

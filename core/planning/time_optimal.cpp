@@ -23,22 +23,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// The grid's continuation (time_optimal_grids): a step of the tracker is accepted when it
-// converges, on the branch it started on: its midpoint certificate
-// (JointSample::midpoint_deviation) within the joint report's branch tolerance
-// (JointReportBuilder's default, 1 mm), and the Newton correction of the tracker's
-// predictor (the largest |q_j - q_pred,j|) within kGridCorrection. On one branch that
-// correction is third order in the step (at most 7e-3 rad on the thesis's demo paths at 200
-// intervals, 1e-4 at 1,000), at a key frame whose turn is not eased first order (the twist
-// steps there) and it shrinks with the step either way; a predictor that left the branch's
-// basin (a singularity passed in one stride, a self-motion or a wrist flipped) is corrected
-// by a sizeable fraction of a radian (0.08 to 0.9 rad where the grid left the samples'
-// branch on random paths). Otherwise the interval is walked in steps halved down to
-// kGridMinStep of a grid interval.
-constexpr double kGridBranchTolerance = 1e-3;  // [m]
-constexpr double kGridCorrection = 1e-2;       // [rad or m]
-constexpr double kGridMinStep = 1.0 / 4096.0;
-
 }  // namespace
 
 std::string describe(const BindingStretch& st) {
@@ -84,16 +68,15 @@ Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& pat
   std::vector<std::vector<GridPoint>> grids;
   std::optional<JointTracker> tracker;
   if (robot) tracker.emplace(*robot, seed, ik);
-  JointSample js, rollback;
-  JointVector q_good, qd_good, qdd_good;  // joints and rates at the last accepted point (x_good)
+  JointSample js;
   Jet jet{};
   // The tool's angular rates need the orientation planned for this path (a Cartesian-only
   // caller may pass none: then omega_s = omega_ss = 0 and angular limits bind nothing).
   const bool oriented = orientation.segments.size() == path.segment_count();
   // The Cartesian state at arc length s_loc of portion p at the tracker's time t [s] (the arc
   // length travelled at s_dot = 1, s_ddot = 0), its u, and the curvature there. No allocation.
-  CartesianState x, x_try, x_good;
-  double u = 0.0, u_try = 0.0, u_good = 0.0, kappa = 0.0;
+  CartesianState x;
+  double u = 0.0, u_try = 0.0, kappa = 0.0;
   auto state_at = [&](std::size_t p, double s_loc, double t, bool end, CartesianState& out, double& u_out,
                       double& kappa_out) -> bool {
     const MotionPortion& por = portions[p];
@@ -132,26 +115,6 @@ Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& pat
         "motion", "the IK fails at s = " + number(por.s_start + s_loc, 6) + " m (u = " + number(uu, 6) +
                       ") of the path: position error " + number(js.position_error, 6) + " m")});
   };
-  // The Newton correction of the tracker's predictor over a step of dt [s] from the last
-  // accepted point: its second-order predictor, projected onto the limits (joint_motion.cpp).
-  auto correction = [&](double dt) {
-    double worst = 0.0;
-    for (Eigen::Index i = 0; i < js.q.size(); ++i) {
-      const auto j = static_cast<std::size_t>(i);
-      double q_pred = q_good(i) + qd_good(i) * dt + qdd_good(i) * (0.5 * dt * dt);
-      if (robot->joints[j].type != JointType::kContinuous)
-        q_pred = std::clamp(q_pred, robot->limits[j].min_position, robot->limits[j].max_position);
-      worst = std::max(worst, std::abs(js.q(i) - q_pred));
-    }
-    return worst;
-  };
-  auto accept = [&](const CartesianState& at, double u_at) {
-    x_good = at;
-    u_good = u_at;
-    q_good = js.q;
-    qd_good = js.q_dot;
-    qdd_good = js.q_ddot;
-  };
   double t_fake = 0.0;  // the tracker's time: arc length travelled at s_dot = 1 [s]
   for (std::size_t p = 0; p < portions.size(); ++p) {
     const MotionPortion& por = portions[p];
@@ -166,42 +129,25 @@ Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& pat
       g.omega_s = x.omega_WT;   // at s_dot = 1 (zero when not oriented)
       g.omega_ss = x.alpha_WT;  // at s_ddot = 0
       if (tracker) {
-        // The continuation of the samples (joint_motion.hpp): the step from the last grid
-        // point, warm-started there. Where it does not converge, or leaves the branch it
-        // started on (kGridBranchTolerance, kGridCorrection above), the interval is walked
-        // in smaller steps from the last accepted point (halved down to kGridMinStep of it,
-        // and doubled again after each accepted one), as a sampler slow enough to follow the
-        // path would have tracked it; a converged step is rejected only above the smallest
-        // step (there it is kept, as a sampler keeps it). The first point of a portion is
-        // the rest where the last one ended (a tiny step: the tangent may invert).
-        const bool walk = k > 0;
-        double s_good = walk ? grid[k - 1].s : s_loc, step = s_loc - s_good;
-        const double min_step = kGridMinStep * h;
-        for (;;) {
-          const double s_try = step >= s_loc - s_good ? s_loc : s_good + step;
-          const bool at_point = s_try == s_loc;
-          if (!at_point && !state_at(p, s_try, t_fake - (s_loc - s_try), false, x_try, u_try, kappa))
-            return no_tangent(u_try);
-          const bool converged = tracker->track(at_point ? x : x_try, js);
-          const bool last_try = !walk || step <= min_step;
-          if (converged && (last_try || (js.midpoint_deviation <= kGridBranchTolerance &&
-                                         correction(s_try - s_good) <= kGridCorrection))) {
-            if (at_point) break;
-            s_good = s_try;  // accepted: on from here, in a stride twice as long
-            accept(x_try, u_try);
-            step *= 2.0;
-            continue;
-          }
-          if (last_try) return ik_fails(por, s_try, at_point ? u : u_try);
-          // Converged on another branch: back to the last accepted point (a first call from
-          // its joints, already a solution there: the same joints and rates).
-          if (converged) {
-            tracker->reset(q_good);
-            if (!tracker->track(x_good, rollback)) return ik_fails(por, s_good, u_good);
-          }
-          step *= 0.5;
+        // The continuation of the samples (JointTracker::follow, ContinuationRule): the step
+        // from the last grid point, walked in smaller steps where it does not converge or
+        // leaves its branch, as a sampler slow enough to follow the path would have tracked
+        // it. The first point of a portion is the rest where the last one ended (a tiny
+        // step: the tangent may invert), tracked in one step. The tracker's time runs with
+        // the arc length (t_fake): a state between is at s_loc - (t_fake - t).
+        bool tangent = true;
+        auto between = cartesian_source([&](double t, CartesianState& out) {
+          double kappa_between = 0.0;
+          tangent = state_at(p, s_loc - (t_fake - t), t, false, out, u_try, kappa_between);
+          return tangent;
+        });
+        const FollowResult r = k == 0 ? FollowResult{tracker->track(x, js), 0, false, t_fake}
+                                      : tracker->follow(x, between, js, kGridContinuation);
+        if (!r.converged) {
+          if (!tangent) return no_tangent(u_try);
+          const bool at_point = !(r.t_failed < t_fake);
+          return ik_fails(por, at_point ? s_loc : s_loc - (t_fake - r.t_failed), at_point ? u : u_try);
         }
-        accept(x, u);  // the next interval starts here
         g.q_s = js.q_dot;    // dq/ds at s_dot = 1
         g.q_ss = js.q_ddot;  // d2q/ds2 at s_ddot = 0
       }
@@ -261,6 +207,7 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
   // One pass over the samples of `plan` (the motion at one rate).
   auto pass = [&](const MotionPlan& plan) -> std::optional<Violations> {
     MotionSampler sampler(path, plan);
+    PathMotionSource between(path, orientation, sampler);  // the sampler at the last good sample
     if (tracker) tracker->reset(seed);
     double t_prev = 0.0, s_ddot_prev = 0.0;
     bool first = true;
@@ -314,9 +261,12 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
       }
       if (tracker) {
         const CartesianState x = cartesian_state(path, orientation, ms);
-        if (!tracker->track(x, js))
-          return Violations{unattainable("motion", "the IK fails at t = " + number(ms.t, 6) + " s (s = " +
-                                                       number(ms.s, 6) + " m, u = " + number(ms.u, 6) + ")")};
+        // The continuation of the samples (JointTracker::follow), as they stream.
+        if (const FollowResult r = tracker->follow(x, between, js, kSampleContinuation); !r.converged)
+          return Violations{unattainable("motion", "the IK fails at t = " + number(r.t_failed, 6) +
+                                                       " s (on the way to s = " + number(ms.s, 6) +
+                                                       " m, u = " + number(ms.u, 6) + ")")};
+        between.mark(sampler);
         for (Eigen::Index j = 0; j < js.q_dot.size(); ++j) {
           note(std::abs(js.q_dot(j)), limits.joint_velocity(j), 1, j);
           note(std::abs(js.q_ddot(j)), limits.joint_acceleration(j), 2, j);

@@ -159,11 +159,12 @@ struct TimeOptimalPlan {
 /// plan_motion makes them; their profiles are not used), grid_intervals + 1 points uniform
 /// in arc length with q_s and q_ss from a JointTracker evaluated with s_dot = 1 [m/s],
 /// s_ddot = 0 (then q_dot = q_s, q_ddot = q_ss), seeded with `seed`, and the curvature.
-/// The tracker walks the path as the sampler does, on one branch: a grid step that does not
-/// converge, strays from the chord (midpoint deviation above 1 mm) or needs a Newton
-/// correction of its predictor above 0.01 rad is rolled back and the interval walked in
-/// halved steps (down to 1/4096 of it), so a path that streams at a fixed duration times
-/// here too (tests/core/planning/grid_ik_property_test.cpp). `robot` null: kappa only.
+/// The tracker walks the path with the samples' continuation (JointTracker::follow), on one
+/// branch, under kGridContinuation: a grid step that does not converge, strays from the
+/// chord (midpoint deviation above 1 mm) or needs a Newton correction of its predictor above
+/// 0.01 rad is not kept and the interval walked in halved steps (down to 1/4096 of it), so a
+/// path that streams at a fixed duration times here too
+/// (tests/core/planning/grid_ik_property_test.cpp). `robot` null: kappa only.
 /// Errors (field `motion`): the IK fails at a grid point (s and u named).
 Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& path, const OrientationPlan& orientation,
                                                                  const std::vector<MotionPortion>& portions,

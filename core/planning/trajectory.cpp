@@ -86,7 +86,28 @@ StepSampler::StepSampler(StepRef step, const RobotModel* robot, const JointVecto
              step);
   // Joint moves carry their joints; the others need the IK at every sample.
   if (robot != nullptr && !joint_sampler_) tracker_.emplace(*robot, seed, options);
+  if (tracker_ && path_sampler_) {
+    const PathMotion& m = *std::get<const PathMotion*>(step_);
+    path_between_.emplace(m.path, m.orientation, *path_sampler_);
+  }
 }
+
+namespace {
+
+// The tool's Cartesian state of a move sample.
+CartesianState move_state(const MoveSample& ms) {
+  CartesianState x;
+  x.t = ms.t;
+  x.X_WT.linear() = ms.q_WT.toRotationMatrix();
+  x.X_WT.translation() = ms.p_W;
+  x.v_WT = ms.v_W;
+  x.a_WT = ms.a_W;
+  x.omega_WT = ms.omega_W;
+  x.alpha_WT = ms.alpha_W;
+  return x;
+}
+
+}  // namespace
 
 bool StepSampler::next(TrajectorySample& out) {
   if (path_sampler_) {
@@ -128,13 +149,7 @@ void StepSampler::finish(TrajectorySample& out) {
     out.s = ms.s;
     out.segment = 0;
     out.speed = ms.speed;
-    x.t = ms.t;
-    x.X_WT.linear() = ms.q_WT.toRotationMatrix();
-    x.X_WT.translation() = ms.p_W;
-    x.v_WT = ms.v_W;
-    x.a_WT = ms.a_W;
-    x.omega_WT = ms.omega_W;
-    x.alpha_WT = ms.alpha_W;
+    x = move_state(ms);
     out.q_WT = ms.q_WT;
   }
   out.has_joints = false;
@@ -151,8 +166,21 @@ void StepSampler::finish(TrajectorySample& out) {
     j.manipulability = move_sample_.manipulability;
     j.midpoint_deviation = 0.0;
   } else if (tracker_) {
+    // The continuation (JointTracker::follow): where a sample does not follow from the
+    // previous one in one step, the interval between them is walked through the same motion.
     out.has_joints = true;
-    tracker_->track(x, out.joints);
+    if (path_between_) {
+      if (tracker_->follow(x, *path_between_, out.joints, kSampleContinuation).converged)
+        path_between_->mark(*path_sampler_);
+    } else {
+      const LinearMovePlan& plan = *std::get<const LinearMovePlan*>(step_);
+      auto between = cartesian_source([&](double t, CartesianState& state) {
+        linear_move_at(plan, t, move_between_);
+        state = move_state(move_between_);
+        return true;
+      });
+      tracker_->follow(x, between, out.joints, kSampleContinuation);
+    }
   }
   ++k_;
 }

@@ -105,8 +105,9 @@ class StepSampler {
   std::optional<JointMoveSampler> joint_sampler_;
   std::optional<LinearMoveSampler> linear_sampler_;
   std::optional<JointTracker> tracker_;
+  std::optional<PathMotionSource> path_between_;  // with the tracker: the path between samples
   MotionSample motion_sample_;
-  MoveSample move_sample_;
+  MoveSample move_sample_, move_between_;
   std::size_t k_ = 0;
 };
 

@@ -304,39 +304,105 @@ TEST(JointTracker, NullSpaceTermDescendsTheLimitCost) {
 // A non-redundant arm has one solution near the previous one: the UR5 given the Cartesian
 // image of a smooth joint motion q(t) = q0 + A sin(w t) (pose FK(q), twist J q_dot,
 // acceleration J q_ddot + J_dot q_dot) recovers q, q_dot and q_ddot.
-TEST(JointTracker, Ur5RecoversAJointMotion) {
-  const RobotModel& m = ur5();
-  JointVector q0(6), amp(6);
-  q0 << 0.2, -1.3, 1.6, -1.7, -1.4, 0.3;
-  amp << 0.4, 0.3, -0.5, 0.6, 0.5, -0.7;
-  const double w = 1.3;  // [rad/s]
-  core::JointTracker tracker(m, q0);
-  double worst_q = 0.0, worst_v = 0.0, worst_a = 0.0;
-  for (int k = 0; k <= 500; ++k) {
-    const double t = 0.01 * k;
-    const JointVector q = q0 + amp * std::sin(w * t);
-    const JointVector q_dot = amp * (w * std::cos(w * t));
-    const JointVector q_ddot = amp * (-w * w * std::sin(w * t));
+// The tool's state of the UR5 moving its joints along q0 + amp sin(w t) [rad]: the Cartesian
+// motion of a known joint motion: v = J q_dot, a = J q_ddot + J_dot q_dot.
+struct KnownJointMotion {
+  JointVector q0 = (JointVector(6) << 0.2, -1.3, 1.6, -1.7, -1.4, 0.3).finished();
+  JointVector amp = (JointVector(6) << 0.4, 0.3, -0.5, 0.6, 0.5, -0.7).finished();
+  double w = 1.3;  // [rad/s]
+  JointVector q(double t) const { return q0 + amp * std::sin(w * t); }
+  CartesianState state(const RobotModel& m, double t) const {
+    const JointVector qt = q(t), q_dot = amp * (w * std::cos(w * t)), q_ddot = amp * (-w * w * std::sin(w * t));
     CartesianState x;
     x.t = t;
     core::JointJacobian J;
-    core::forward_kinematics(m, q, x.X_WT, J);
+    core::forward_kinematics(m, qt, x.X_WT, J);
     const Vector6d v = J * q_dot;
-    const Vector6d a = J * q_ddot + core::jacobian_dot_qdot(m, q, q_dot);
+    const Vector6d a = J * q_ddot + core::jacobian_dot_qdot(m, qt, q_dot);
     x.v_WT = v.head<3>();
     x.omega_WT = v.tail<3>();
     x.a_WT = a.head<3>();
     x.alpha_WT = a.tail<3>();
+    return x;
+  }
+};
+
+TEST(JointTracker, Ur5RecoversAJointMotion) {
+  const RobotModel& m = ur5();
+  const KnownJointMotion motion;
+  core::JointTracker tracker(m, motion.q0);
+  double worst_q = 0.0, worst_v = 0.0, worst_a = 0.0;
+  for (int k = 0; k <= 500; ++k) {
+    const double t = 0.01 * k;
+    const double c = std::cos(motion.w * t), sn = std::sin(motion.w * t);
     JointSample s;
-    ASSERT_TRUE(tracker.track(x, s)) << "t " << t;
-    worst_q = std::max(worst_q, (s.q - q).cwiseAbs().maxCoeff());
-    worst_v = std::max(worst_v, (s.q_dot - q_dot).cwiseAbs().maxCoeff());
-    worst_a = std::max(worst_a, (s.q_ddot - q_ddot).cwiseAbs().maxCoeff());
+    ASSERT_TRUE(tracker.track(motion.state(m, t), s)) << "t " << t;
+    worst_q = std::max(worst_q, (s.q - motion.q(t)).cwiseAbs().maxCoeff());
+    worst_v = std::max(worst_v, (s.q_dot - motion.amp * (motion.w * c)).cwiseAbs().maxCoeff());
+    worst_a = std::max(worst_a, (s.q_ddot + motion.amp * (motion.w * motion.w * sn)).cwiseAbs().maxCoeff());
   }
   // q to the IK tolerance over the smallest singular value (J^-1 amplifies 1e-9 by ~10 here).
   EXPECT_LE(worst_q, 1e-7);
   EXPECT_LE(worst_v, 1e-7);
   EXPECT_LE(worst_a, 1e-6);
+}
+
+// Samples far apart (a slow controller, or live execution's steps): one Newton projection
+// from the predictor leaves the branch or does not converge, and follow() walks the
+// interval through the motion's states between them, landing on the joints the motion has
+// there (the UR5 is not redundant: one branch, one solution).
+TEST(JointTracker, FollowWalksAnIntervalTooLongForOneStep) {
+  const RobotModel& m = ur5();
+  KnownJointMotion motion;
+  // The wrist comes within 0.01 rad of its singularity (q_4 = 0) while joints 3 and 5 swing
+  // by 1.8 and 2.5 rad.
+  motion.q0(4) = 0.1;
+  motion.amp << 0.8, 0.6, -0.9, 1.8, 0.09, -2.5;
+  int states = 0;
+  auto between = core::cartesian_source([&](double t, CartesianState& x) {
+    x = motion.state(m, t);
+    ++states;
+    return true;
+  });
+  int one_step_lost = 0;
+  long walk_allocations = 0;
+  for (const double dt : {0.25, 0.5, 1.0}) {  // [s]; at 1 s one Newton projection lands on the flipped wrist
+    core::JointTracker walked(m, motion.q0), one_step(m, motion.q0);
+    double worst_walked = 0.0, worst_one_step = 0.0;
+    int walks = 0;
+    bool one_step_failed = false;
+    JointVector q_prev = motion.q0;
+    for (int k = 0; k * dt <= 6.0; ++k) {
+      const double t = k * dt;
+      const CartesianState x = motion.state(m, t);
+      JointSample s;
+      s.q.resize(6);
+      const long before = geotraj::testing::allocation_count();
+      const core::FollowResult r = walked.follow(x, between, s, core::kSampleContinuation);
+      walk_allocations += geotraj::testing::allocation_count() - before;
+      ASSERT_TRUE(r.converged) << "dt " << dt << " t " << t;
+      EXPECT_FALSE(r.jumped) << "dt " << dt << " t " << t;
+      walks += r.substeps > 0 ? 1 : 0;
+      worst_walked = std::max(worst_walked, (s.q - motion.q(t)).cwiseAbs().maxCoeff());
+      if (k > 0) {  // the certificate spans the whole interval, whatever the walk tracked
+        const Eigen::Vector3d p_mid = core::forward_kinematics(m, JointVector(0.5 * (q_prev + s.q))).translation();
+        const Eigen::Vector3d chord_mid =
+            0.5 * (core::forward_kinematics(m, q_prev).translation() + x.X_WT.translation());
+        EXPECT_NEAR(s.midpoint_deviation, (p_mid - chord_mid).norm(), 1e-9) << "dt " << dt << " t " << t;
+      }
+      q_prev = s.q;
+      JointSample o;
+      if (one_step.track(x, o)) worst_one_step = std::max(worst_one_step, (o.q - motion.q(t)).cwiseAbs().maxCoeff());
+      else one_step_failed = true;
+    }
+    std::printf("dt %.2f s: walked %d intervals, worst joint error %.3g rad; one step: %s, worst %.3g rad\n", dt, walks,
+                worst_walked, one_step_failed ? "failed" : "converged", worst_one_step);
+    EXPECT_LE(worst_walked, 1e-7) << "dt " << dt;
+    one_step_lost += one_step_failed || worst_one_step > 1e-3 ? 1 : 0;
+  }
+  EXPECT_GT(states, 0);
+  EXPECT_EQ(walk_allocations, 0) << "a walk allocates nothing";
+  EXPECT_GT(one_step_lost, 0) << "a case one Newton projection per sample follows tests nothing";
 }
 
 // A jump in the input (the tool asked to be 0.15 m away at the next sample) is followed if

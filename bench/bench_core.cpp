@@ -1,7 +1,8 @@
 // Core stages of geotraj, one benchmark each: Chapter 5 conversion per frame, building the
 // thesis's 4-frame demonstration path (validation, conversion, blending, arc lengths), arc
-// length alone, path evaluation, analysis, and paths of 10 to 10,000 frames (cost linear
-// in the number of frames). Run: build/bench/bench_core --benchmark_repetitions=5
+// length alone, path evaluation, analysis, paths of 10 to 10,000 frames (cost linear in the
+// number of frames), and curves from their natural equations (built, then evaluated).
+// Run: build/bench/bench_core --benchmark_repetitions=5
 #include <string>
 #include <benchmark/benchmark.h>
 
@@ -12,6 +13,7 @@
 #include "core/geometry/arc_length.hpp"
 #include "core/geometry/constraints.hpp"
 #include "core/geometry/geometry_report.hpp"
+#include "core/geometry/natural.hpp"
 #include "core/geometry/path.hpp"
 #include "thesis_paths.hpp"
 
@@ -79,6 +81,45 @@ void BM_EvaluateJet(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_EvaluateJet);
+
+// Curves from their natural equations (natural.hpp): Arg 0 a 100-turn helix (radius 0.05 m,
+// pitch 0.02 m: the closed form), 1 a clothoid (kappa 0 -> 20 1/m over 1 m), 2 a profile
+// (kappa = 5 + 3 s - 2 s^2, tau = 1 - 4 s over 1.2 m), each to 1e-9 m.
+core::Expected<core::NaturalCurve> natural_curve(int which) {
+  switch (which) {
+    case 0: {
+      const core::CurvatureTorsion kt = core::helix_curvature_torsion(0.05, 0.02);
+      const double turn = 2.0 * 3.141592653589793 * std::hypot(0.05, 0.02 / (2.0 * 3.141592653589793));
+      return core::NaturalCurve::build(core::FrenetFrame{}, 100.0 * turn, {kt.kappa}, {kt.tau});
+    }
+    case 1:
+      return core::NaturalCurve::build(core::FrenetFrame{}, 1.0, {0.0, 20.0}, {});
+    default:
+      return core::NaturalCurve::build(core::FrenetFrame{}, 1.2, {5.0, 3.0, -2.0}, {1.0, -4.0});
+  }
+}
+
+void BM_NaturalCurveBuild(benchmark::State& state) {
+  for (auto _ : state) {
+    auto curve = natural_curve(static_cast<int>(state.range(0)));
+    benchmark::DoNotOptimize(curve);
+  }
+  state.SetLabel(std::to_string(natural_curve(static_cast<int>(state.range(0)))->steps()) + " steps");
+}
+BENCHMARK(BM_NaturalCurveBuild)->DenseRange(0, 2)->Unit(benchmark::kMicrosecond);
+
+void BM_NaturalCurveJet(benchmark::State& state) {
+  const auto curve = *natural_curve(static_cast<int>(state.range(0)));
+  double s = 0.0;
+  const double ds = curve.length() / 997.0;
+  for (auto _ : state) {
+    auto jet = curve.jet_at(s);
+    benchmark::DoNotOptimize(jet);
+    s += ds;
+    if (s > curve.length()) s = 0.0;
+  }
+}
+BENCHMARK(BM_NaturalCurveJet)->DenseRange(0, 2);
 
 void BM_AnalyzeDemoPath(benchmark::State& state) {
   const auto path = *core::build_path(testing::thesis_demo_path('C'));

@@ -85,24 +85,6 @@ struct JointSample {
   double midpoint_deviation = 0.0;
 };
 
-/// Follows a Cartesian motion sample by sample (a reusable workspace: no heap allocation per
-/// sample). The first call solves from `q_seed` (the branch seed, e.g. the request's
-/// initialJoints or the model's home) with IkOptions::restarts allowed; later calls
-/// warm-start from the previous sample (second-order predictor, above) and stay on its
-/// branch: no restarts and no 2 pi wrapping, only the Newton projection (and, if the
-/// predicted start fails, one more attempt from the previous configuration).
-/// Redundant arms: the null-space choice above, the same in positions and in
-/// velocities/accelerations, so q_dot matches finite differences of q.
-/// Joint velocities: J q_dot = [v; omega]; accelerations: J q_ddot = [a; alpha] - J_dot q_dot
-/// (1.8-1.11), minimum-norm plus the null-space term. Near a singularity (smallest Cholesky
-/// pivot of J J^T below 1e-8, ik.hpp) the same damping applies to the velocity solves, and
-/// these equations hold only approximately (the manipulability says so).
-/// Limits: positions are projected onto the limits like every Newton step (ik.hpp), so q
-/// never leaves them. A joint that sits at a limit and whose velocity would take it out is
-/// held there (q_dot_i = q_ddot_i = 0) and, while at least 6 joints are left, the others
-/// follow the tool with the same formulas on the reduced arm J W (W = diag(1, .., 0, ..)):
-/// the motion stays consistent, and the report shows a zero position margin. A motion that
-/// needs more than the remaining joints can give fails the IK (kIk).
 /// The tool's Cartesian states between two samples, for JointTracker::follow: a motion that
 /// can be evaluated at any time after the tracker's last good sample.
 class CartesianSource {
@@ -195,6 +177,24 @@ struct FollowResult {
   double t_failed = 0.0;  ///< where the walk stopped when it did not converge [s]
 };
 
+/// Follows a Cartesian motion sample by sample (a reusable workspace: no heap allocation per
+/// sample). The first call solves from `q_seed` (the branch seed, e.g. the request's
+/// initialJoints or the model's home) with IkOptions::restarts allowed; later calls
+/// warm-start from the previous sample (second-order predictor, above) and stay on its
+/// branch: no restarts and no 2 pi wrapping, only the Newton projection (and, if the
+/// predicted start fails, one more attempt from the previous configuration).
+/// Redundant arms: the null-space choice above, the same in positions and in
+/// velocities/accelerations, so q_dot matches finite differences of q.
+/// Joint velocities: J q_dot = [v; omega]; accelerations: J q_ddot = [a; alpha] - J_dot q_dot
+/// (1.8-1.11), minimum-norm plus the null-space term. Near a singularity (smallest Cholesky
+/// pivot of J J^T below 1e-8, ik.hpp) the same damping applies to the velocity solves, and
+/// these equations hold only approximately (the manipulability says so).
+/// Limits: positions are projected onto the limits like every Newton step (ik.hpp), so q
+/// never leaves them. A joint that sits at a limit and whose velocity would take it out is
+/// held there (q_dot_i = q_ddot_i = 0) and, while at least 6 joints are left, the others
+/// follow the tool with the same formulas on the reduced arm J W (W = diag(1, .., 0, ..)):
+/// the motion stays consistent, and the report shows a zero position margin. A motion that
+/// needs more than the remaining joints can give fails the IK (kIk).
 class JointTracker {
  public:
   /// `model` must outlive the tracker and be valid (validate_robot); q_seed.size() == dof.

@@ -121,6 +121,53 @@ void BM_NaturalCurveJet(benchmark::State& state) {
 }
 BENCHMARK(BM_NaturalCurveJet)->DenseRange(0, 2);
 
+// Paths of pieces (core/geometry/pieces.hpp). Argument: 0 = the weld seam (line, quarter
+// arc of 0.04 m, line) resting at its joins, 1 = the same with transitions within 0.1 mm,
+// 2 = 100 turns of a helix (r 0.05 m, pitch 0.02 m) between two lines with transitions,
+// 3 = 30 arcs and lines alternating with transitions (a piece's cost in a long path).
+core::PathSpec pieces_path(int which) {
+  core::PathSpec spec;
+  core::KeyFrame start;
+  start.N_W = Eigen::Vector3d::UnitY();
+  spec.start = start;
+  const auto piece = [](core::PieceShape shape, double length, double radius = 0.0, double pitch = 0.0) {
+    core::PathPiece p;
+    p.shape = shape;
+    p.length_m = length;
+    p.radius = radius;
+    p.pitch = pitch;
+    return p;
+  };
+  constexpr double kPi = 3.141592653589793;
+  using core::PieceShape;
+  if (which <= 1) {
+    spec.pieces = {piece(PieceShape::kLine, 0.1), piece(PieceShape::kArc, 0.5 * kPi * 0.04, 0.04),
+                   piece(PieceShape::kLine, 0.1)};
+  } else if (which == 2) {
+    const double turn = 2.0 * kPi * std::hypot(0.05, 0.02 / (2.0 * kPi));
+    spec.pieces = {piece(PieceShape::kLine, 0.05), piece(PieceShape::kHelix, 100.0 * turn, 0.05, 0.02),
+                   piece(PieceShape::kLine, 0.05)};
+  } else {
+    for (int i = 0; i < 30; ++i)
+      spec.pieces.push_back(i % 2 ? piece(PieceShape::kArc, 0.05, 0.1) : piece(PieceShape::kLine, 0.05));
+  }
+  if (which >= 1) spec.transition_tolerance = 1e-4;
+  return spec;
+}
+
+void BM_BuildPiecePath(benchmark::State& state) {
+  const auto spec = pieces_path(static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    auto path = core::build_path(spec);
+    benchmark::DoNotOptimize(path);
+  }
+  static const char* names[] = {"seam, rests", "seam, transitions 0.1 mm", "100-turn helix, transitions",
+                                "30 pieces, transitions"};
+  state.SetLabel(std::string(names[state.range(0)]) + ", " +
+                 std::to_string(core::build_path(spec)->segment_count()) + " segments");
+}
+BENCHMARK(BM_BuildPiecePath)->DenseRange(0, 3)->Unit(benchmark::kMicrosecond);
+
 void BM_AnalyzeDemoPath(benchmark::State& state) {
   const auto path = *core::build_path(testing::thesis_demo_path('C'));
   for (auto _ : state) {

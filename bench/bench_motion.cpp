@@ -5,6 +5,7 @@
 // the same move when built with -DGEOTRAJ_RUCKIG_SOURCE_DIR (docs/performance.md, "Peers in
 // one process"). Run: build/bench/bench_motion --benchmark_repetitions=5
 // The items-per-second counter is samples per second on one core.
+#include <cmath>
 #include <cstddef>
 #include <limits>
 #include <string>
@@ -29,14 +30,8 @@ const core::Path& demo_path() {
   return path;
 }
 
-// Arguments: cycle rate [Hz], time parameterization (enum value).
-void BM_MotionSampler(benchmark::State& state) {
-  const auto& path = demo_path();
-  core::MotionSpec spec;
-  spec.duration_s = 10;
-  spec.cycle_rate_hz = static_cast<double>(state.range(0));
-  spec.time_parameterization = static_cast<core::TimeParameterization>(state.range(1));
-  const auto plan = *core::plan_motion(path, spec);
+// Every sample of `plan` on `path`, once per iteration; items: samples.
+void sample_all(benchmark::State& state, const core::Path& path, const core::MotionPlan& plan) {
   core::MotionSampler sampler(path, plan);
   core::MotionSample sample;
   std::size_t samples = 0;
@@ -48,12 +43,54 @@ void BM_MotionSampler(benchmark::State& state) {
     }
   }
   state.SetItemsProcessed(static_cast<int64_t>(samples));
+}
+
+// Arguments: cycle rate [Hz], time parameterization (enum value).
+void BM_MotionSampler(benchmark::State& state) {
+  const auto& path = demo_path();
+  core::MotionSpec spec;
+  spec.duration_s = 10;
+  spec.cycle_rate_hz = static_cast<double>(state.range(0));
+  spec.time_parameterization = static_cast<core::TimeParameterization>(state.range(1));
+  sample_all(state, path, *core::plan_motion(path, spec));
   static const char* names[] = {"ARC_LENGTH", "LINEAR", "SMOOTH", "TAYLOR_1ST", "TAYLOR_2ND"};
   state.SetLabel(names[state.range(1)]);
 }
 BENCHMARK(BM_MotionSampler)
     ->ArgsProduct({{100, 1000}, {0, 1, 2, 3, 4}})
     ->Unit(benchmark::kMicrosecond);
+
+// A path of pieces sampled as the key frames' path C is above (1 kHz, arc length): the weld
+// seam with transitions (line, quarter arc, line; 3 pieces, 2 transitions) in 2 s, and 100
+// turns of a helix between two lines in 60 s. Argument: 0 = seam, 1 = helix.
+void BM_MotionSamplerPieces(benchmark::State& state) {
+  constexpr double kPi = 3.141592653589793;
+  core::PathSpec spec;
+  core::KeyFrame start;
+  start.N_W = Eigen::Vector3d::UnitY();
+  spec.start = start;
+  spec.transition_tolerance = 1e-4;
+  core::PathPiece line, curved;
+  line.length_m = state.range(0) == 0 ? 0.1 : 0.05;
+  if (state.range(0) == 0) {
+    curved.shape = core::PieceShape::kArc;
+    curved.radius = 0.04;
+    curved.length_m = 0.5 * kPi * 0.04;
+  } else {
+    curved.shape = core::PieceShape::kHelix;
+    curved.radius = 0.05;
+    curved.pitch = 0.02;
+    curved.length_m = 100.0 * 2.0 * kPi * std::hypot(0.05, 0.02 / (2.0 * kPi));
+  }
+  spec.pieces = {line, curved, line};
+  const auto path = *core::build_path(spec);
+  core::MotionSpec motion;
+  motion.duration_s = state.range(0) == 0 ? 2.0 : 60.0;
+  motion.cycle_rate_hz = 1000;
+  sample_all(state, path, *core::plan_motion(path, motion));
+  state.SetLabel(state.range(0) == 0 ? "seam" : "100-turn helix");
+}
+BENCHMARK(BM_MotionSamplerPieces)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 // Argument: 0 = 10 s trapezoid (duration shared by arc length), 1 = minimum time
 // trapezoid, 2 = minimum time double S.

@@ -221,6 +221,12 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
     timing.jerk_limited = optimize->values.jerk_limited;
     out.optimize = timing;
   }
+  if (optimize && geometry.path && (geometry.path->spec.start || !geometry.path->spec.pieces.empty()) &&
+      (optimize->tangent_scales || optimize->breakpoints)) {
+    violations.push_back({optimize->tangent_scales ? "optimize.tangentScales" : "optimize.breakpoints",
+                          "shapes the blends between key frames; a path of pieces has exact shapes (optimize.timing "
+                          "applies to it)"});
+  }
   if (optimize && geometry.path) out.optimize = optimize->values;
   const core::MotionSpec spec = motion_spec(motion);
   append(violations, check_motion(spec, motion, geometry, robot_spec, out.optimize ? &*out.optimize : nullptr));
@@ -425,10 +431,15 @@ core::Expected<Request> admit_sequence(const RequestInput& input, const RobotCat
 core::Violations path_violations(const PathInput& path) {
   Violations out = path.violations;
   if (!path.read) return out;
-  if (auto valid = core::validate_path(path.spec); !valid) {
-    for (auto& v : valid.error()) {
-      if (path.unchecked.count(v.field) == 0) out.push_back(std::move(v));
-    }
+  const bool pieces = path.spec.start || !path.spec.pieces.empty();
+  Violations checked;
+  if (pieces) {
+    if (auto built = core::convert_path(path.spec); !built) checked = std::move(built.error());
+  } else if (auto valid = core::validate_path(path.spec); !valid) {
+    checked = std::move(valid.error());
+  }
+  for (auto& v : checked) {
+    if (path.unchecked.count(v.field) == 0) out.push_back(std::move(v));
   }
   // In key-frame order, the wire's and core's of one frame together (the path's own fields
   // first).

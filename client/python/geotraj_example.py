@@ -109,7 +109,11 @@ def print_plan(plan, out=sys.stdout):
               f"closed-loop error {plan.closed_loop.max_error:.3g}"
               + (f" ({plan.closed_loop.worst_field})" if plan.closed_loop.worst_field else ""), file=out)
     for i, seg in enumerate(plan.segments):
-        print(f"  segment {i}: {seg.arc_length:.6f} m", file=out)
+        # A path of pieces: which segments are its exact pieces and which the transitions.
+        kind_name = seg.DESCRIPTOR.fields_by_name["kind"].enum_type.values_by_number[seg.kind].name
+        kind = {"SEGMENT_KIND_PIECE": f" (piece {seg.piece}, exact)",
+                "SEGMENT_KIND_TRANSITION": f" (transition into piece {seg.piece})"}.get(kind_name, "")
+        print(f"  segment {i}: {seg.arc_length:.6f} m{kind}", file=out)
     if plan.HasField("motion"):
         m = plan.motion
         print(f"motion: {m.duration_s:.6g} s, peak speed {m.peak_speed:.6g} m/s, "

@@ -77,15 +77,16 @@ std::vector<AchievedFrame> achieved_geometry(const Path& path) {
       Jet jet;
       evaluate(path.segments[arriving], 1.0, kMaxJetOrder, jet);
       a.p_W = jet[0];
-      // The trapezoid is exact at its ends (evaluated from the nearer end): no noise there.
-      const bool exact = std::holds_alternative<TrapezoidSegment>(path.segments[arriving]);
+      // The trapezoid is exact at its ends (evaluated from the nearer end) and a natural
+      // segment everywhere: no noise there.
+      const bool exact = !std::holds_alternative<BezierSegment>(path.segments[arriving]);
       a.approach = local_geometry(jet, exact ? 0.0 : path.p_uu_noise[arriving]);
     }
     if (k < m) {
       Jet jet;
       evaluate(path.segments[k], 0.0, kMaxJetOrder, jet);
       a.p_W = jet[0];
-      const bool exact = std::holds_alternative<TrapezoidSegment>(path.segments[k]);
+      const bool exact = !std::holds_alternative<BezierSegment>(path.segments[k]);
       a.leave = local_geometry(jet, exact ? 0.0 : path.p_uu_noise[k]);
     }
   }
@@ -97,7 +98,7 @@ ClosedLoopError closed_loop_error(const Path& path, const std::vector<AchievedFr
   Worst w;
   const std::size_t m = path.segments.size();
   for (std::size_t k = 0; k < achieved.size(); ++k) {
-    const std::string at = "frames[" + std::to_string(k) + "]";
+    const std::string at = frame_name(path, k);
     const KeyFrame& asked = path.spec.frames[k];
     const Vector3d& p = path.frames[k].p_W;
     if (achieved[k].approach) {

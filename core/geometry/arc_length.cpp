@@ -106,6 +106,7 @@ double integrate_gk15(const std::function<double(double)>& f, double a, double b
 
 double segment_arc_length(const Segment& segment, double u0, double u1, double rel_tol) {
   if (!(u1 > u0)) return 0.0;
+  if (const auto* nat = std::get_if<NaturalSegment>(&segment)) return natural_arc(*nat, u0, u1);  // exact
   const SpeedIntegrand f{&segment};
   const auto* trap = std::get_if<TrapezoidSegment>(&segment);
   if (!trap) return adaptive(f, u0, u1, rel_tol, 2000);

@@ -1,4 +1,5 @@
 #include "core/geometry/constraints.hpp"
+#include "core/geometry/path.hpp"
 
 #include <cmath>
 
@@ -45,6 +46,11 @@ FrameConstraints convert_frame(const KeyFrame& frame, DerivativeConvention conve
 }
 
 Expected<std::vector<FrameConstraints>> convert_path(const PathSpec& spec) {
+  if (spec.start || !spec.pieces.empty()) {  // a path of pieces: its joins, from the curves built
+    auto path = build_path(spec);
+    if (!path) return tl::unexpected(std::move(path.error()));
+    return std::move(path->frames);
+  }
   auto valid = validate_path(spec);
   if (!valid) return tl::unexpected(std::move(valid.error()));
   std::vector<FrameConstraints> out;

@@ -155,7 +155,8 @@ int side_derivatives(const KeyFrame& f, DerivativeConvention convention, const E
 /// factor |dp/du| (d/du = |dp/du| d/ds).
 FrameConstraints convert_frame(const KeyFrame& frame, DerivativeConvention convention);
 
-/// Validates `spec` and converts every frame. Field paths as in validate_path.
+/// Validates `spec` and converts every frame. Field paths as in validate_path. A path of
+/// pieces (pieces.hpp) is built, and its joins' constraints are what its curves give there.
 Expected<std::vector<FrameConstraints>> convert_path(const PathSpec& spec);
 
 }  // namespace geotraj::core

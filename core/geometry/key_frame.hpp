@@ -88,9 +88,34 @@ struct SegmentBreakpoints {
   std::vector<double> x, y, z;
 };
 
-/// Everything that defines the geometry of a path.
+/// The shape of one piece of a path written by its natural equations (thesis 2.4).
+enum class PieceShape {
+  kLine,      ///< kappa = tau = 0
+  kArc,       ///< kappa = 1 / radius, tau = 0: turns towards the current normal
+  kHelix,     ///< kappa, tau from radius and pitch (4.18-4.19)
+  kClothoid,  ///< kappa linear in s from where the piece starts to end_curvature, tau = 0
+  kProfile,   ///< kappa(s), tau(s) polynomials in s
+  kTo,        ///< a blend from the previous piece's end to the key frame `to`
+};
+
+/// One piece: it continues from where the previous one (or PathSpec::start) ends, with the
+/// same position, tangent and normal. Lengths [m], curvatures [1/m], coefficients of s^i
+/// [1/m^(i+1)]; s is the arc length from the piece's start.
+struct PathPiece {
+  PieceShape shape = PieceShape::kLine;
+  double length_m = 0.0;           ///< > 0; not used by kTo
+  double radius = 0.0;             ///< kArc, kHelix [m], > 0
+  double pitch = 0.0;              ///< kHelix: rise per turn along the axis [m], signed (+: right-handed)
+  double end_curvature = 0.0;      ///< kClothoid [1/m], signed (< 0: towards -N)
+  std::vector<double> curvature;   ///< kProfile: kappa(s) = sum curvature[i] s^i, signed
+  std::vector<double> torsion;     ///< kProfile: tau(s) = sum torsion[i] s^i
+  KeyFrame to;                     ///< kTo
+};
+
+/// Everything that defines the geometry of a path: key frames blended (`frames`), or a
+/// start frame and pieces (`start`, `pieces`).
 struct PathSpec {
-  std::vector<KeyFrame> frames;  ///< at least 2
+  std::vector<KeyFrame> frames;  ///< at least 2 (a path of pieces: none; see build_path)
   DerivativeConvention convention = DerivativeConvention::kPerArcLength;
   UnspecifiedConstraints unspecified = UnspecifiedConstraints::kSmoothest;
   BlendMethod blend = BlendMethod::kPolynomial;
@@ -98,6 +123,13 @@ struct PathSpec {
   bool closed = false;  ///< a last segment returns from the last frame to the first
   /// Curvature above which a bend is reported (PathWarningCode::kTightBend) [1/m]; > 0.
   std::optional<double> max_curvature;
+  /// A path of pieces: where it starts (position, tangent, normal; the orientation mode of
+  /// the pieces up to the first `to` frame, and for kFixed optionally the tool orientation).
+  std::optional<KeyFrame> start;
+  std::vector<PathPiece> pieces;
+  /// Where curvature or torsion jumps between pieces, a transition joins them within this
+  /// distance [m] of the programmed pieces; absent or 0: the motion rests there.
+  std::optional<double> transition_tolerance;
 };
 
 /// Number of segments of a path with `frame_count` frames.

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "core/geometry/arc_length.hpp"
+#include "core/geometry/pieces.hpp"
 #include "core/geometry/smoothest.hpp"
 #include "core/geometry/validate.hpp"
 
@@ -94,6 +95,7 @@ bool finite(const SideConstraints& s) {
 }  // namespace
 
 Expected<Path> build_path(const PathSpec& raw) {
+  if (raw.start || !raw.pieces.empty()) return build_piece_path(raw);
   auto valid = validate_path(raw);
   if (!valid) return tl::unexpected(std::move(valid.error()));
   Path path;
@@ -158,8 +160,23 @@ Expected<Path> build_path(const PathSpec& raw) {
   return path;
 }
 
+std::string frame_name(const Path& path, std::size_t k) {
+  if (k < path.frame_fields.size()) return path.frame_fields[k];
+  return "frames[" + std::to_string(k) + "]";
+}
+
+std::string frame_field(const Path& path, std::size_t k, const char* name) {
+  return frame_name(path, k) + "." + name;
+}
+
+std::string mode_field(const Path& path, std::size_t k) {
+  return frame_field(path, k < path.mode_frames.size() ? path.mode_frames[k] : k, "orientationMode");
+}
+
 double segment_noise(const Segment& segment) {
   constexpr double kUlps = 256.0 * std::numeric_limits<double>::epsilon();
+  // A natural segment's d2p/du2 is (s1 - s0)^2 kappa N with N from its frame: no cancellation.
+  if (std::holds_alternative<NaturalSegment>(segment)) return 0.0;
   if (const auto* bez = std::get_if<BezierSegment>(&segment)) {
     double largest = 0.0;
     for (int i = 0; i <= bez->degree; ++i) largest = std::max(largest, bez->b[i].cwiseAbs().maxCoeff());
@@ -186,6 +203,13 @@ void evaluate(const Segment& segment, double u_local, int max_order, Jet& jet) {
   GEOTRAJ_CHECK(max_order >= 0 && max_order <= kMaxJetOrder);
   if (const auto* bez = std::get_if<BezierSegment>(&segment)) {
     evaluate(*bez, u_local, max_order, jet);
+    return;
+  }
+  if (const auto* nat = std::get_if<NaturalSegment>(&segment)) {
+    const double l = nat->length();
+    const Jet s = nat->curve->jet_at(nat->s0 + u_local * l);
+    double f = 1.0;
+    for (int k = 0; k <= max_order; ++k, f *= l) jet[k] = s[k] * f;
     return;
   }
   const auto& trap = std::get<TrapezoidSegment>(segment);

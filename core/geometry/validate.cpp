@@ -300,4 +300,13 @@ Expected<PathSpec> validate_path(const PathSpec& spec, const FrameTolerances& to
   return out;
 }
 
+Violations validate_key_frame(const std::string& at, KeyFrame& frame, bool arriving, bool leaving,
+                              UnspecifiedConstraints reading, const FrameTolerances& tol, const PathLimits& limits) {
+  Violations violations;
+  Collector c(violations);
+  const std::size_t index = arriving ? 1 : 0;
+  validate_frame(c, at, frame, index, index + (leaving ? 2 : 1), /*closed=*/false, reading, tol, limits);
+  return violations;
+}
+
 }  // namespace geotraj::core

@@ -1,6 +1,8 @@
 // Complete validation of a PathSpec that came from a user. Collects every violation.
 #pragma once
 
+#include <string>
+
 #include "core/error.hpp"
 #include "core/geometry/key_frame.hpp"
 
@@ -42,5 +44,12 @@ struct PathLimits {
 /// built, since it depends on the orders that the frames fix).
 Expected<PathSpec> validate_path(const PathSpec& spec, const FrameTolerances& tol = {},
                                  const PathLimits& limits = {});
+
+/// Checks one key frame outside a list (a path's `start`) by the rules of validate_path,
+/// fields under `at`, and normalises it in place; `arriving` and `leaving`: whether segments
+/// arrive at and leave it (cusps, inflections and leaving scales need them).
+Violations validate_key_frame(const std::string& at, KeyFrame& frame, bool arriving, bool leaving,
+                              UnspecifiedConstraints reading, const FrameTolerances& tol = {},
+                              const PathLimits& limits = {});
 
 }  // namespace geotraj::core

@@ -51,6 +51,7 @@ double segment_arc(const Segment& seg, double a, double b) {
   if (b < a) return -segment_arc(seg, b, a);
   const auto* bez = std::get_if<BezierSegment>(&seg);
   if (bez) return gl_smooth(seg, bez, a, b);
+  if (const auto* nat = std::get_if<NaturalSegment>(&seg)) return natural_arc(*nat, a, b);  // exact
   const auto& trap = std::get<TrapezoidSegment>(seg);
   std::array<double, 3 * (2 * kMaxTrapezoidOrder + 2) + 2> cuts;
   std::size_t count = 0;

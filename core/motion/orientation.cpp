@@ -38,7 +38,6 @@ const char* mode_name(OrientationMode mode) {
   return "ORIENTATION_MODE_UNSPECIFIED";
 }
 
-std::string frame_field(std::size_t k, const char* name) { return "frames[" + std::to_string(k) + "]." + name; }
 
 /// Ry(pi): the tool's z axis reversed about its y axis; [-B N T] Ry(pi) = [B N -T].
 const Quaterniond kFlip(0.0, 0.0, 1.0, 0.0);  // (w, x, y, z)
@@ -219,8 +218,10 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
   std::vector<std::optional<Quaterniond>> custom(n);
   for (std::size_t k = 0; k < n; ++k) {
     const KeyFrame& f = frames[k];
-    const std::string field = frame_field(k, "orientation");
-    if (f.orientation_mode != OrientationMode::kCustom) {
+    const std::string field = frame_field(path, k, "orientation");
+    // A path of pieces held fixed may give the orientation held (see the header).
+    const bool held_start = k == 0 && path.spec.start && f.orientation_mode == OrientationMode::kFixed;
+    if (f.orientation_mode != OrientationMode::kCustom && !(held_start && f.orientation)) {
       if (f.orientation)
         violations.push_back({field, std::string("is only used with ORIENTATION_MODE_CUSTOM; this frame's mode is ") +
                                          mode_name(f.orientation_mode)});
@@ -249,14 +250,18 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
     SegmentOrientation& so = plan.segments[i];
     const KeyFrame& f = frames[i];
     const std::size_t next = (i + 1) % n;
-    const std::string mode_field = frame_field(i, "orientationMode");
+    const std::string mode_at = mode_field(path, i);
     so.mode = f.orientation_mode;
     so.eased = f.ease_orientation &&
                (so.mode == OrientationMode::kCustom || so.mode == OrientationMode::kFrameBased);
     if (f.cusp) ++cusps;  // the leaving side of frame i runs against its tangent
     so.flipped = cusps % 2 == 1;
 
-    if (i == 0) {
+    if (i == 0 && path.spec.start && so.mode == OrientationMode::kFixed) {
+      // A path of pieces held fixed: as the robot starts, or as `start.orientation` says,
+      // whatever the curve does where it starts.
+      so.q_start = custom[0] ? *custom[0] : start_W.normalized();
+    } else if (i == 0) {
       if (so.mode != OrientationMode::kFrenet) {  // Deviation for kFrenet: see the header
         const auto q0 = key_frame_tool(path, 0, achieved[0].leave);
         if (q0) {
@@ -265,7 +270,7 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
           so.q_start = start_W.normalized();  // a straight start: the tool as it is before the motion
         } else {
           start_known = false;
-          violations.push_back({frame_field(0, "normal"),
+          violations.push_back({frame_field(path, 0, "normal"),
                                 "ORIENTATION_MODE_PARALLEL_TRANSPORT starts the tool in frame 0's [-B N T] (Eq. 6.21), "
                                 "which needs a normal: the frame gives none and the curve is straight there; give a "
                                 "normal, or start with ORIENTATION_MODE_FIXED (the tool keeps its start orientation)"});
@@ -284,7 +289,7 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
         const auto target = key_frame_tool(path, next, achieved[next].approach);
         if (!target) {
           start_known = false;
-          violations.push_back({frame_field(next, "normal"),
+          violations.push_back({frame_field(path, next, "normal"),
                                 "segment " + std::to_string(i) + " (frames[" + std::to_string(i) +
                                     "].orientationMode = ORIENTATION_MODE_FRAME_BASED) turns the tool to this frame's "
                                     "[-B N T] (Eq. 6.21), which needs a normal: the frame gives none and the curve is "
@@ -315,7 +320,7 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
         if (!grid.ok) {
           start_known = false;
           violations.push_back(
-              {mode_field, std::string("ORIENTATION_MODE_FRENET follows the curve's Frenet frame [-B N T], but at ") +
+              {mode_at, std::string("ORIENTATION_MODE_FRENET follows the curve's Frenet frame [-B N T], but at ") +
                                where(i, grid.bad_u) +
                                (grid.undefined ? " the curvature vanishes (the curve is straight there), so the normal "
                                                  "is undefined"
@@ -328,7 +333,7 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
           const double jump = so.q_start.angularDistance(grid.s.front());
           if (jump > kOrientationJoinTolerance) {
             violations.push_back(
-                {mode_field, "the tool would turn by " + number(jump, 6) + " rad instantly where segment " + std::to_string(i) +
+                {mode_at, "the tool would turn by " + number(jump, 6) + " rad instantly where segment " + std::to_string(i) +
                                  " starts: the previous segment ends in another orientation than the curve's Frenet "
                                  "frame there (a frame without curvature, an inflection, or another mode before); "
                                  "give the frame a curvature and normal, or use ORIENTATION_MODE_PARALLEL_TRANSPORT"});
@@ -361,7 +366,7 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
         Grid<CurvePoint> grid = adaptive_grid<CurvePoint>(eval, turn);
         if (!grid.ok) {
           start_known = false;
-          violations.push_back({mode_field, "ORIENTATION_MODE_PARALLEL_TRANSPORT follows the tangent, but at " +
+          violations.push_back({mode_at, "ORIENTATION_MODE_PARALLEL_TRANSPORT follows the tangent, but at " +
                                                 where(i, grid.bad_u) +
                                                 " the curve has a singular point (dp/du = 0) where the tangent "
                                                 "is undefined or reverses; change the tangent scales of the frames"});
@@ -371,7 +376,7 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
         const double realign = angle_between(tool_z(so.q_start), z0);
         if (i > 0 && start_known && realign > kOrientationJoinTolerance) {
           violations.push_back(
-              {mode_field, "the tool would turn by " + number(realign, 6) + " rad instantly where segment " +
+              {mode_at, "the tool would turn by " + number(realign, 6) + " rad instantly where segment " +
                                std::to_string(i) +
                                " starts: ORIENTATION_MODE_PARALLEL_TRANSPORT keeps the tool's z axis along the "
                                "tangent, but the previous segment ends with the z axis elsewhere; end it in this "

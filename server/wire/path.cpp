@@ -23,9 +23,10 @@ using wire_detail::to_core;  // beside the overloads for key frames and paths be
 
 std::string at_frame(std::size_t i) { return "path.frames[" + std::to_string(i) + "]"; }
 
-void check_frame(WireCheck& check, const v1::KeyFrame& frame, std::size_t i) {
-  const std::string at = at_frame(i);
-  const std::string core_at = "frames[" + std::to_string(i) + "]";
+// One key frame at `at` (core's field: `core_at`); `held`: ORIENTATION_MODE_FIXED may give
+// the orientation held (a path of pieces' start).
+void check_frame(WireCheck& check, const v1::KeyFrame& frame, const std::string& at, const std::string& core_at,
+                 bool held = false) {
   if (!frame.has_position()) check.add(at + ".position", "is required: the position of the key frame in metres");
   if (!frame.has_tangent()) {
     check.add(at + ".tangent", "is required: the unit tangent of the path at the key frame");
@@ -39,7 +40,9 @@ void check_frame(WireCheck& check, const v1::KeyFrame& frame, std::size_t i) {
     check.add(at + ".orientation",
               "is required with orientationMode ORIENTATION_MODE_CUSTOM: the tool orientation to turn to");
   }
-  if (!custom && frame.has_orientation() && v1::OrientationMode_IsValid(frame.orientation_mode())) {
+  const bool fixed = frame.orientation_mode() == v1::ORIENTATION_MODE_FIXED ||
+                     frame.orientation_mode() == v1::ORIENTATION_MODE_UNSPECIFIED;
+  if (!custom && !(held && fixed) && frame.has_orientation() && v1::OrientationMode_IsValid(frame.orientation_mode())) {
     check.add(at + ".orientation", "is only used with orientationMode ORIENTATION_MODE_CUSTOM; orientationMode is " +
                                        v1::OrientationMode_Name(frame.orientation_mode()));
   }
@@ -62,7 +65,20 @@ void check_frame(WireCheck& check, const v1::KeyFrame& frame, std::size_t i) {
 }
 
 void check_path(WireCheck& check, const v1::PathSpec& path) {
-  for (int i = 0; i < path.frames_size(); ++i) check_frame(check, path.frames(i), static_cast<std::size_t>(i));
+  for (int i = 0; i < path.frames_size(); ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    check_frame(check, path.frames(i), at_frame(k), "frames[" + std::to_string(k) + "]");
+  }
+  if (path.has_start()) check_frame(check, path.start(), "path.start", "start", /*held=*/true);
+  if (path.pieces_size() > 0 && !path.has_start())
+    check.add("path.start", "is required with pieces: the frame the first piece starts from");
+  for (int i = 0; i < path.pieces_size(); ++i) {
+    const std::string core_at = "pieces[" + std::to_string(i) + "]";
+    const auto& piece = path.pieces(i);
+    if (piece.shape_case() == v1::PathPiece::SHAPE_NOT_SET)
+      check.add("path." + core_at, "give its shape: one of line, arc, helix, clothoid, profile, to");
+    if (piece.has_to()) check_frame(check, piece.to(), "path." + core_at + ".to", core_at + ".to");
+  }
   check_enum(check, "path.derivativeConvention", path.derivative_convention(),
              v1::DerivativeConvention_descriptor());
   check_enum(check, "path.blend", path.blend(), v1::BlendMethod_descriptor());
@@ -122,6 +138,41 @@ core::PathSpec to_core(const v1::PathSpec& p) {
   }
   spec.closed = p.closed();
   if (p.has_max_curvature()) spec.max_curvature = p.max_curvature();
+  if (p.has_start()) spec.start = to_core(p.start());
+  spec.pieces.reserve(static_cast<std::size_t>(p.pieces_size()));
+  for (const auto& in : p.pieces()) {
+    core::PathPiece piece;
+    piece.length_m = in.length_m();
+    switch (in.shape_case()) {
+      case v1::PathPiece::kArc:
+        piece.shape = core::PieceShape::kArc;
+        piece.radius = in.arc().radius();
+        break;
+      case v1::PathPiece::kHelix:
+        piece.shape = core::PieceShape::kHelix;
+        piece.radius = in.helix().radius();
+        piece.pitch = in.helix().pitch();
+        break;
+      case v1::PathPiece::kClothoid:
+        piece.shape = core::PieceShape::kClothoid;
+        piece.end_curvature = in.clothoid().end_curvature();
+        break;
+      case v1::PathPiece::kProfile:
+        piece.shape = core::PieceShape::kProfile;
+        piece.curvature.assign(in.profile().curvature().begin(), in.profile().curvature().end());
+        piece.torsion.assign(in.profile().torsion().begin(), in.profile().torsion().end());
+        break;
+      case v1::PathPiece::kTo:
+        piece.shape = core::PieceShape::kTo;
+        piece.to = to_core(in.to());
+        break;
+      default:  // line, or no shape (refused by check_path)
+        piece.shape = core::PieceShape::kLine;
+        break;
+    }
+    spec.pieces.push_back(std::move(piece));
+  }
+  if (p.has_transition_tolerance()) spec.transition_tolerance = p.transition_tolerance();
   switch (p.unspecified()) {
     case v1::UNSPECIFIED_CONSTRAINTS_THESIS_ZEROS: spec.unspecified = core::UnspecifiedConstraints::kThesisZeros; break;
     case v1::UNSPECIFIED_CONSTRAINTS_LOWEST_DEGREE: spec.unspecified = core::UnspecifiedConstraints::kLowestDegree; break;
@@ -139,6 +190,13 @@ planner::PathInput read_path(const v1::PathSpec& path, int max_frames) {
     in.read = false;
     in.violations.push_back({"frames", "has " + std::to_string(path.frames_size()) +
                                            " key frames; this server accepts at most " + std::to_string(max_frames) +
+                                           " (geotrajd --max-frames)"});
+    return in;
+  }
+  if (path.pieces_size() > max_frames) {
+    in.read = false;
+    in.violations.push_back({"pieces", "has " + std::to_string(path.pieces_size()) +
+                                           " pieces; this server accepts at most " + std::to_string(max_frames) +
                                            " (geotrajd --max-frames)"});
     return in;
   }
@@ -276,11 +334,19 @@ void to_proto(const core::Path& path, const std::vector<core::AchievedFrame>& ac
           using T = std::decay_t<decltype(seg)>;
           if constexpr (std::is_same_v<T, core::BezierSegment>) {
             s->set_degree(static_cast<std::uint32_t>(seg.degree));
-          } else {
+          } else if constexpr (std::is_same_v<T, core::TrapezoidSegment>) {
             for (const auto& axis : seg.axes) s->add_trapezoid_orders(static_cast<std::uint32_t>(axis.n));
           }
         },
         path.segments[i]);
+    if (i < path.origins.size()) {
+      static constexpr v1::SegmentKind kKind[] = {v1::SEGMENT_KIND_BLEND, v1::SEGMENT_KIND_PIECE,
+                                                  v1::SEGMENT_KIND_TRANSITION};
+      s->set_kind(kKind[static_cast<int>(path.origins[i].kind)]);
+      s->set_piece(static_cast<std::uint32_t>(path.origins[i].piece));
+    } else {
+      s->set_kind(v1::SEGMENT_KIND_BLEND);
+    }
     s->set_start_order(static_cast<std::uint32_t>(path.frames[i].leave.order));
     s->set_end_order(static_cast<std::uint32_t>(path.frames[to].approach.order));
     const core::SegmentGeometry& g = geometry.segments[i];

@@ -7,6 +7,7 @@ Run: test_python_example.py --server build/server/geotrajd --stubs build/tests/i
 """
 import argparse
 import csv
+import json
 import math
 import os
 import re
@@ -115,6 +116,41 @@ class PythonExample(unittest.TestCase):
         rows = list(csv.reader(res.stdout.splitlines()))
         self.assertEqual(rows[0][-1], "step")
         self.assertEqual(sorted({r[-1] for r in rows[1:]}), ["0", "1", "2", "3"])
+
+    def test_seam_of_pieces(self):
+        """The weld seam of plan_seam_ur5e.json: a line, a quarter arc, a line with two
+        transitions. The summary names the pieces and the transitions; the streamed positions
+        on the pieces are straight and round (to 1e-9 m), within the tolerance elsewhere, and
+        the tool never rests between its ends."""
+        with open(os.path.join(ARGS.requests, "plan_seam_ur5e.json")) as f:
+            request = json.load(f)
+        start = request["path"]["start"]["position"]
+        x0, y0, z0 = start["x"], start["y"], start["z"]
+        radius = request["path"]["pieces"][1]["arc"]["radius"]
+        tolerance = request["path"]["transitionTolerance"]
+        res = self.run_example("--request", os.path.join(ARGS.requests, "plan_seam_ur5e.json"), "--csv", "-")
+        self.assertEqual(res.returncode, 0, res.stderr)
+        self.assertIn("plan: 5 segments", res.stderr)
+        self.assertIn("segment 1: ", res.stderr)
+        self.assertRegex(res.stderr, r"segment 1: \S+ m \(transition into piece 1\)")
+        self.assertRegex(res.stderr, r"segment 2: \S+ m \(piece 1, exact\)")
+        pieces = {0: "line", 2: "arc", 4: "line"}
+        rows = list(csv.DictReader(res.stdout.splitlines()))
+        self.assertGreater(len(rows), 1000)
+        for k, r in enumerate(rows):
+            # The seam's own coordinates: along +y from the start, then towards +x.
+            a, b, z = float(r["y"]) - y0, float(r["x"]) - x0, float(r["z"]) - z0
+            first = math.hypot(max(0.0, a - 0.1, -a), b)
+            arc = abs(math.hypot(a - 0.1, b - radius) - radius) if a >= 0.1 and b <= radius else math.inf
+            last = math.hypot(a - 0.1 - radius, max(0.0, b - radius - 0.1, radius - b))
+            d = math.hypot(min(first, arc, last), z)
+            seg = int(r["segment"])
+            if seg in pieces:
+                self.assertLess(d, 1e-9, f"sample {k} on the {pieces[seg]} of segment {seg}")
+            else:
+                self.assertLessEqual(d, tolerance, f"sample {k} in the transition {seg}")
+            if 0 < k < len(rows) - 1:
+                self.assertGreater(float(r["speed"]), 0.0, f"sample {k} at rest")
 
     def test_bad_request_prints_field_violations(self):
         res = self.run_example("--request", os.path.join(ARGS.requests, "bad_request.json"))

@@ -11,7 +11,11 @@
 // typed into the empty start field by field achieves at frames 1 and 2 the curvature and
 // torsion the API answers for client/grpcurl/plan_demo_path_c.json, saves as that file, and
 // reads frame 0's curvature as the API does under every reading of unspecified constraints;
-// with a server that checks tokens, the token typed in the page goes with every call.
+// with a server that checks tokens, the token typed in the page goes with every call; a
+// weld seam built as a path of pieces in the editor (start frame, line, arc, line, transition
+// tolerance) plans to 5 segments, drawn as 3 exact pieces and 2 transitions, as the API
+// plans the same request, and a negative arc radius shows the server's message at that
+// piece's radius; the helix and the seam files fill the pieces editor (start page, load…).
 //
 //   cd tests/web && PUPPETEER_SKIP_DOWNLOAD=1 npm ci && \
 //     GEOTRAJD=../../build/server/geotrajd GEOTRAJ_WEB_ROOT=../../build/share/geotraj/web npm test
@@ -192,7 +196,17 @@ function pageHelpers(pageOf, problems) {
     }, t);
     return pageOf().$eval(sel('replay-tool'), (e) => [Number(e.dataset.x), Number(e.dataset.y), Number(e.dataset.z)]);
   }
-  return { waitFor, plans, settled, streamed, typeInto, dataValue, signature, screenshot, seek };
+  // The page at `base` from its start page's "Start empty", planned, with the built-in
+  // robots arrived (they re-render the editor when they arrive: before typing, not during).
+  async function startEmpty(base) {
+    await pageOf().goto(base, { waitUntil: 'load' });
+    await pageOf().waitForSelector(`${sel('start-page')}[open]`);
+    const n = await plans();
+    await pageOf().click(sel('start-empty'));
+    assert.equal(await settled(n), 'ready');
+    await waitFor('robots', () => document.querySelector('[data-testid="robot-name"]')?.options.length > 1);
+  }
+  return { waitFor, plans, settled, streamed, typeInto, dataValue, signature, screenshot, seek, startEmpty };
 }
 
 describe('the operator page in chromium', () => {
@@ -381,7 +395,8 @@ describe('path C typed into the editor by hand', () => {
   let page;
   let base;
   const problems = [];
-  const { waitFor, plans, settled, streamed, typeInto, dataValue, screenshot } = pageHelpers(() => page, problems);
+  const { waitFor, plans, settled, streamed, typeInto, dataValue, screenshot, startEmpty } = pageHelpers(
+    () => page, problems);
 
   before(async () => {
     assert.ok(fs.existsSync(CHROMIUM), `chromium not found at ${CHROMIUM}: apt-get install chromium`);
@@ -442,13 +457,8 @@ describe('path C typed into the editor by hand', () => {
   }
 
   it("achieves at frames 1 and 2 what the API answers for path C's file, and saves the file", async () => {
-    await page.goto(base, { waitUntil: 'load' });
-    await page.waitForSelector(`${sel('start-page')}[open]`);
+    await startEmpty(base);
     let n = await plans();
-    await page.click(sel('start-empty'));
-    assert.equal(await settled(n), 'ready');
-    // The built-in robots re-render the editor when they arrive: before typing, not during.
-    await waitFor('robots', () => document.querySelector('[data-testid="robot-name"]')?.options.length > 1);
     assert.equal(await frameCount(), 2);
     const frames = asked.path.frames;
     assert.equal(frames.length, 4);
@@ -619,3 +629,188 @@ describe('the operator page with a server that checks tokens', () => {
   });
 });
 
+// A path of pieces typed in by an operator: from the empty start, the editor switched to
+// pieces, the start frame and a weld seam (line 0.1 m, arc of radius 0.04 m over a quarter
+// turn, line 0.1 m) with a transition tolerance of 0.1 mm; what the page shows against
+// what POST /v1/plan answers for that request; then a refused radius at its input; then
+// the start page's helix and the seam's file in the pieces editor.
+describe('a path of pieces built in the editor', () => {
+  const seam = {
+    start: { position: { x: 0.5, y: 0, z: 0.3 }, tangent: { x: 1 }, normal: { y: 1 } },
+    pieces: [
+      { lengthM: 0.1, line: {} },
+      { lengthM: 0.0628318530717959, arc: { radius: 0.04 } },
+      { lengthM: 0.1, line: {} },
+    ],
+    transitionTolerance: 0.0001,
+  };
+  let server;
+  let browser;
+  let page;
+  let base;
+  const problems = [];
+  const { waitFor, plans, settled, typeInto, dataValue, screenshot, startEmpty } = pageHelpers(() => page, problems);
+
+  before(async () => {
+    assert.ok(fs.existsSync(CHROMIUM), `chromium not found at ${CHROMIUM}: apt-get install chromium`);
+    fs.mkdirSync(ARTIFACTS, { recursive: true });
+    // Half-typed values (a start position on its way, a piece before its kind's fields) are
+    // refused with 400 and shown beside their fields: the page working.
+    ({ server, browser, page, base } = await openPage(problems, {}, refusedPlan));
+  });
+
+  after(async () => {
+    if (browser) await browser.close();
+    await stopServer(server);
+  });
+
+  const viewData = () => page.$eval(sel('view3d'), (e) => ({ ...e.dataset }));
+  const pieceKinds = () => page.$$eval(`${sel('editor')} fieldset.piece`, (l) => l.map((f) => f.dataset.kind));
+  const legendHidden = () => page.$eval(sel('legend-segments'), (e) => e.hidden);
+  // The server's messages shown in the editor, by the field they stand at.
+  const shownErrors = () => page.$$eval(`${sel('editor')} [data-error-for]`, (l) => l
+    .filter((e) => e.textContent).map((e) => `${e.dataset.errorFor}: ${e.textContent}`));
+  // Pixels of the view in the transitions' pink (#e91e63), read back from the WebGL canvas:
+  // red, little green, blue well above green (the red of the tool and the T arrows has blue
+  // and green alike; viridis is never this red).
+  const pinkPixels = () => page.$eval(`${sel('view3d')} canvas`, (canvas) => {
+    const copy = document.createElement('canvas');
+    copy.width = canvas.width;
+    copy.height = canvas.height;
+    const ctx = copy.getContext('2d');
+    ctx.drawImage(canvas, 0, 0);
+    const { data } = ctx.getImageData(0, 0, copy.width, copy.height);
+    let count = 0;
+    for (let i = 0; i < data.length; i += 4) {
+      if (data[i] > 190 && data[i + 1] < 80 && data[i + 2] - data[i + 1] > 35) ++count;
+    }
+    return count;
+  });
+
+  it('plans the weld seam typed as pieces: 5 segments, 3 drawn as exact pieces and 2 as transitions', async () => {
+    await startEmpty(base);
+    let n = await plans();
+    // A path of key frames: one line as before, no legend of segment kinds.
+    assert.equal((await viewData()).segmentKinds, undefined);
+    assert.equal(await legendHidden(), true);
+
+    n = await plans();
+    await page.select(sel('path-form'), 'pieces');
+    assert.equal(await page.$eval(sel('editor'), (e) => e.dataset.pathForm), 'pieces');
+    assert.equal(await page.$(sel('frame-0')), null, 'the key frames are still shown');
+    // The empty start's two frames, as a start and a piece `to` the second.
+    assert.deepEqual(await pieceKinds(), ['to']);
+    await settled(n);
+
+    n = await plans();
+    for (const [vector, value] of Object.entries(seam.start)) {
+      for (const axis of ['x', 'y', 'z']) await typeInto(`start-input-${vector}-${axis}`, String(value[axis] ?? 0));
+    }
+    await page.select(sel('piece-0-kind'), 'line');
+    await typeInto('piece-0-input-lengthM', '0.1');
+    await page.click(sel('piece-add'));
+    await page.click(sel('piece-add'));
+    assert.deepEqual(await pieceKinds(), ['line', 'line', 'line']);
+    await page.select(sel('piece-1-kind'), 'arc');
+    assert.deepEqual(await pieceKinds(), ['line', 'arc', 'line']);
+    await typeInto('piece-1-input-radius', '0.04');
+    await typeInto('piece-1-input-lengthM', '0.0628318530717959');
+    await typeInto('path-transitionTolerance', '0.0001');
+    assert.equal(await settled(n), 'ready');
+
+    // What the operator sees: 5 segments, drawn as piece, transition, piece, transition,
+    // piece, the legend saying so, no error anywhere.
+    assert.equal(await dataValue('plan-segments'), 5);
+    const drawn = await viewData();
+    assert.equal(drawn.segmentKinds, 'piece,transition,piece,transition,piece');
+    assert.equal(drawn.drawnPieces, '3');
+    assert.equal(drawn.drawnTransitions, '2');
+    assert.equal(drawn.drawnBlends, '0');
+    assert.equal(await legendHidden(), false);
+    assert.match(await page.$eval(sel('legend-segment-piece'), (e) => e.textContent), /exact piece ×\s*3/);
+    assert.match(await page.$eval(sel('legend-segment-transition'), (e) => e.textContent), /transition ×\s*2/);
+    assert.equal(await page.$eval(sel('general-errors'), (e) => e.textContent), '');
+    assert.deepEqual(await shownErrors(), []);
+    assert.equal(await page.$eval(sel('status'), (e) => e.dataset.state), 'ready');
+
+    // The request the editor built is the seam: the page's arc length is the API's for it.
+    const answer = await fetch(new URL('v1/plan', base), {
+      method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify({ path: seam }),
+    });
+    const planned = await answer.json();
+    assert.equal(answer.status, 200, JSON.stringify(planned));
+    assert.deepEqual(planned.segments.map((s) => s.kind), ['SEGMENT_KIND_PIECE', 'SEGMENT_KIND_TRANSITION',
+      'SEGMENT_KIND_PIECE', 'SEGMENT_KIND_TRANSITION', 'SEGMENT_KIND_PIECE']);
+    const length = await dataValue('plan-arc-length');
+    assert.ok(Math.abs(length - planned.arcLength) <= 1e-9, `the page plans ${length} m, the API ${planned.arcLength} m`);
+
+    // The transitions are on the canvas, in their colour, once the view frames the seam.
+    await page.click('[data-action=fit]');
+    await new Promise((r) => setTimeout(r, 300));
+    const pink = await pinkPixels();
+    assert.ok(pink > 30, `${pink} pixels of the transitions' pink on the canvas`);
+    await screenshot('pieces', { figure: false });
+    assert.deepEqual(problems, []);
+  });
+
+  it("shows the server's message for a negative radius at that piece's radius", async () => {
+    let n = await plans();
+    await typeInto('piece-1-input-radius', '-1');
+    assert.equal(await settled(n), 'error');
+    const slot = `${sel('piece-1')} [data-error-for="path.pieces[1].radius"]`;
+    const message = await page.$eval(slot, (e) => e.textContent);
+    assert.match(message, /radius/);
+    assert.match(message, /-1\b/);
+    assert.ok(await page.$eval(sel('piece-1-input-radius'), (e) => e.classList.contains('invalid')),
+      'the radius input is not marked');
+    // Placed at the input, not listed (above the editor) with the messages that found no place.
+    assert.deepEqual(await page.$$eval(`${sel('general-errors')} li`, (l) => l.map((e) => e.textContent)), []);
+    assert.deepEqual((await shownErrors()).map((e) => e.split(':')[0]), ['path.pieces[1].radius']);
+    await screenshot('pieces_field_error', { element: sel('piece-1'), figure: false });
+
+    n = await plans();
+    await typeInto('piece-1-input-radius', '0.04');
+    assert.equal(await settled(n), 'ready');
+    assert.equal(await page.$eval(slot, (e) => e.textContent), '');
+    assert.equal((await viewData()).drawnTransitions, '2');
+  });
+
+  it('gives the key frames back when switched back, drawn as before', async () => {
+    const n = await plans();
+    await page.select(sel('path-form'), 'frames');
+    assert.equal(await settled(n), 'ready');
+    assert.equal(await page.$$eval(`${sel('editor')} fieldset.frame`, (f) => f.length), 2);
+    assert.equal((await viewData()).segmentKinds, undefined);
+    assert.equal(await legendHidden(), true);
+    // And the pieces again.
+    const m = await plans();
+    await page.select(sel('path-form'), 'pieces');
+    assert.equal(await settled(m), 'ready');
+    assert.deepEqual(await pieceKinds(), ['line', 'arc', 'line']);
+  });
+
+  it("fills the pieces editor with the start page's helix and the seam's file", async () => {
+    await page.click('[data-action=start]');
+    await page.waitForSelector(`${sel('start-page')}[open]`);
+    let n = await plans();
+    await page.click(sel('start-helix'));
+    assert.equal(await settled(n), 'ready');
+    assert.equal(await page.$eval(sel('path-form'), (s) => s.value), 'pieces');
+    assert.deepEqual(await pieceKinds(), ['line', 'helix', 'line']);
+    assert.equal(await page.$eval(sel('piece-1-input-radius'), (e) => e.value), '0.05');
+    assert.equal(await page.$eval(sel('piece-1-input-pitch'), (e) => e.value), '0.02');
+    assert.equal((await viewData()).segmentKinds, 'piece,transition,piece,transition,piece');
+
+    const file = path.join(repo, 'client', 'grpcurl', 'plan_seam_ur5e.json');
+    const asked = JSON.parse(fs.readFileSync(file, 'utf8'));
+    n = await plans();
+    await (await page.$(sel('load-file'))).uploadFile(file);
+    assert.equal(await settled(n), 'ready');
+    assert.deepEqual(await pieceKinds(), ['line', 'arc', 'line']);
+    assert.equal(await page.$eval(sel('start-input-position-x'), (e) => Number(e.value)), asked.path.start.position.x);
+    assert.equal(await page.$eval(sel('piece-1-input-radius'), (e) => Number(e.value)), asked.path.pieces[1].arc.radius);
+    assert.equal(await page.$eval(sel('path-transitionTolerance'), (e) => Number(e.value)), asked.path.transitionTolerance);
+    assert.equal((await viewData()).drawnTransitions, '2');
+    assert.deepEqual(problems, []);
+  });
+});

@@ -1,8 +1,12 @@
-// The key-frame editor: every field of a KeyFrame, the path's settings (reading of
-// unspecified constraints, blend, derivative convention), the motion, the robot and the
-// optimisers, written straight into the PlanRequest (proto JSON). Each input carries the
-// server's field path (data-field), and an element beside it (data-error-for) shows the
-// field violation the server returns for that path.
+// The path editor: a path of key frames (every field of a KeyFrame) or of pieces (a start
+// frame and pieces: line, arc, helix, clothoid, profile, or a blend to a key frame), the
+// path's settings (reading of unspecified constraints, blend, derivative convention,
+// transition tolerance), the motion, the robot and the optimisers, written straight into
+// the PlanRequest (proto JSON). Each input carries the request's field path (data-field),
+// and an element beside it (data-error-for) shows the field violation the server returns
+// for that path; where the server names a field otherwise than the JSON does (a piece's
+// `path.pieces[1].radius` is the JSON's `path.pieces[1].arc.radius`), the input carries the
+// server's name too (data-error-field).
 
 import { getField, setField } from './request.js';
 
@@ -98,6 +102,9 @@ export class Editor {
     this.request = null;
     this.robots = [];
     this.localErrors = new Map();
+    // What the other form of the path left when the editor switched (setPathForm).
+    this.stash = {};
+    this.pieceEnds = null;
   }
 
   setRobots(robots) {
@@ -109,28 +116,54 @@ export class Editor {
     return el('div', { class: 'field-error', 'data-error-for': field, role: 'alert' });
   }
 
-  // A number input bound to `field`. optional: an empty input removes the field.
-  numberInput(field, { optional = true, testid, placeholder, title } = {}) {
+  // A number input bound to `field`. optional: an empty input removes the field;
+  // errorField: the server's name of the field, where it is not `field`.
+  numberInput(field, { optional = true, testid, placeholder, title, errorField } = {}) {
+    const slot = errorField ?? field;
     const input = el('input', {
       type: 'text', inputmode: 'decimal', spellcheck: 'false', 'data-field': field,
-      'data-testid': testid, placeholder: placeholder ?? (optional ? 'absent' : '0'), title,
+      'data-error-field': errorField, 'data-testid': testid,
+      placeholder: placeholder ?? (optional ? 'absent' : '0'), title,
       value: formatNumber(getField(this.request, field)),
     });
     input.addEventListener('input', () => {
       const text = input.value.trim();
       if (text === '') {
-        this.setLocalError(field, null);
+        this.setLocalError(slot, null);
         setField(this.request, field, optional ? undefined : 0);
         this.onChange('value');
         return;
       }
       const value = Number(text);
       if (!Number.isFinite(value)) {
-        this.setLocalError(field, `"${text}" is not a number`);
+        this.setLocalError(slot, `"${text}" is not a number`);
         return;
       }
-      this.setLocalError(field, null);
+      this.setLocalError(slot, null);
       setField(this.request, field, value);
+      this.onChange('value');
+    });
+    return input;
+  }
+
+  // Numbers separated by commas or spaces, bound to the repeated double `field` (kept, as
+  // [], when empty: a message such as a profile piece must stay when its lists are empty).
+  listInput(field, { testid, placeholder, errorField } = {}) {
+    const slot = errorField ?? field;
+    const input = el('input', {
+      type: 'text', inputmode: 'decimal', spellcheck: 'false', 'data-field': field,
+      'data-error-field': errorField, 'data-testid': testid, placeholder,
+      value: (getField(this.request, field) || []).join(', '),
+    });
+    input.addEventListener('input', () => {
+      const text = input.value.trim();
+      const values = text.split(/[\s,]+/).filter(Boolean).map(Number);
+      if (!values.every(Number.isFinite)) {
+        this.setLocalError(slot, 'coefficients must be numbers, separated by commas');
+        return;
+      }
+      this.setLocalError(slot, null);
+      setField(this.request, field, values);
       this.onChange('value');
     });
     return input;
@@ -174,7 +207,12 @@ export class Editor {
 
   scalarRow(field, label, unit, options = {}) {
     return el('div', { class: 'row' }, el('label', { text: label }), this.numberInput(field, options),
-      el('span', { class: 'unit', text: unit }), this.errorSlot(field));
+      el('span', { class: 'unit', text: unit }), this.errorSlot(options.errorField ?? field));
+  }
+
+  listRow(field, label, unit, options = {}) {
+    return el('div', { class: 'row' }, el('label', { text: label }), this.listInput(field, options),
+      el('span', { class: 'unit', text: unit }), this.errorSlot(options.errorField ?? field));
   }
 
   checkRow(field, label, testid) {
@@ -213,7 +251,6 @@ export class Editor {
   frameCard(i) {
     const base = `path.frames[${i}]`;
     const frames = this.request.path.frames;
-    const dUnit = derivativeUnit(this.request);
     const card = el('fieldset', { class: 'frame', 'data-testid': `frame-${i}`, 'data-field': base });
     const remove = el('button', { type: 'button', class: 'small', title: 'remove this key frame',
       'data-testid': `frame-${i}-remove`, text: '✕ remove' });
@@ -232,69 +269,257 @@ export class Editor {
     });
     card.append(el('legend', {}, el('span', { text: `frame ${i}` }), insert, remove));
     card.append(this.errorSlot(base));
-    card.append(this.vecInput(`${base}.position`, 'position', { testid: `frame-${i}-input-position`, unit: 'm' }));
-    card.append(this.vecInput(`${base}.tangent`, 'tangent T', { testid: `frame-${i}-input-tangent` }));
-    card.append(this.vecInput(`${base}.normal`, 'normal N', { optional: true, testid: `frame-${i}-input-normal` }));
+    this.keyFrameFields(card, base, `frame-${i}`);
+    return card;
+  }
+
+  // The fields of the KeyFrame at `base` (a key frame, or the frame a piece blends to),
+  // appended to `card`; their test ids start with `prefix`.
+  keyFrameFields(card, base, prefix) {
+    const dUnit = derivativeUnit(this.request);
+    card.append(this.vecInput(`${base}.position`, 'position', { testid: `${prefix}-input-position`, unit: 'm' }));
+    card.append(this.vecInput(`${base}.tangent`, 'tangent T', { testid: `${prefix}-input-tangent` }));
+    card.append(this.vecInput(`${base}.normal`, 'normal N', { optional: true, testid: `${prefix}-input-normal` }));
     for (const [key, label, unit] of FRAME_SCALARS.slice(0, 5)) {
       const row = this.scalarRow(`${base}.${key}`, label, unit === 'deriv' ? dUnit : unit,
-        { testid: `frame-${i}-input-${key}` });
+        { testid: `${prefix}-input-${key}` });
       // Marked so that a change of the path's derivative convention relabels it.
       if (unit === 'deriv') row.querySelector('.unit').dataset.derivativeUnit = '';
       card.append(row);
     }
     card.append(el('div', { class: 'checks' },
-      this.checkRow(`${base}.cusp`, 'cusp', `frame-${i}-input-cusp`),
-      this.checkRow(`${base}.inflection`, 'inflection', `frame-${i}-input-inflection`),
-      this.checkRow(`${base}.stop`, 'stop', `frame-${i}-input-stop`)));
+      this.checkRow(`${base}.cusp`, 'cusp', `${prefix}-input-cusp`),
+      this.checkRow(`${base}.inflection`, 'inflection', `${prefix}-input-inflection`),
+      this.checkRow(`${base}.stop`, 'stop', `${prefix}-input-stop`)));
     const more = el('details', { class: 'more' }, el('summary', { text: 'binormal, leaving scale, tool orientation' }));
-    more.append(this.vecInput(`${base}.binormal`, 'binormal B', { optional: true, testid: `frame-${i}-input-binormal` }));
+    more.append(this.vecInput(`${base}.binormal`, 'binormal B', { optional: true, testid: `${prefix}-input-binormal` }));
     more.append(this.scalarRow(`${base}.leaveTangentScale`, 'leaving tangent scale', 'm',
-      { testid: `frame-${i}-input-leaveTangentScale` }));
+      { testid: `${prefix}-input-leaveTangentScale` }));
     more.append(this.selectRow(`${base}.orientationMode`, 'orientation mode', ENUMS.orientationMode,
-      `frame-${i}-input-orientationMode`));
-    const q = el('div', { class: 'row', 'data-field': `${base}.orientation` }, el('label', { text: 'orientation w x y z' }));
-    const quat = el('div', { class: 'vec quat' });
-    for (const c of ['w', 'x', 'y', 'z']) quat.append(this.numberInput(`${base}.orientation.${c}`, { placeholder: c }));
-    q.append(quat, this.errorSlot(`${base}.orientation`));
-    more.append(q);
-    more.append(this.checkRow(`${base}.easeOrientation`, 'ease the orientation (quintic)', `frame-${i}-input-easeOrientation`));
+      `${prefix}-input-orientationMode`));
+    more.append(this.quaternionRow(`${base}.orientation`));
+    more.append(this.checkRow(`${base}.easeOrientation`, 'ease the orientation (quintic)', `${prefix}-input-easeOrientation`));
     if (getField(this.request, `${base}.binormal`) || getField(this.request, `${base}.leaveTangentScale`) !== undefined ||
         getField(this.request, `${base}.orientationMode`)) {
       more.open = true;
     }
     card.append(more);
+  }
+
+  quaternionRow(field) {
+    const q = el('div', { class: 'row', 'data-field': field }, el('label', { text: 'orientation w x y z' }));
+    const quat = el('div', { class: 'vec quat' });
+    for (const c of ['w', 'x', 'y', 'z']) quat.append(this.numberInput(`${field}.${c}`, { placeholder: c }));
+    q.append(quat, this.errorSlot(field));
+    return q;
+  }
+
+  // The frame a path of pieces starts from: position, tangent, normal (where the first piece
+  // bends), the orientation mode and the orientation held; its curvature, torsion and
+  // tangent scales only count when piece 0 blends to a key frame.
+  startCard() {
+    const base = 'path.start';
+    const card = el('fieldset', { class: 'frame start', 'data-testid': 'start', 'data-field': base },
+      el('legend', {}, el('span', { text: 'start' })));
+    card.append(this.errorSlot(base));
+    card.append(this.vecInput(`${base}.position`, 'position', { testid: 'start-input-position', unit: 'm' }));
+    card.append(this.vecInput(`${base}.tangent`, 'tangent T', { testid: 'start-input-tangent' }));
+    card.append(this.vecInput(`${base}.normal`, 'normal N', { optional: true, testid: 'start-input-normal' }));
+    card.append(this.selectRow(`${base}.orientationMode`, 'orientation mode', ENUMS.orientationMode,
+      'start-input-orientationMode'));
+    const more = el('details', { class: 'more' },
+      el('summary', { text: 'orientation held; κ, τ, scales (when piece 0 is "to")' }));
+    more.append(this.quaternionRow(`${base}.orientation`));
+    let given = getField(this.request, `${base}.orientation`) !== undefined;
+    for (const [key, label, unit] of FRAME_SCALARS) {
+      more.append(this.scalarRow(`${base}.${key}`, label, unit === 'deriv' ? '1/m²' : unit,
+        { testid: `start-input-${key}` }));
+      given ||= getField(this.request, `${base}.${key}`) !== undefined;
+    }
+    more.open = given;
+    card.append(more);
     return card;
   }
 
+  // Piece i of a path of pieces: its kind, its length and its kind's fields (for `to`, a
+  // whole key frame); moved up or down, removed (one at least).
+  pieceCard(i) {
+    const base = `path.pieces[${i}]`;
+    const pieces = this.request.path.pieces;
+    const piece = pieces[i];
+    const kind = pieceKind(piece);
+    const card = el('fieldset', { class: 'frame piece', 'data-testid': `piece-${i}`, 'data-field': base,
+      'data-kind': kind || '' });
+    const button = (text, title, testid, disabled, action) => {
+      const b = el('button', { type: 'button', class: 'small', title, 'data-testid': testid, text });
+      b.disabled = disabled;
+      b.addEventListener('click', () => {
+        action();
+        this.render(this.request);
+        this.onChange('structure');
+      });
+      return b;
+    };
+    const swap = (j) => { [pieces[i], pieces[j]] = [pieces[j], pieces[i]]; };
+    card.append(el('legend', {}, el('span', { text: `piece ${i}` }),
+      button('↑', 'move this piece up', `piece-${i}-up`, i === 0, () => swap(i - 1)),
+      button('↓', 'move this piece down', `piece-${i}-down`, i === pieces.length - 1, () => swap(i + 1)),
+      button('✕ remove', 'remove this piece', `piece-${i}-remove`, pieces.length <= 1, () => pieces.splice(i, 1))));
+    card.append(this.errorSlot(base));
+
+    const select = el('select', { 'data-field': `${base}.kind`, 'data-testid': `piece-${i}-kind` });
+    for (const [value, text] of PIECE_KINDS) {
+      const option = el('option', { value, text });
+      if (value === kind) option.selected = true;
+      select.append(option);
+    }
+    if (!kind) select.prepend(el('option', { value: '', text: 'no shape given', selected: 'selected' }));
+    select.addEventListener('change', () => {
+      pieces[i] = newPiece(select.value, piece, this.pieceStartGuess(i));
+      this.render(this.request);
+      this.onChange('structure');
+    });
+    card.append(el('div', { class: 'row' }, el('label', { text: 'kind' }), select));
+
+    if (kind === 'to') {
+      card.append(el('div', { class: 'note', text: 'a blend from where the previous piece ends to this key frame' }));
+      this.keyFrameFields(card, `${base}.to`, `piece-${i}`);
+      return card;
+    }
+    card.append(this.scalarRow(`${base}.lengthM`, 'length', 'm', { optional: false, testid: `piece-${i}-input-lengthM` }));
+    // The kind's fields, named by the server without the kind (path.pieces[i].radius).
+    for (const [key, label, unit, list] of PIECE_FIELDS[kind] || []) {
+      const options = { optional: false, testid: `piece-${i}-input-${key}`, errorField: `${base}.${key}` };
+      card.append(list ? this.listRow(`${base}.${kind}.${key}`, label, unit, { ...options, placeholder: 'c0, c1, c2, …' })
+        : this.scalarRow(`${base}.${kind}.${key}`, label, unit, options));
+    }
+    return card;
+  }
+
+  // Where piece i starts, as far as the page knows (the plan's joins, else the start
+  // frame): a new `to` piece's key frame is put 0.1 m on from there.
+  pieceStartGuess(i) {
+    const known = i > 0 ? this.pieceEnds?.[i - 1] : null;
+    if (known) return known;
+    const start = this.request.path.start || {};
+    return { position: start.position || {}, tangent: start.tangent || { x: 1 } };
+  }
+
+  // The ends of the pieces ({position, tangent} of each, from the last plan), for new `to`
+  // pieces.
+  setPieceEnds(ends) {
+    this.pieceEnds = ends;
+  }
+
+  // Key frames <-> pieces. What one form leaves is kept aside while the other is edited, so
+  // that switching back gives it again; a form switched to for the first time is converted:
+  // key frames become the start and a `to` piece per further frame; pieces become the start
+  // and the frames of their `to` pieces (two frames at least).
+  setPathForm(form) {
+    const path = this.request.path;
+    if (form === pathForm(path)) return;
+    const take = (keys) => {
+      const out = {};
+      for (const key of keys) {
+        if (path[key] !== undefined) out[key] = path[key];
+        delete path[key];
+      }
+      return out;
+    };
+    if (form === 'pieces') {
+      const frames = path.frames || [];
+      this.stash.frames = take(FRAMES_ONLY);
+      if (this.stash.pieces) Object.assign(path, this.stash.pieces);
+      else if (!path.start && !path.pieces?.length) {
+        const first = cloneJson(frames[0]) || { position: { x: 0, y: 0, z: 0.5 }, tangent: { x: 1 } };
+        path.start = first;
+        path.pieces = frames.slice(1).map((f) => ({ to: cloneJson(f) }));
+        if (!path.pieces.length) path.pieces.push({ lengthM: 0.1, line: {} });
+      }
+    } else {
+      const start = path.start;
+      const pieces = path.pieces || [];
+      this.stash.pieces = take(PIECES_ONLY);
+      if (this.stash.frames) Object.assign(path, this.stash.frames);
+      else if (!path.frames?.length) {
+        const frames = [cloneJson(start) || { position: { x: 0, y: 0, z: 0.5 }, tangent: { x: 1 } }];
+        for (const p of pieces) if (p.to) frames.push(cloneJson(p.to));
+        while (frames.length < 2) frames.push(extrapolatedFrame(frames[frames.length - 1]));
+        path.frames = frames;
+      }
+    }
+    this.render(this.request);
+    this.onChange('structure');
+  }
+
   render(request) {
+    // Another request (loaded, a start page's choice): what a path form left is not its.
+    if (request !== this.request) {
+      this.stash = {};
+      this.pieceEnds = null;
+    }
     this.request = request;
     request.path ??= { frames: [] };
-    request.path.frames ??= [];
+    const form = pathForm(request.path);
+    if (form === 'frames') request.path.frames ??= [];
+    else request.path.pieces ??= [];
     const focused = document.activeElement?.getAttribute?.('data-field');
     this.localErrors.clear();
     this.root.replaceChildren();
+    this.root.dataset.pathForm = form;
 
     const path = el('fieldset', { class: 'settings', 'data-field': 'path' }, el('legend', { text: 'path' }));
     path.append(this.errorSlot('path'));
+    const formSelect = el('select', { 'data-testid': 'path-form', 'aria-label': 'the form of the path' });
+    for (const [value, text] of [['frames', 'key frames'], ['pieces', 'pieces (start and pieces)']]) {
+      const option = el('option', { value, text });
+      if (value === form) option.selected = true;
+      formSelect.append(option);
+    }
+    formSelect.addEventListener('change', () => this.setPathForm(formSelect.value));
+    path.append(el('div', { class: 'row' }, el('label', { text: 'path of' }), formSelect));
     path.append(this.selectRow('path.unspecified', 'unspecified constraints', ENUMS.unspecified, 'path-unspecified'));
-    path.append(this.selectRow('path.blend', 'blend', ENUMS.blend, 'path-blend'));
-    path.append(this.selectRow('path.derivativeConvention', "κ', τ' convention", ENUMS.derivativeConvention,
-      'path-derivativeConvention'));
+    if (form === 'frames') {
+      path.append(this.selectRow('path.blend', 'blend', ENUMS.blend, 'path-blend'));
+      path.append(this.selectRow('path.derivativeConvention', "κ', τ' convention", ENUMS.derivativeConvention,
+        'path-derivativeConvention'));
+    } else {
+      path.append(this.scalarRow('path.transitionTolerance', 'transition tolerance', 'm',
+        { testid: 'path-transitionTolerance', placeholder: 'absent: rest at joins',
+          title: 'where curvature or torsion jumps between pieces, a transition within this distance of them' }));
+    }
     path.append(this.scalarRow('path.maxCurvature', 'max curvature (warning)', '1/m', { testid: 'path-maxCurvature' }));
-    path.append(el('div', { class: 'checks' }, this.checkRow('path.closed', 'closed path', 'path-closed')));
-    path.append(this.errorSlot('path.frames'));
+    if (form === 'frames') {
+      path.append(el('div', { class: 'checks' }, this.checkRow('path.closed', 'closed path', 'path-closed')));
+      path.append(this.errorSlot('path.frames'));
+    } else {
+      path.append(this.errorSlot('path.pieces'));
+    }
     this.root.append(path);
 
-    request.path.frames.forEach((_, i) => this.root.append(this.frameCard(i)));
-    const add = el('button', { type: 'button', 'data-testid': 'frame-add', text: '+ add a key frame at the end' });
-    add.addEventListener('click', () => {
-      const frames = request.path.frames;
-      const last = frames[frames.length - 1];
-      frames.push(last ? extrapolatedFrame(last) : { position: { x: 0, y: 0, z: 0.5 }, tangent: { x: 1 } });
-      this.render(request);
-      this.onChange('structure');
-    });
-    this.root.append(add);
+    if (form === 'frames') {
+      request.path.frames.forEach((_, i) => this.root.append(this.frameCard(i)));
+      const add = el('button', { type: 'button', 'data-testid': 'frame-add', text: '+ add a key frame at the end' });
+      add.addEventListener('click', () => {
+        const frames = request.path.frames;
+        const last = frames[frames.length - 1];
+        frames.push(last ? extrapolatedFrame(last) : { position: { x: 0, y: 0, z: 0.5 }, tangent: { x: 1 } });
+        this.render(request);
+        this.onChange('structure');
+      });
+      this.root.append(add);
+    } else {
+      request.path.start ??= { position: { x: 0, y: 0, z: 0.5 }, tangent: { x: 1 } };
+      this.root.append(this.startCard());
+      request.path.pieces.forEach((_, i) => this.root.append(this.pieceCard(i)));
+      const add = el('button', { type: 'button', 'data-testid': 'piece-add', text: '+ add a piece at the end' });
+      add.addEventListener('click', () => {
+        request.path.pieces.push({ lengthM: 0.1, line: {} });
+        this.render(request);
+        this.onChange('structure');
+      });
+      this.root.append(add);
+    }
 
     const motion = el('fieldset', { class: 'settings', 'data-field': 'motion' }, el('legend', { text: 'motion' }));
     motion.append(this.errorSlot('motion'));
@@ -408,7 +633,8 @@ export class Editor {
       const prefix = field === v.field ? '' : `${v.field.slice(field.length).replace(/^\./, '')}: `;
       const text = `${prefix}${v.description}`;
       placed.set(slot, placed.has(slot) ? `${placed.get(slot)}; ${text}` : text);
-      const input = this.root.querySelector(`[data-field="${CSS.escape(field)}"]`);
+      const input = this.root.querySelector(`[data-field="${CSS.escape(field)}"]`) ||
+        this.root.querySelector(`[data-error-field="${CSS.escape(field)}"]`);
       if (input) input.classList.add('invalid');
     }
     for (const [slot, text] of placed) {
@@ -416,6 +642,54 @@ export class Editor {
       slot.dataset.source = 'server';
     }
     return unplaced;
+  }
+}
+
+// The form of a path: 'pieces' (a start and pieces) or 'frames' (key frames).
+export function pathForm(path) {
+  if (path?.frames?.length) return 'frames';
+  return path?.start || path?.pieces?.length ? 'pieces' : 'frames';
+}
+
+// The fields of PathSpec that belong to one form only.
+const FRAMES_ONLY = ['frames', 'blend', 'derivativeConvention', 'closed', 'breakpoints'];
+const PIECES_ONLY = ['start', 'pieces', 'transitionTolerance'];
+
+// The kinds of a piece (the PathPiece's oneof), as the select offers them.
+export const PIECE_KINDS = [
+  ['line', 'line'],
+  ['arc', 'arc (radius)'],
+  ['helix', 'helix (radius, pitch)'],
+  ['clothoid', 'clothoid (end curvature)'],
+  ['profile', 'profile (κ(s), τ(s) polynomials)'],
+  ['to', 'to a key frame (blend)'],
+];
+
+// Each kind's fields: key, label, unit, a list of coefficients.
+const PIECE_FIELDS = {
+  arc: [['radius', 'radius', 'm']],
+  helix: [['radius', 'radius', 'm'], ['pitch', 'pitch (rise per turn)', 'm']],
+  clothoid: [['endCurvature', 'end curvature', '1/m']],
+  profile: [['curvature', 'κ(s) coefficients', '1/m, 1/m²…', true], ['torsion', 'τ(s) coefficients', '1/m, 1/m²…', true]],
+};
+
+export function pieceKind(piece) {
+  return PIECE_KINDS.map(([kind]) => kind).find((kind) => piece?.[kind] !== undefined) || '';
+}
+
+const cloneJson = (value) => (value === undefined ? undefined : JSON.parse(JSON.stringify(value)));
+
+// A piece of `kind` in place of `old` (its length kept, where it has one); a `to` piece's
+// key frame 0.1 m on from `from` ({position, tangent}: where the piece starts).
+function newPiece(kind, old, from) {
+  const lengthM = old?.lengthM || 0.1;
+  switch (kind) {
+    case 'arc': return { lengthM, arc: { radius: old?.helix?.radius || 0.05 } };
+    case 'helix': return { lengthM, helix: { radius: old?.arc?.radius || 0.05, pitch: 0.02 } };
+    case 'clothoid': return { lengthM, clothoid: { endCurvature: 10 } };
+    case 'profile': return { lengthM, profile: { curvature: [10], torsion: [] } };
+    case 'to': return { to: extrapolatedFrame(from) };
+    default: return { lengthM, line: {} };
   }
 }
 

@@ -6,7 +6,7 @@
 import 'uplot/dist/uPlot.min.css';
 import '../style.css';
 import * as api from './api.js';
-import { Editor } from './editor.js';
+import { Editor, pathForm } from './editor.js';
 import { View3D } from './view3d.js';
 import { Plots } from './plots.js';
 import { Family } from './family.js';
@@ -40,6 +40,7 @@ const body = document.body;
 const statusEl = byTestId('status');
 const generalErrors = byTestId('general-errors');
 const view = new View3D(byTestId('view3d'), byTestId('colorbar'));
+view.attachSegmentLegend(byTestId('legend-segments'));
 const plots = new Plots(byTestId('plots'));
 const editor = new Editor(byTestId('editor'), (kind) => onEdit(kind));
 const replay = new Replay({
@@ -128,6 +129,47 @@ function frameArcLengths(response, frameCount) {
   return s.slice(0, frameCount);
 }
 
+// The frames the view marks: the key frames, or for a path of pieces its start and the key
+// frames of its `to` pieces (tagged "start" and "to i").
+function viewFrames(request) {
+  const path = request?.path;
+  if (pathForm(path) === 'frames') return { frames: path?.frames || [], labels: null };
+  const frames = [];
+  const labels = [];
+  if (path.start) {
+    frames.push(path.start);
+    labels.push('start');
+  }
+  (path.pieces || []).forEach((piece, i) => {
+    if (!piece.to) return;
+    frames.push(piece.to);
+    labels.push(`to ${i}`);
+  });
+  return { frames, labels };
+}
+
+// The kind of each segment of a path of pieces (PlanResponse.segments[].kind), or null for
+// a path of key frames (blends only): the view draws the segments of the former apart.
+function segmentKinds(report) {
+  const kinds = (report?.segments || []).map((seg) => seg.kind || 'SEGMENT_KIND_BLEND');
+  return kinds.some((k) => k !== 'SEGMENT_KIND_BLEND') ? kinds : null;
+}
+
+// Where each piece of a path of pieces ends ({position, tangent}, from the joins the plan
+// reports): the end of the last segment that draws it.
+function pieceEnds(report, count) {
+  const ends = new Array(count).fill(null);
+  for (const seg of report?.segments || []) {
+    if (seg.kind === 'SEGMENT_KIND_TRANSITION') continue;
+    const piece = seg.piece ?? 0;
+    const frame = report.frames?.[seg.toFrame ?? 0];
+    if (piece < count && frame) {
+      ends[piece] = { position: frame.position || {}, tangent: frame.approach?.tangent || frame.leave?.tangent || { x: 1 } };
+    }
+  }
+  return ends;
+}
+
 function extent(points) {
   if (!points?.length) return 0.5;
   const lo = [Infinity, Infinity, Infinity];
@@ -177,15 +219,19 @@ async function replan() {
   showErrors(error);
 
   const frames = request.path?.frames || [];
-  if (profile) {
-    state.profile = profile;
-    view.setCurve(profile.points || [], state.speedAtS || null);
-  }
+  const pieces = pathForm(request.path) === 'pieces';
   // A path with an approach move is planned as a sequence: its path's report is a step's.
   const report = response?.steps?.length
     ? response.steps.find((step) => step.kind === 'path' || step.kind === 'blended') || {}
     : response;
-  view.setFrames(frames, report?.warnings || [], profile?.points || state.profile?.points, extent(profile?.points));
+  if (profile) {
+    state.profile = profile;
+    state.segmentKinds = segmentKinds(report);
+    view.setCurve(profile.points || [], state.speedAtS || null, state.segmentKinds);
+  }
+  const marked = viewFrames(request);
+  view.setFrames(marked.frames, report?.warnings || [], profile?.points || state.profile?.points, extent(profile?.points),
+    marked.labels);
   renderWarnings(byTestId('warnings'), report?.warnings, error?.preconditionViolations);
   // What the readout shows belongs to the last plan that succeeded.
   for (const id of ['readout', 'summary']) byTestId(id).classList.toggle('stale', !response);
@@ -193,7 +239,9 @@ async function replan() {
     state.response = report;
     renderFrames(byTestId('readout'), request, report);
     renderSummary(byTestId('summary'), response, request);
-    plots.setFrameMarks(frameArcLengths(report, frames.length));
+    // A path of pieces: the joins of its segments (start, piece and transition ends).
+    plots.setFrameMarks(frameArcLengths(report, pieces ? (report.frames || []).length : frames.length));
+    if (pieces) editor.setPieceEnds(pieceEnds(report, (request.path.pieces || []).length));
     const names = robotInfo(request.robot)?.names || [];
     const timing = response.optimization?.timing;
     if (timing?.binding?.length) plots.setBinding(timing.binding, response.motion?.durationS, names, 'timing report');
@@ -250,7 +298,7 @@ async function streamSamples(request, generation) {
   if (generation !== state.generation) return;
   state.samples = samples;
   state.speedAtS = speedLookup(samples);
-  if (view.colorMode === 'speed' && state.profile) view.setCurve(state.profile.points || [], state.speedAtS);
+  if (view.colorMode === 'speed' && state.profile) view.setCurve(state.profile.points || [], state.speedAtS, state.segmentKinds);
   plots.setSamples(samples, robotInfo(request.robot));
   await replay.load(samples, request.robot || null);
   if (generation !== state.generation) return;
@@ -383,8 +431,10 @@ tokenInput.addEventListener('change', () => {
 byTestId('color-mode').addEventListener('change', (e) => view.setColorMode(e.target.value, state.speedAtS));
 byTestId('show-frames').addEventListener('change', (e) => {
   view.showFrames = e.target.checked;
-  if (state.request) view.setFrames(state.request.path?.frames || [], state.response?.warnings || [],
-    state.profile?.points, extent(state.profile?.points));
+  if (!state.request) return;
+  const marked = viewFrames(state.request);
+  view.setFrames(marked.frames, state.response?.warnings || [], state.profile?.points, extent(state.profile?.points),
+    marked.labels);
 });
 $('[data-action=fit]').addEventListener('click', () => view.refit());
 

@@ -34,6 +34,8 @@ function valueSpan(testid, value, extraClass) {
 
 export function renderFrames(root, request, response) {
   const frames = request.path?.frames || [];
+  // A path of pieces: the rows are the joins of its segments, asked nothing.
+  const joins = !frames.length && Boolean(request.path?.pieces?.length);
   const achieved = response?.frames || [];
   const perParameter = request.path?.derivativeConvention === 'DERIVATIVE_CONVENTION_PER_PARAMETER';
   const dUnit = perParameter ? '1/m per u' : '1/m²';
@@ -49,7 +51,7 @@ export function renderFrames(root, request, response) {
   achieved.forEach((a, i) => {
     const asked = frames[i] || {};
     const row = el('tr', { 'data-testid': `frame-${i}-row` });
-    row.append(el('td', {}, `${i}${asked.cusp ? ' cusp' : ''}${asked.inflection ? ' infl.' : ''}`));
+    row.append(el('td', {}, `${joins ? 'join ' : ''}${i}${asked.cusp ? ' cusp' : ''}${asked.inflection ? ' infl.' : ''}`));
     for (const [key] of QUANTITIES) {
       const cell = el('td');
       const approach = a.approach?.[key];
@@ -81,13 +83,15 @@ export function renderFrames(root, request, response) {
     const q = asked.position || {};
     const err = Math.hypot((p.x ?? 0) - (q.x ?? 0), (p.y ?? 0) - (q.y ?? 0), (p.z ?? 0) - (q.z ?? 0));
     const cell = el('td');
-    cell.append(valueSpan(`frame-${i}-position-error`, err));
+    cell.append(valueSpan(`frame-${i}-position-error`, joins ? undefined : err));
     row.append(cell);
     body.append(row);
   });
   table.append(body);
   root.replaceChildren(table);
   if (!achieved.length) root.append(el('div', { class: 'plot-empty' }, 'no plan yet'));
+  else if (joins) root.append(el('div', { class: 'plot-note' },
+    'A path of pieces: the joins of its segments (its start, the ends of pieces and transitions), leaving side (in: the approach side where it differs).'));
   else root.append(el('div', { class: 'plot-note' },
     'Achieved on the curve, leaving side (in: the approach side where it differs). Green: as asked; red: not as asked.'));
 }

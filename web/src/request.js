@@ -3,6 +3,8 @@
 
 import demoPathC from '../../client/grpcurl/plan_demo_path_c.json';
 import pa10PathC from '../../client/grpcurl/plan_pa10_path_c.json';
+import seamUr5e from '../../client/grpcurl/plan_seam_ur5e.json';
+import helix from '../../client/grpcurl/plan_helix.json';
 
 const clone = (value) => JSON.parse(JSON.stringify(value));
 
@@ -27,6 +29,11 @@ export const presets = {
     request.optimize = { ...(request.optimize || {}), timing: { timeOptimal: true } };
     return request;
   },
+  // A path of pieces: a weld seam (line, arc of 40 mm, line) on the UR5e,
+  // client/grpcurl/plan_seam_ur5e.json.
+  seamUr5e: () => clone(seamUr5e),
+  // A path of pieces: a line, five turns of a helix, a line, client/grpcurl/plan_helix.json.
+  helix: () => clone(helix),
 };
 
 // Field paths as the server writes them: "path.frames[2].curvature".

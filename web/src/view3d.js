@@ -1,7 +1,9 @@
 // The 3-D view (three.js, z up as the robots' world frame W): the curve coloured by
-// curvature, torsion or speed with its colour bar, the key frames with their T, N, B
-// arrows, cusps, inflections and plan warnings marked, a family of curves, and the robot as
-// capsules. Orbit (left drag), pan (right drag), zoom (wheel). Lengths in metres.
+// curvature, torsion or speed with its colour bar (a path of pieces drawn segment by
+// segment: exact pieces thick, transitions dashed in their own colour, blends as a key-frame
+// path's), the key frames with their T, N, B arrows, cusps, inflections and plan warnings
+// marked, a family of curves, and the robot as capsules. Orbit (left drag), pan (right
+// drag), zoom (wheel). Lengths in metres.
 
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
@@ -19,6 +21,17 @@ export const COLOR_MODES = {
   torsion: { label: 'torsion τ', unit: '1/m', diverging: true },
   speed: { label: 'tool speed', unit: 'm/s', diverging: false },
   parametricSpeed: { label: 'parametric speed |dp/du|', unit: 'm per unit u', diverging: false },
+};
+
+// How a path of pieces draws each kind of segment (PlanResponse.segments[].kind): width in
+// pixels, dashed, a colour of its own (else the colour scale's); legend and tooltip text.
+export const SEGMENT_STYLES = {
+  SEGMENT_KIND_PIECE: { key: 'piece', width: 7, dashed: false, color: null,
+    label: 'exact piece', title: 'a piece from its natural equations (line, arc, helix, clothoid, profile): thick' },
+  SEGMENT_KIND_TRANSITION: { key: 'transition', width: 3, dashed: true, color: 0xe91e63,
+    label: 'transition', title: 'a transition where curvature or torsion jumps between pieces: dashed, pink' },
+  SEGMENT_KIND_BLEND: { key: 'blend', width: 4, dashed: false, color: null,
+    label: 'blend to a key frame', title: 'a blend to the key frame of a `to` piece: drawn as a key-frame path' },
 };
 
 const v3 = (p) => new THREE.Vector3(p?.x ?? 0, p?.y ?? 0, p?.z ?? 0);
@@ -163,13 +176,14 @@ export class View3D {
     this.buildGrid(down(box.min.x), up(box.max.x), down(box.min.y), up(box.max.y), Math.max(0.2, up(box.max.z)));
   }
 
+  // dashed: true, or {dashSize, gapSize} in metres.
   makeLine(points, colors, width, dashed) {
     const geometry = new LineGeometry();
     geometry.setPositions(points.flatMap((p) => [p.x, p.y, p.z]));
     if (colors) geometry.setColors(colors);
     const material = new LineMaterial({
       linewidth: width, vertexColors: Boolean(colors), color: colors ? 0xffffff : 0x888888,
-      dashed: Boolean(dashed), dashSize: 0.01, gapSize: 0.006, worldUnits: false,
+      dashed: Boolean(dashed), dashSize: dashed?.dashSize ?? 0.01, gapSize: dashed?.gapSize ?? 0.006, worldUnits: false,
     });
     material.resolution.set(this.container.clientWidth || 640, this.container.clientHeight || 480);
     this.lineMaterials.push(material);
@@ -192,12 +206,14 @@ export class View3D {
   }
 
   // profile: PathProfile.points; speedAtS: the tool speed [m/s] at arc length s from the
-  // streamed samples, or null (speed then falls back to |dp/du|).
-  setCurve(points, speedAtS) {
+  // streamed samples, or null (speed then falls back to |dp/du|); segmentKinds: the kind of
+  // each segment of a path of pieces (PlanResponse.segments[].kind), or null: one line.
+  setCurve(points, speedAtS, segmentKinds = null) {
     disposeGroup(this.curve);
-    this.lastCurve = { points, speedAtS };
+    this.lastCurve = { points, speedAtS, segmentKinds };
     if (!points || points.length < 2) {
       this.container.dataset.curvePoints = '0';
+      this.setSegmentLegend(null);
       this.updateColorBar(null);
       this.render();
       return;
@@ -208,7 +224,9 @@ export class View3D {
     const scale = makeScale(values, COLOR_MODES[mode].diverging);
     const colors = values.flatMap((v) => scale.color(v));
     const positions = points.map((p) => v3(p.position));
-    this.curve.add(this.makeLine(positions, colors, 4));
+    if (segmentKinds) this.addSegments(points, positions, colors, segmentKinds);
+    else this.curve.add(this.makeLine(positions, colors, 4));
+    this.setSegmentLegend(segmentKinds ? this.curve.children.map((line) => line.userData.kind) : null);
     this.container.dataset.curvePoints = String(points.length);
     // A signature of the drawn curve, so that a change of its shape can be seen from outside.
     let sum = 0;
@@ -219,10 +237,88 @@ export class View3D {
     this.render();
   }
 
+  // One line per segment (the profile points of that segment and the next one's first, so
+  // that the lines meet), styled by its kind (SEGMENT_STYLES); a segment without points is
+  // not drawn.
+  addSegments(points, positions, colors, kinds) {
+    let first = 0;
+    while (first < points.length) {
+      const segment = points[first].segment ?? 0;
+      let end = first;
+      while (end < points.length && (points[end].segment ?? 0) === segment) ++end;
+      const last = Math.min(end, points.length - 1);
+      const style = SEGMENT_STYLES[kinds[segment]] || SEGMENT_STYLES.SEGMENT_KIND_BLEND;
+      const run = positions.slice(first, last + 1);
+      if (run.length >= 2) {
+        let length = 0;
+        for (let k = 1; k < run.length; ++k) length += run[k].distanceTo(run[k - 1]);
+        const dash = style.dashed
+          ? { dashSize: Math.min(0.01, Math.max(0.001, length / 9)), gapSize: Math.min(0.006, Math.max(0.0007, length / 14)) }
+          : false;
+        const line = this.makeLine(run, style.color === null ? colors.slice(3 * first, 3 * (last + 1)) : null,
+          style.width, dash);
+        if (style.color !== null) line.material.color.set(style.color);
+        line.userData.kind = style.key;
+        line.userData.segment = segment;
+        this.curve.add(line);
+      }
+      first = end;
+    }
+  }
+
+  // The legend of a path of pieces' segments (drawn: the kind of each line drawn, in order;
+  // null: a key-frame path, no legend). The counts are on the view too (data-drawn-*), with
+  // the kinds in order (data-segment-kinds).
+  setSegmentLegend(drawn) {
+    const legend = this.segmentLegend;
+    const data = this.container.dataset;
+    if (!drawn) {
+      if (legend) legend.hidden = true;
+      delete data.segmentKinds;
+      for (const style of Object.values(SEGMENT_STYLES)) delete data[`drawn${capitalised(style.key)}s`];
+      return;
+    }
+    data.segmentKinds = drawn.join(',');
+    for (const style of Object.values(SEGMENT_STYLES)) {
+      const count = drawn.filter((kind) => kind === style.key).length;
+      data[`drawn${capitalised(style.key)}s`] = String(count);
+      const item = legend?.querySelector(`[data-kind="${style.key}"]`);
+      if (item) {
+        item.querySelector('.count').textContent = String(count);
+        item.classList.toggle('none', count === 0);
+      }
+    }
+    if (legend) legend.hidden = false;
+  }
+
+  // element: where setSegmentLegend writes (an item per kind: a swatch, its label, its count).
+  attachSegmentLegend(element) {
+    this.segmentLegend = element;
+    element.replaceChildren();
+    for (const style of Object.values(SEGMENT_STYLES)) {
+      const item = document.createElement('div');
+      item.dataset.kind = style.key;
+      item.setAttribute('data-testid', `legend-segment-${style.key}`);
+      item.title = style.title;
+      const swatch = document.createElement('span');
+      swatch.className = `segment ${style.key}`;
+      const text = document.createElement('span');
+      text.textContent = `${style.label} ×`;
+      const count = document.createElement('span');
+      count.className = 'count';
+      count.textContent = '0';
+      item.append(swatch, text, count);
+      element.append(item);
+    }
+    element.hidden = true;
+  }
+
   // speedAtS: the tool speed lookup for the 'speed' mode (null: none streamed yet).
   setColorMode(mode, speedAtS) {
     this.colorMode = mode;
-    if (this.lastCurve) this.setCurve(this.lastCurve.points, speedAtS ?? this.lastCurve.speedAtS);
+    if (this.lastCurve) {
+      this.setCurve(this.lastCurve.points, speedAtS ?? this.lastCurve.speedAtS, this.lastCurve.segmentKinds);
+    }
   }
 
   updateColorBar(scale, mode) {
@@ -256,8 +352,9 @@ export class View3D {
   }
 
   // frames: the request's key frames (positions and the operator's T, N, B);
-  // warnings: PlanResponse.warnings placed on the profile by u.
-  setFrames(frames, warnings, profilePoints, scaleHint) {
+  // warnings: PlanResponse.warnings placed on the profile by u; labels: each frame's tag
+  // (default: its index).
+  setFrames(frames, warnings, profilePoints, scaleHint, labels = null) {
     disposeGroup(this.frames);
     disposeGroup(this.marks);
     // Arrows a tenth of the path's size, within 4 to 15 cm.
@@ -278,7 +375,7 @@ export class View3D {
           this.frames.add(new THREE.ArrowHelper(d, p, length, FRAME_COLORS[name], length * 0.25, length * 0.12));
         }
       }
-      const tag = label(`${i}`, 'frame');
+      const tag = label(labels?.[i] ?? `${i}`, 'frame');
       tag.position.copy(p);
       tag.center.set(-0.3, 1.2);
       this.frames.add(tag);
@@ -411,6 +508,8 @@ export function pointAtU(points, u) {
   for (const p of points) if (Math.abs((p.u ?? 0) - u) < Math.abs((best.u ?? 0) - u)) best = p;
   return best;
 }
+
+const capitalised = (word) => word.charAt(0).toUpperCase() + word.slice(1);
 
 export function formatTick(value) {
   if (value === 0) return '0';

@@ -1,0 +1,187 @@
+// Paths of pieces through the real service: a weld seam (line, quarter arc, line) with
+// transitions on the UR5e and the Panda, streamed at 1 and 4 kHz and measured on the
+// samples (straight and round outside the transitions, within the tolerance inside, never
+// at rest, the tool's acceleration continuous, the nozzle held, every joint within its
+// limits by finite differences); a curvature and torsion profile recovered by AnalyzePath;
+// bad pieces named by field.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <gmock/gmock.h>
+
+#include "tests/server/support/dh_reference.hpp"
+#include "tests/server/support/test_server.hpp"
+
+namespace geotraj::testing {
+namespace {
+
+using ::testing::HasSubstr;
+using Eigen::Vector3d;
+constexpr double kPi = std::numbers::pi;
+
+class PiecesTest : public ServerTest {};
+
+void set(v1::Vec3* out, const Vector3d& v) {
+  out->set_x(v.x());
+  out->set_y(v.y());
+  out->set_z(v.z());
+}
+Vector3d vec3(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+// A seam in the plane of (t, n) through p0: a line of length a along t, a quarter arc of
+// radius r turning towards n, a line of length b along n.
+struct Seam {
+  Vector3d p0, t, n;
+  double a = 0.1, r = 0.04, b = 0.1;
+
+  // Distance [m] from q to the programmed seam, in the seam's own coordinates.
+  double distance(const Vector3d& q) const {
+    const Vector3d d = q - p0;
+    const double x = d.dot(t), y = d.dot(n), z = d.dot(t.cross(n));
+    double best = std::hypot(std::max({0.0, x - a, -x}), y, z);
+    best = std::min(best, std::hypot(x - (a + r), std::max({0.0, y - r - b, r - y}), z));
+    const double cx = x - a, cy = y - r;  // from the arc's centre
+    if (cx >= 0.0 && cy <= 0.0) best = std::min(best, std::hypot(std::hypot(cx, cy) - r, z));
+    return best;
+  }
+
+  v1::PlanRequest request(const std::string& robot, double rate_hz, double tolerance) const {
+    auto request = from_json<v1::PlanRequest>(R"({"path": {"pieces": [
+        {"lengthM": 0.1, "line": {}}, {"lengthM": 0.0628318530717958648, "arc": {"radius": 0.04}},
+        {"lengthM": 0.1, "line": {}}]},
+        "motion": {"durationS": 0, "profile": "MOTION_PROFILE_S_CURVE", "maxSpeed": 0.25, "maxAcceleration": 1.5,
+                   "maxJerk": 20}})");
+    auto& path = *request.mutable_path();
+    set(path.mutable_start()->mutable_position(), p0);
+    set(path.mutable_start()->mutable_tangent(), t);
+    set(path.mutable_start()->mutable_normal(), n);
+    path.set_transition_tolerance(tolerance);
+    request.mutable_motion()->set_cycle_rate_hz(rate_hz);
+    request.mutable_robot()->set_name(robot);
+    return request;
+  }
+};
+
+// The seam from the robot's home tool position, in a horizontal plane, along the world's x
+// axis then towards the robot's base side.
+Seam seam_at_home(const v1::RobotModel& model) {
+  const Eigen::Isometry3d X = forward_kinematics(model, model.home());
+  Seam seam;
+  seam.p0 = X.translation();
+  const Vector3d radial = Vector3d(seam.p0.x(), seam.p0.y(), 0.0).normalized();
+  seam.t = Vector3d::UnitZ().cross(radial);  // around the base
+  seam.n = -radial;                          // then inwards
+  return seam;
+}
+
+TEST_F(PiecesTest, ASeamIsStraightAndRoundOutsideItsTransitionsOnTheUr5eAndThePanda) {
+  constexpr double kTolerance = 2e-4;
+  for (const std::string robot : {"ur5e", "panda"}) {
+    const auto model = robot_model(robot);
+    const Seam seam = seam_at_home(model);
+    const Eigen::Quaterniond q_home(forward_kinematics(model, model.home()).linear());
+    double jump_at[2] = {0.0, 0.0};  // the largest step of the tool's acceleration [m/s^2]
+    for (const double rate : {1000.0, 4000.0}) {
+      const auto request = seam.request(robot, rate, kTolerance);
+      const v1::PlanResponse plan = plan_ok(request);
+      ASSERT_EQ(plan.segments_size(), 5) << robot;
+      std::vector<v1::SegmentKind> kind;
+      for (const auto& s : plan.segments()) kind.push_back(s.kind());
+      EXPECT_EQ(kind[1], v1::SEGMENT_KIND_TRANSITION);
+      EXPECT_EQ(kind[2], v1::SEGMENT_KIND_PIECE);
+      EXPECT_EQ(plan.segments(2).piece(), 1u);
+
+      grpc::Status status;
+      const auto samples = stream_all(request, status);
+      ASSERT_TRUE(status.ok()) << robot << ": " << status.error_message();
+      ASSERT_GT(samples.size(), 100u);
+      double inside = 0.0, outside = 0.0, jump = 0.0;
+      for (std::size_t k = 0; k < samples.size(); ++k) {
+        const auto& s = samples[k];
+        const double d = seam.distance(vec3(s.position()));
+        (kind[s.segment()] == v1::SEGMENT_KIND_PIECE ? outside : inside) = std::max(
+            kind[s.segment()] == v1::SEGMENT_KIND_PIECE ? outside : inside, d);
+        if (k > 0 && k + 1 < samples.size()) {
+          ASSERT_GT(s.speed(), 0.0) << robot << " rests at t " << s.t();
+          jump = std::max(jump, (vec3(s.acceleration()) - vec3(samples[k - 1].acceleration())).norm());
+        }
+        ASSERT_LT(quat(s.orientation()).angularDistance(q_home), 1e-9) << "the nozzle is held";
+      }
+      EXPECT_LE(outside, 1e-9) << robot;
+      EXPECT_LE(inside, kTolerance) << robot;
+      jump_at[rate == 1000.0 ? 0 : 1] = jump;
+
+      // Every joint within its limits, by finite differences of what is streamed.
+      const double dt = 1.0 / rate;
+      for (std::size_t k = 1; k + 1 < samples.size(); ++k) {
+        for (int j = 0; j < model.limits_size(); ++j) {
+          const auto& l = model.limits(j);
+          const double q0 = samples[k - 1].joints(j), q1 = samples[k].joints(j), q2 = samples[k + 1].joints(j);
+          ASSERT_GE(q1, l.min_position()) << robot << " joint " << j;
+          ASSERT_LE(q1, l.max_position()) << robot << " joint " << j;
+          const double h1 = samples[k].t() - samples[k - 1].t(), h2 = samples[k + 1].t() - samples[k].t();
+          ASSERT_LE(h1, dt + 1e-9);
+          const double v = (q1 - q0) / h1;
+          ASSERT_LE(std::abs(v), l.max_velocity() * (1 + 1e-3)) << robot << " joint " << j << " t " << samples[k].t();
+          const double acc = 2.0 * ((q2 - q1) / h2 - v) / (h1 + h2);
+          ASSERT_LE(std::abs(acc), l.max_acceleration() * (1 + 2e-2)) << robot << " joint " << j << " t " << samples[k].t();
+        }
+      }
+      std::printf("[ measured ] seam on the %s at %.0f Hz: %.4f s, %zu samples; deviation %.3g m in the transitions, "
+                  "%.3g m outside; largest step of the tool's acceleration %.4g m/s^2\n",
+                  robot.c_str(), rate, samples.back().t(), samples.size(), inside, outside, jump);
+    }
+    // Continuous: the acceleration's steps shrink with the cycle (jerk x dt), a jump would not.
+    EXPECT_LT(jump_at[1], 0.4 * jump_at[0]) << robot;
+  }
+}
+
+TEST_F(PiecesTest, AnalyzePathRecoversTheCurvatureAndTorsionAsked) {
+  // kappa(s) = 5 + 20 s, tau(s) = 2 - 10 s over 0.3 m (a twisted clothoid).
+  const auto request = from_json<v1::PlanRequest>(R"({"path": {
+      "start": {"position": {}, "tangent": {"x": 1}, "normal": {"y": 1}},
+      "pieces": [{"lengthM": 0.3, "profile": {"curvature": [5, 20], "torsion": [2, -10]}}]},
+      "analysisPoints": 301})");
+  v1::PathProfile profile;
+  const auto status = analyze(request, profile);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_EQ(profile.points_size(), 301);
+  for (const auto& p : profile.points()) {
+    const double s = p.s();
+    EXPECT_NEAR(p.curvature(), 5 + 20 * s, 1e-8) << s;
+    EXPECT_NEAR(p.torsion(), 2 - 10 * s, 1e-7) << s;
+    EXPECT_NEAR(p.curvature_derivative(), 20, 1e-5) << s;
+  }
+  EXPECT_NEAR(profile.points(300).s(), 0.3, 1e-12);
+}
+
+TEST_F(PiecesTest, BadPiecesAreNamedByTheirField) {
+  const auto request = from_json<v1::PlanRequest>(R"({"path": {
+      "start": {"position": {}, "tangent": {"x": 1}},
+      "pieces": [{"lengthM": 0.1, "arc": {"radius": 0.1}}, {"lengthM": -1, "line": {}}, {"lengthM": 0.1},
+                 {"to": {"position": {"x": 1}, "tangent": {"x": 2}}}]},
+      "motion": {"durationS": 2}})");
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  const auto violations = bad_request_violations(status);
+  EXPECT_THAT(violation_of(violations, "path.pieces[2]"), HasSubstr("give its shape"));
+  EXPECT_THAT(violation_of(violations, "path.pieces[1].lengthM"), HasSubstr("must be a length"));
+  EXPECT_THAT(describe(violations), HasSubstr("path.pieces[3].to.tangent"));
+  // Without those, the missing normal where the arc bends.
+  const auto bent = from_json<v1::PlanRequest>(R"({"path": {
+      "start": {"position": {}, "tangent": {"x": 1}},
+      "pieces": [{"lengthM": 0.1, "arc": {"radius": 0.1}}]}, "motion": {"durationS": 2}})");
+  const auto bent_status = plan(bent, response);
+  ASSERT_EQ(bent_status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(violation_of(bad_request_violations(bent_status), "path.start.normal"), HasSubstr("bends"));
+}
+
+}  // namespace
+}  // namespace geotraj::testing

@@ -63,7 +63,14 @@ done
   "path C, LOWEST_DEGREE=$out/request_c_lowest_degree.json:$out/profile_c_lowest_degree.json"
 echo "Wrote $out/readings_path_c.svg and $out/readings_geometry_c.svg (path C under the three readings of unspecified constraints)"
 
-# Optimisation (issue "optimisation"): the tangent scales of path A chosen for the least
+# A path of pieces (thesis 2.4, 4.4): the weld seam with G4 transitions within 0.1 mm.
+echo
+echo "=== A path of pieces: a weld seam (line, quarter arc, line) on the UR5e, transitions within 0.1 mm"
+"$cli" plan client/grpcurl/plan_seam_ur5e.json | sed -n '1,7p;/^motion/p'
+/usr/bin/python3 scripts/plot_seam.py "$cli" client/grpcurl/plan_seam_ur5e.json "$out/seam_curvature.png"
+echo "Wrote $out/seam_curvature.png (the seam's top view and curvature, with and without its transitions)"
+
+# Optimisation: the tangent scales of path A chosen for the least
 # bending energy (the thesis's 0.25 against the optimised ones, SVG), and Appendix B.3's
 # breakpoint table (uniform, the thesis's hand-tuned B.11 and B.13, optimised).
 echo

@@ -111,7 +111,7 @@ def print_plan(plan, out=sys.stdout):
     for i, seg in enumerate(plan.segments):
         # A path of pieces: which segments are its exact pieces and which the transitions.
         kind_name = seg.DESCRIPTOR.fields_by_name["kind"].enum_type.values_by_number[seg.kind].name
-        kind = {"SEGMENT_KIND_PIECE": f" (piece {seg.piece}, exact)",
+        kind = {"SEGMENT_KIND_PIECE": f" (piece {seg.piece})",
                 "SEGMENT_KIND_TRANSITION": f" (transition into piece {seg.piece})"}.get(kind_name, "")
         print(f"  segment {i}: {seg.arc_length:.6f} m{kind}", file=out)
     if plan.HasField("motion"):

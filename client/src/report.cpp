@@ -154,7 +154,7 @@ void print_table(const v1::PlanResponse& response, std::ostream& out) {
     }
     // A path of pieces: its exact pieces by number, the transitions between them.
     std::string blend = short_enum(v1::BlendMethod_Name(s.blend()), "BLEND_METHOD_");
-    if (s.kind() == v1::SEGMENT_KIND_PIECE) blend = "piece " + std::to_string(s.piece()), degree = "exact";
+    if (s.kind() == v1::SEGMENT_KIND_PIECE) blend = "piece " + std::to_string(s.piece()), degree = "-";
     if (s.kind() == v1::SEGMENT_KIND_TRANSITION) blend = "transition";
     char buf[160];
     std::snprintf(buf, sizeof buf, "%5u %5u %5u  %-12s  %6s  %-7s %17.9g\n", s.index(), s.from_frame(), s.to_frame(),

@@ -292,6 +292,7 @@ Expected<Path> build_piece_path(const PathSpec& raw) {
   bool have_normal = start.N_W.has_value();
   std::string normal_field = "start.normal";
   double kappa_end = start.kappa.value_or(0.0);  // signed, along F's N
+  std::size_t total_steps = 0;
   for (std::size_t i = 0; i < spec.pieces.size();) {
     const PathPiece& p = spec.pieces[i];
     if (p.shape == PieceShape::kTo) {
@@ -317,6 +318,13 @@ Expected<Path> build_piece_path(const PathSpec& raw) {
       v = prefixed(curve.error(), piece_field(i) + ".");
       return tl::unexpected(std::move(v));
     }
+    total_steps += curve->steps();
+    if (total_steps > kMaxPathNaturalSteps) {
+      add(piece_field(i), "the pieces up to this one need " + std::to_string(total_steps) +
+                              " integration steps; one path may take at most " + std::to_string(kMaxPathNaturalSteps) +
+                              " (fewer or shorter pieces, or profiles that vary less)");
+      return tl::unexpected(std::move(v));
+    }
     NaturalItem item;
     item.piece = i;
     item.curve = std::make_shared<const NaturalCurve>(std::move(*curve));
@@ -329,16 +337,31 @@ Expected<Path> build_piece_path(const PathSpec& raw) {
   }
 
   // Joins of natural pieces: continuous, a transition, or a rest.
-  std::vector<bool> rest_after(items.size(), false);
-  for (std::size_t j = 0; j + 1 < items.size(); ++j) {
-    auto* a = std::get_if<NaturalItem>(&items[j]);
-    auto* b = std::get_if<NaturalItem>(&items[j + 1]);
-    if (!a || !b) continue;
+  const auto jumps = [&](std::size_t j) {
+    const auto* a = std::get_if<NaturalItem>(&items[j]);
+    const auto* b = std::get_if<NaturalItem>(&items[j + 1]);
+    if (!a || !b) return false;
     const NaturalCurve& ca = *a->curve;
     const NaturalCurve& cb = *b->curve;
     const double ka = ca.kappa_at(ca.length()), kb = cb.kappa_at(0.0);
     const bool bent = !same(ka, 0.0) || !same(kb, 0.0);
-    if (same(ka, kb) && (!bent || same(ca.tau_at(ca.length()), cb.tau_at(0.0)))) continue;
+    return !(same(ka, kb) && (!bent || same(ca.tau_at(ca.length()), cb.tau_at(0.0))));
+  };
+  std::vector<bool> rest_after(items.size(), false);
+  std::size_t transitions = 0;
+  for (std::size_t j = 0; j + 1 < items.size(); ++j) transitions += jumps(j) ? 1 : 0;
+  if (tolerance > 0.0 && transitions > kMaxTransitions) {
+    add("transitionTolerance", "asks for " + std::to_string(transitions) + " transitions; one path may have at most " +
+                                   std::to_string(kMaxTransitions) + " (split the path, or join pieces of equal curvature)");
+    return tl::unexpected(std::move(v));
+  }
+  for (std::size_t j = 0; j + 1 < items.size(); ++j) {
+    if (!jumps(j)) continue;
+    auto* a = std::get_if<NaturalItem>(&items[j]);
+    auto* b = std::get_if<NaturalItem>(&items[j + 1]);
+    const NaturalCurve& ca = *a->curve;
+    const NaturalCurve& cb = *b->curve;
+    const double ka = ca.kappa_at(ca.length()), kb = cb.kappa_at(0.0);
     if (!(tolerance > 0.0)) {
       rest_after[j] = true;
       continue;
@@ -350,6 +373,13 @@ Expected<Path> build_piece_path(const PathSpec& raw) {
     double l_max = kTransitionShare * std::min(ca.length(), cb.length());
     if (turn > 0.0) l_max = std::min(l_max, 0.25 * std::numbers::pi / turn);
     const double l = transition_length(ca, cb, l_max, tolerance);
+    // A transition too short to turn the tangent in double precision (pieces of a few
+    // nanometres, curvatures of 1e9 1/m): the join is a rest instead.
+    const double chord = (cb.frame_at(l).p - ca.frame_at(ca.length() - l).p).norm();
+    if (!(l >= kMinTransition && chord >= kMinTransition)) {
+      rest_after[j] = true;
+      continue;
+    }
     a->s1 = ca.length() - l;
     b->s0 = l;
     b->transition_in = g4_blend(ca, a->s1, cb, b->s0);

@@ -42,8 +42,16 @@ namespace geotraj::core {
 
 /// The most pieces one path may have.
 inline constexpr std::size_t kMaxPieces = 10'000;
+/// The most integration steps (NaturalCurve::steps) the pieces of one path may take in all:
+/// about 20 MB of frames and 0.1 s of integration.
+inline constexpr std::size_t kMaxPathNaturalSteps = 200'000;
 /// The largest share of a piece's length that a transition at one of its ends may take.
 inline constexpr double kTransitionShare = 1.0 / 3.0;
+/// The most transitions one path may have (each costs some 0.3 ms to size).
+inline constexpr std::size_t kMaxTransitions = 1000;
+/// The shortest transition [m] (its half-length and its chord); where the tolerance or the
+/// pieces allow none as long, the join is a rest.
+inline constexpr double kMinTransition = 1e-9;
 /// The largest transition tolerance [m].
 inline constexpr double kMaxTransitionTolerance = 1.0;
 

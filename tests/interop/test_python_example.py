@@ -133,7 +133,7 @@ class PythonExample(unittest.TestCase):
         self.assertIn("plan: 5 segments", res.stderr)
         self.assertIn("segment 1: ", res.stderr)
         self.assertRegex(res.stderr, r"segment 1: \S+ m \(transition into piece 1\)")
-        self.assertRegex(res.stderr, r"segment 2: \S+ m \(piece 1, exact\)")
+        self.assertRegex(res.stderr, r"segment 2: \S+ m \(piece 1\)")
         pieces = {0: "line", 2: "arc", 4: "line"}
         rows = list(csv.DictReader(res.stdout.splitlines()))
         self.assertGreater(len(rows), 1000)

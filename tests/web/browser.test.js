@@ -15,7 +15,11 @@
 // weld seam built as a path of pieces in the editor (start frame, line, arc, line, transition
 // tolerance) plans to 5 segments, drawn as 3 exact pieces and 2 transitions, as the API
 // plans the same request, and a negative arc radius shows the server's message at that
-// piece's radius; the helix and the seam files fill the pieces editor (start page, load…).
+// piece's radius; the helix and the seam files fill the pieces editor (start page, load…);
+// the family's local mode at path C's frame 1 draws 6 members x 2 branches on the circles of
+// radius 1/κ tangent to T at the frame, the backward branch leaving along -T, both branches
+// along -T at the cusp (frame 2), the forward one towards -N at an inflection, and lists a
+// value the server refuses.
 //
 //   cd tests/web && PUPPETEER_SKIP_DOWNLOAD=1 npm ci && \
 //     GEOTRAJD=../../build/server/geotrajd GEOTRAJ_WEB_ROOT=../../build/share/geotraj/web npm test
@@ -132,6 +136,22 @@ async function openPage(problems, extraEnv, tolerated) {
 
 // The browser logs every 4xx answer as "Failed to load resource"; a refused request the
 // page shows beside its fields (400 from an API route) is the page working.
+// The describe block's own geotrajd, chromium and page (openPage), opened before its tests
+// and handed to `set`, closed after them.
+function usePage(problems, tolerated, set) {
+  let opened = null;
+  before(async () => {
+    assert.ok(fs.existsSync(CHROMIUM), `chromium not found at ${CHROMIUM}: apt-get install chromium`);
+    fs.mkdirSync(ARTIFACTS, { recursive: true });
+    opened = await openPage(problems, {}, tolerated);
+    set(opened);
+  });
+  after(async () => {
+    if (opened?.browser) await opened.browser.close();
+    await stopServer(opened?.server);
+  });
+}
+
 const refusedPlan = (m) =>
   /Failed to load resource: .* status of 400/.test(m.text()) && /\/v1\/(plan|analyze)$/.test(m.location()?.url || '');
 
@@ -592,6 +612,141 @@ describe('path C typed into the editor by hand', () => {
   });
 });
 
+// The family view's local mode (thesis Ch. 4, Figs. 4.10-4.27) on path C: for a key frame,
+// one of κ, τ, κ', τ' swept and, for each value, the local curve of the frame's natural
+// equations integrated by the server forward and backward from the frame (POST /v1/analyze
+// of a path of one profile piece per branch). Checked on what the page drew (data-local):
+// the counts, the circles a constant curvature gives, the directions the branches leave
+// in, at an ordinary frame, a cusp and an inflection, and a value the server refuses.
+describe('the local family of a key frame', () => {
+  const asked = JSON.parse(fs.readFileSync(path.join(repo, 'client', 'grpcurl', 'plan_demo_path_c.json'), 'utf8'));
+  let page;
+  let base;
+  const problems = [];
+  const { waitFor, plans, settled, typeInto, screenshot } = pageHelpers(() => page, problems);
+
+  // A sweep value the server refuses answers 400 and is listed as refused: the page working.
+  usePage(problems, refusedPlan, (opened) => ({ page, base } = opened));
+
+  const v = (p) => [p?.x ?? 0, p?.y ?? 0, p?.z ?? 0];
+  const sub = (a, b) => a.map((x, i) => x - b[i]);
+  const dotp = (a, b) => a.reduce((sum, x, i) => sum + x * b[i], 0);
+  const unitv = (a) => a.map((x) => x / Math.hypot(...a));
+  // The key frame i of path C's file: p, unit T and N.
+  const fileFrame = (i) => {
+    const f = asked.path.frames[i];
+    return { p: v(f.position), T: unitv(v(f.tangent)), N: unitv(v(f.normal)) };
+  };
+  // Runs the local family at `frame` over curvature [from, to] in `count` values and
+  // returns what the page drew (data-local), once the status says so.
+  async function drawLocal(frame, from, to, count, expectDrawn = count) {
+    await page.select(sel('family-frame'), String(frame));
+    await page.select(sel('family-constraint'), 'curvature');
+    await typeInto('family-from', String(from));
+    await typeInto('family-to', String(to));
+    await typeInto('family-count-input', String(count));
+    const runs = await page.$eval(sel('family'), (e) => Number(e.dataset.runs || 0));
+    await page.click(sel('family-run'));
+    await waitFor(`local family at frame ${frame}`, (previous) =>
+      Number(document.querySelector('[data-testid="family"]').dataset.runs || 0) > previous, runs);
+    assert.match(await page.$eval(sel('family-status'), (e) => e.textContent), /local curves drawn/);
+    assert.equal(await page.$eval(sel('family'), (e) => e.dataset.curves), String(expectDrawn));
+    return JSON.parse(await page.$eval(sel('family'), (e) => e.dataset.local));
+  }
+  // Every point of `points` ([x, y, z, s]) within 1e-6 m of the circle of radius r about c,
+  // and the last one 0.1 m of arc from the frame.
+  function assertOnCircle(points, c, r, what) {
+    assert.equal(points.length, 101, `${what}: ${points.length} points`);
+    let worst = 0;
+    for (const q of points) worst = Math.max(worst, Math.abs(Math.hypot(...sub(q.slice(0, 3), c)) - r));
+    assert.ok(worst <= 1e-6, `${what}: ${worst} m off the circle of radius ${r} m`);
+    assert.ok(Math.abs(points[100][3] - 0.1) <= 1e-9, `${what}: ends at s = ${points[100][3]} m, not 0.1 m`);
+  }
+  // The direction a branch leaves p in: its second point minus p.
+  const leaving = (points, p) => sub(points[1].slice(0, 3), p);
+
+  it('draws 6 members x 2 branches at frame 1, on the circles of radius 1/κ tangent to T at p', async () => {
+    await page.goto(`${base}#demo`, { waitUntil: 'load' });
+    assert.equal(await settled(0), 'ready');
+    assert.equal(await page.$eval(sel('family-local'), (e) => e.hidden), true, 'the local inputs show in the path mode');
+    await page.select(sel('family-mode'), 'local');
+    assert.equal(await page.$eval(sel('family-local'), (e) => e.hidden), false);
+    // The local mode sweeps κ, τ, κ', τ' only.
+    assert.deepEqual(await page.$$eval(`${sel('family-constraint')} option:not([disabled])`, (o) => o.map((e) => e.value)),
+      ['curvature', 'torsion', 'curvatureDerivative', 'torsionDerivative']);
+    assert.equal(await page.$eval(sel('family-half-length'), (e) => e.value), '0.1');
+    await typeInto('family-local-torsion', '0');
+
+    const drawn = await drawLocal(1, 5, 30, 6);
+    assert.equal(await page.$eval(sel('family'), (e) => e.dataset.branches), '12');
+    assert.equal(await page.$eval(sel('view3d'), (e) => e.dataset.familyCurves), '12');
+    assert.equal(await page.$eval(sel('view3d'), (e) => e.dataset.familyFrame), 'T,N,B');
+    assert.equal(await page.$$eval(`${sel('family-legend')} li:not(.violation)`, (l) => l.length), 6);
+    assert.equal(await page.$$eval(`${sel('family-legend')} li.violation`, (l) => l.length), 0);
+    assert.equal(drawn.members.length, 6);
+
+    const { p, T, N } = fileFrame(1);
+    drawn.members.forEach((m, k) => {
+      const kappa = 5 + 5 * k;
+      assert.ok(Math.abs(m.value - kappa) <= 1e-12, `member ${k} is κ = ${m.value}`);
+      assert.deepEqual([m.values.torsion, m.values.curvatureDerivative, m.values.torsionDerivative], [0, 0, 0]);
+      // The centre p + N/κ of the osculating circle, from path C's file, not from the page.
+      const c = p.map((x, i) => x + N[i] / kappa);
+      assertOnCircle(m.forward.points, c, 1 / kappa, `κ = ${kappa} forward`);
+      assertOnCircle(m.backward.points, c, 1 / kappa, `κ = ${kappa} backward`);
+      assert.ok(Math.hypot(...sub(m.forward.points[0].slice(0, 3), p)) <= 1e-12, 'the forward branch starts off p');
+      assert.ok(dotp(leaving(m.forward.points, p), T) > 0, `κ = ${kappa}: the forward branch does not leave along T`);
+      assert.ok(dotp(leaving(m.backward.points, p), T) < 0, `κ = ${kappa}: the backward branch does not leave along -T`);
+    });
+    await screenshot('family_local', { figure: false });
+    assert.deepEqual(problems, []);
+  });
+
+  it("leaves towards -T on both branches at path C's cusp (frame 2)", async () => {
+    assert.equal(asked.path.frames[2].cusp, true);
+    // The torsion held is the frame's own again (-100 1/m).
+    await typeInto('family-local-torsion', '');
+    const drawn = await drawLocal(2, 5, 30, 6);
+    assert.equal(drawn.cusp, true);
+    assert.equal(await page.$eval(sel('family'), (e) => e.dataset.branches), '12');
+    const { p, T } = fileFrame(2);
+    for (const m of drawn.members) {
+      assert.equal(m.values.torsion, asked.path.frames[2].torsion);
+      assert.ok(dotp(leaving(m.forward.points, p), T) < 0, `κ = ${m.value}: the forward branch leaves along T at the cusp`);
+      assert.ok(dotp(leaving(m.backward.points, p), T) < 0, `κ = ${m.value}: the backward branch leaves along T at the cusp`);
+    }
+    assert.match(await page.$eval(sel('family-note'), (e) => e.textContent), /cusp/);
+  });
+
+  it('bends the forward branch towards -N at an inflection', async () => {
+    let n = await plans();
+    await page.click(sel('frame-1-input-inflection'));
+    await settled(n);
+    await typeInto('family-local-torsion', '0');
+    const drawn = await drawLocal(1, 5, 30, 6);
+    assert.equal(drawn.inflection, true);
+    const { p, N } = fileFrame(1);
+    for (const m of drawn.members) {
+      const r = 1 / m.value;
+      assertOnCircle(m.forward.points, p.map((x, i) => x - N[i] * r), r, `κ = ${m.value} forward, inflection`);
+      assertOnCircle(m.backward.points, p.map((x, i) => x + N[i] * r), r, `κ = ${m.value} backward, inflection`);
+    }
+    n = await plans();
+    await page.click(sel('frame-1-input-inflection'));
+    await settled(n);
+  });
+
+  it('lists a value the server refuses with its reason', async () => {
+    // A curvature of 1e6 1/m turns the frame 1e5 rad over 0.1 m: more than the server follows.
+    await drawLocal(1, 5, 1e6, 2, 1);
+    assert.equal(await page.$eval(sel('family'), (e) => e.dataset.branches), '2');
+    const refused = await page.$$eval(`${sel('family-legend')} li.violation`, (l) => l.map((e) => e.textContent));
+    assert.equal(refused.length, 1, `refused: ${refused}`);
+    assert.match(refused[0], /^κ = 1\.000e\+6 1\/m: refused \(.*turns/);
+    assert.deepEqual(problems, []);
+  });
+});
+
 // A server that checks tokens (GEOTRAJ_AUTH_TOKEN): without the token the page says the
 // calls are unauthenticated; with it typed in the token field, every call carries it.
 describe('the operator page with a server that checks tokens', () => {
@@ -644,25 +799,14 @@ describe('a path of pieces built in the editor', () => {
     ],
     transitionTolerance: 0.0001,
   };
-  let server;
-  let browser;
   let page;
   let base;
   const problems = [];
   const { waitFor, plans, settled, typeInto, dataValue, screenshot, startEmpty } = pageHelpers(() => page, problems);
 
-  before(async () => {
-    assert.ok(fs.existsSync(CHROMIUM), `chromium not found at ${CHROMIUM}: apt-get install chromium`);
-    fs.mkdirSync(ARTIFACTS, { recursive: true });
-    // Half-typed values (a start position on its way, a piece before its kind's fields) are
-    // refused with 400 and shown beside their fields: the page working.
-    ({ server, browser, page, base } = await openPage(problems, {}, refusedPlan));
-  });
-
-  after(async () => {
-    if (browser) await browser.close();
-    await stopServer(server);
-  });
+  // Half-typed values (a start position on its way, a piece before its kind's fields) are
+  // refused with 400 and shown beside their fields: the page working.
+  usePage(problems, refusedPlan, (opened) => ({ page, base } = opened));
 
   const viewData = () => page.$eval(sel('view3d'), (e) => ({ ...e.dataset }));
   const pieceKinds = () => page.$$eval(`${sel('editor')} fieldset.piece`, (l) => l.map((f) => f.dataset.kind));

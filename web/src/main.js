@@ -47,7 +47,7 @@ const replay = new Replay({
   slider: byTestId('replay-slider'), play: byTestId('replay-play'), time: byTestId('replay-time'),
   tool: byTestId('replay-tool'), status: byTestId('replay-status'),
 }, view);
-const family = new Family(byTestId('family'), view, () => state.request);
+const family = new Family(byTestId('family'), view, () => state.request, () => state.response || null);
 
 function setStatus(text, kind) {
   statusEl.textContent = text;
@@ -91,6 +91,7 @@ function onEdit(kind) {
   state.editTime = performance.now();
   saveLocally();
   if (kind === 'structure') family.updateFrames(state.request.path?.frames || []);
+  else family.requestChanged();
   schedule();
 }
 

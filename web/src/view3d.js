@@ -408,15 +408,32 @@ export class View3D {
     this.marks.add(tag);
   }
 
-  // curves: [{points: PathPoint[], color: css colour}].
-  setFamily(curves) {
+  // curves: [{points: PathPoint[], color: css colour, width: px (default 2), dashed}];
+  // frame: optional, a frame drawn with the family ({position, axes: [['T', {x, y, z}], ...],
+  // length [m]}: the key frame of a local family, its T, N, B). data-family-curves: the
+  // polylines drawn.
+  setFamily(curves, frame = null) {
     disposeGroup(this.family);
+    let drawn = 0;
     for (const c of curves) {
-      const line = this.makeLine(c.points.map((p) => v3(p.position)), null, 2);
+      if (!c.points || c.points.length < 2) continue;
+      const line = this.makeLine(c.points.map((p) => v3(p.position)), null, c.width ?? 2,
+        c.dashed ? { dashSize: 0.006, gapSize: 0.004 } : false);
       line.material.color.set(c.color);
       this.family.add(line);
+      ++drawn;
     }
-    this.container.dataset.familyCurves = String(curves.length);
+    this.container.dataset.familyFrame = (frame?.axes || []).map(([name]) => name).join(',');
+    if (frame) {
+      const p = v3(frame.position);
+      const length = frame.length ?? 0.05;
+      for (const [name, d] of frame.axes || []) {
+        const dir = v3(d).normalize();
+        if (dir.lengthSq() < 1e-12) continue;
+        this.family.add(new THREE.ArrowHelper(dir, p, length, FRAME_COLORS[name], length * 0.25, length * 0.12));
+      }
+    }
+    this.container.dataset.familyCurves = String(drawn);
     this.render();
   }
 
@@ -493,6 +510,20 @@ export class View3D {
     this.camera.position.copy(center).addScaledVector(dir, (radius / Math.sin(fov / 2)) * 1.05);
     this.controls.update();
     this.fitted = true;
+  }
+
+  // The camera towards `center` ({x, y, z}) from where it looks now, at the distance where a
+  // sphere of `radius` [m] about it fills the view (the curve as a whole again: refit()).
+  focus(center, radius) {
+    const c = v3(center);
+    const dir = this.camera.position.clone().sub(this.controls.target);
+    if (dir.lengthSq() < 1e-18) dir.set(1, -1.3, 0.9);
+    dir.normalize();
+    const fov = THREE.MathUtils.degToRad(this.camera.fov);
+    this.controls.target.copy(c);
+    this.camera.position.copy(c).addScaledVector(dir, (Math.max(0.01, radius) / Math.sin(fov / 2)) * 1.05);
+    this.controls.update();
+    this.render();
   }
 
   refit() {

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <random>
 #include <string>
 
 #include "core/geometry/arc_length.hpp"
@@ -322,6 +323,92 @@ TEST(Pieces, BadPiecesAreRefusedByField) {
   EXPECT_NE(errors(build_path(curved_start)).find("start.curvature"), std::string::npos);
   // A helix that turns more than the integrator's bound is refused, not integrated for ever.
   EXPECT_FALSE(build_path(pieces_spec({helix(1e6, 1e-3, 0.0)})));
+  // More transitions than a path may have: refused by the field that asks for them.
+  std::vector<PathPiece> zigzag;
+  for (int i = 0; i < 1002; ++i) zigzag.push_back(i % 2 ? arc(0.01, 1.0) : line(0.01));
+  EXPECT_NE(errors(build_path(pieces_spec(zigzag, 1e-4))).find("transitionTolerance: asks for 1001 transitions"),
+            std::string::npos);
+  EXPECT_TRUE(build_path(pieces_spec(zigzag)));  // resting at each join instead
+  // Many pieces that each take many steps: refused when the path's total would be too much.
+  PathPiece wavy = line(10.0);
+  wavy.shape = PieceShape::kProfile;
+  wavy.curvature = {0.0, 0.0, 30.0};  // kappa = 30 s^2: up to 3000 1/m, 22,688 steps each
+  auto many = build_path(pieces_spec(std::vector<PathPiece>(10, wavy)));
+  ASSERT_FALSE(many);
+  EXPECT_NE(errors(many).find("integration steps; one path may take at most"), std::string::npos) << errors(many);
+}
+
+}  // namespace
+}  // namespace geotraj::core
+
+namespace geotraj::core {
+namespace {
+
+// Random paths of pieces over wide ranges (lengths from a micrometre to 10 m, radii from
+// 0.1 mm, curvatures of either sign, torsion, transitions or rests): each is refused with a
+// named field or built, and a built one is finite everywhere, continuous where its segments
+// meet, and as long as its segments.
+TEST(Pieces, RandomPiecesAreBuiltFiniteOrRefusedByField) {
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> uni(0.0, 1.0);
+  const auto log_uniform = [&](double lo, double hi) { return lo * std::pow(hi / lo, uni(rng)); };
+  int built = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    std::vector<PathPiece> pieces;
+    const int count = 1 + static_cast<int>(uni(rng) * 6);
+    for (int i = 0; i < count; ++i) {
+      const double length = log_uniform(1e-6, 10.0);
+      switch (static_cast<int>(uni(rng) * 6)) {
+        case 0: pieces.push_back(line(length)); break;
+        case 1: pieces.push_back(arc(length, log_uniform(1e-4, 10.0))); break;
+        case 2: pieces.push_back(helix(length, log_uniform(1e-4, 10.0), (uni(rng) - 0.5) * 2.0)); break;
+        case 3: pieces.push_back(clothoid(length, (uni(rng) - 0.5) * 200.0)); break;
+        case 4: {
+          PathPiece p = line(length);
+          p.shape = PieceShape::kProfile;
+          p.curvature = {(uni(rng) - 0.5) * 40.0, (uni(rng) - 0.5) * 40.0};
+          p.torsion = {(uni(rng) - 0.5) * 20.0};
+          pieces.push_back(p);
+          break;
+        }
+        default: {
+          KeyFrame k;
+          k.p_W = Vector3d(uni(rng), uni(rng), uni(rng));
+          k.T_W = Vector3d(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5).normalized();
+          pieces.push_back(to(k));
+          break;
+        }
+      }
+    }
+    const std::optional<double> tolerance =
+        uni(rng) < 0.5 ? std::optional<double>(log_uniform(1e-8, 1e-2)) : std::nullopt;
+    auto path = build_path(pieces_spec(pieces, tolerance));
+    if (!path) {
+      for (const auto& v : path.error()) {
+        EXPECT_FALSE(v.field.empty()) << v.description;
+        EXPECT_FALSE(v.description.empty()) << v.field;
+      }
+      continue;
+    }
+    ++built;
+    ASSERT_TRUE(std::isfinite(path->length()));
+    double sum = 0.0;
+    for (std::size_t i = 0; i < path->segment_count(); ++i) {
+      sum += path->segment_lengths[i];
+      for (int k = 0; k <= 16; ++k) {
+        Jet jet;
+        evaluate(path->segments[i], k / 16.0, kMaxJetOrder, jet);
+        for (const auto& d : jet) ASSERT_TRUE(d.allFinite()) << "trial " << trial << " segment " << i;
+      }
+      if (i == 0) continue;
+      Jet a, b;
+      evaluate(path->segments[i - 1], 1.0, 1, a);
+      evaluate(path->segments[i], 0.0, 1, b);
+      ASSERT_LE((a[0] - b[0]).norm(), 1e-9 * std::max(1.0, a[0].norm())) << "trial " << trial << " join " << i;
+    }
+    EXPECT_NEAR(sum, path->length(), 1e-12 * std::max(1.0, sum));
+  }
+  EXPECT_GT(built, 100) << "most random paths are valid";
 }
 
 }  // namespace

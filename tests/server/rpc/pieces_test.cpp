@@ -142,6 +142,37 @@ TEST_F(PiecesTest, ASeamIsStraightAndRoundOutsideItsTransitionsOnTheUr5eAndThePa
   }
 }
 
+// Parallel transport on the seam (no robot): the tool's z axis along the path, and on the
+// arc and its transitions a rotation about the seam plane's normal only (no twist).
+TEST_F(PiecesTest, ParallelTransportTurnsTheToolAboutTheArcsAxis) {
+  Seam seam;
+  seam.p0 = Vector3d(0.4, 0.1, 0.3);
+  seam.t = Vector3d::UnitX();
+  seam.n = Vector3d::UnitY();
+  auto request = seam.request("ur5e", 500.0, 1e-4);
+  request.clear_robot();
+  request.mutable_path()->mutable_start()->set_orientation_mode(v1::ORIENTATION_MODE_PARALLEL_TRANSPORT);
+  request.mutable_motion()->set_duration_s(3.0);
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  const Vector3d axis = seam.t.cross(seam.n);
+  double turned = 0.0;
+  for (std::size_t k = 1; k + 1 < samples.size(); ++k) {
+    const auto& s = samples[k];
+    const Vector3d z = quat(s.orientation()).toRotationMatrix().col(2);
+    ASSERT_LT((z - vec3(s.velocity()).normalized()).norm(), 1e-9) << "t " << s.t();
+    const Vector3d w = vec3(s.angular_velocity());
+    ASSERT_LT((w - w.dot(axis) * axis).norm(), 1e-9) << "t " << s.t();
+    turned += w.dot(axis) * (s.t() - samples[k - 1].t());
+  }
+  EXPECT_NEAR(turned, 0.5 * kPi, 2e-3) << "a quarter turn in all";
+  // The tool ends as it started, turned a quarter about the axis.
+  const Eigen::Quaterniond q0 = quat(samples.front().orientation()), q1 = quat(samples.back().orientation());
+  EXPECT_LT(((q1 * q0.conjugate()).toRotationMatrix() - Eigen::AngleAxisd(0.5 * kPi, axis).toRotationMatrix()).norm(),
+            1e-9);
+}
+
 TEST_F(PiecesTest, AnalyzePathRecoversTheCurvatureAndTorsionAsked) {
   // kappa(s) = 5 + 20 s, tau(s) = 2 - 10 s over 0.3 m (a twisted clothoid).
   const auto request = from_json<v1::PlanRequest>(R"({"path": {

@@ -80,6 +80,25 @@ Seam seam_at_home(const v1::RobotModel& model) {
   return seam;
 }
 
+// Every joint of `samples` within `model`'s limits, by finite differences of what is
+// streamed (non-uniform steps: the last one may be shorter).
+void expect_within_joint_limits(const v1::RobotModel& model, const std::vector<v1::Sample>& samples,
+                                const std::string& what) {
+  for (std::size_t k = 1; k + 1 < samples.size(); ++k) {
+    for (int j = 0; j < model.limits_size(); ++j) {
+      const auto& l = model.limits(j);
+      const double q0 = samples[k - 1].joints(j), q1 = samples[k].joints(j), q2 = samples[k + 1].joints(j);
+      ASSERT_GE(q1, l.min_position()) << what << " joint " << j;
+      ASSERT_LE(q1, l.max_position()) << what << " joint " << j;
+      const double h1 = samples[k].t() - samples[k - 1].t(), h2 = samples[k + 1].t() - samples[k].t();
+      const double v = (q1 - q0) / h1;
+      ASSERT_LE(std::abs(v), l.max_velocity() * (1 + 1e-3)) << what << " joint " << j << " t " << samples[k].t();
+      const double acc = 2.0 * ((q2 - q1) / h2 - v) / (h1 + h2);
+      ASSERT_LE(std::abs(acc), l.max_acceleration() * (1 + 2e-2)) << what << " joint " << j << " t " << samples[k].t();
+    }
+  }
+}
+
 TEST_F(PiecesTest, ASeamIsStraightAndRoundOutsideItsTransitionsOnTheUr5eAndThePanda) {
   constexpr double kTolerance = 2e-4;
   for (const std::string robot : {"ur5e", "panda"}) {
@@ -118,21 +137,7 @@ TEST_F(PiecesTest, ASeamIsStraightAndRoundOutsideItsTransitionsOnTheUr5eAndThePa
       jump_at[rate == 1000.0 ? 0 : 1] = jump;
 
       // Every joint within its limits, by finite differences of what is streamed.
-      const double dt = 1.0 / rate;
-      for (std::size_t k = 1; k + 1 < samples.size(); ++k) {
-        for (int j = 0; j < model.limits_size(); ++j) {
-          const auto& l = model.limits(j);
-          const double q0 = samples[k - 1].joints(j), q1 = samples[k].joints(j), q2 = samples[k + 1].joints(j);
-          ASSERT_GE(q1, l.min_position()) << robot << " joint " << j;
-          ASSERT_LE(q1, l.max_position()) << robot << " joint " << j;
-          const double h1 = samples[k].t() - samples[k - 1].t(), h2 = samples[k + 1].t() - samples[k].t();
-          ASSERT_LE(h1, dt + 1e-9);
-          const double v = (q1 - q0) / h1;
-          ASSERT_LE(std::abs(v), l.max_velocity() * (1 + 1e-3)) << robot << " joint " << j << " t " << samples[k].t();
-          const double acc = 2.0 * ((q2 - q1) / h2 - v) / (h1 + h2);
-          ASSERT_LE(std::abs(acc), l.max_acceleration() * (1 + 2e-2)) << robot << " joint " << j << " t " << samples[k].t();
-        }
-      }
+      expect_within_joint_limits(model, samples, robot);
       std::printf("[ measured ] seam on the %s at %.0f Hz: %.4f s, %zu samples; deviation %.3g m in the transitions, "
                   "%.3g m outside; largest step of the tool's acceleration %.4g m/s^2\n",
                   robot.c_str(), rate, samples.back().t(), samples.size(), inside, outside, jump);
@@ -171,6 +176,98 @@ TEST_F(PiecesTest, ParallelTransportTurnsTheToolAboutTheArcsAxis) {
   const Eigen::Quaterniond q0 = quat(samples.front().orientation()), q1 = quat(samples.back().orientation());
   EXPECT_LT(((q1 * q0.conjugate()).toRotationMatrix() - Eigen::AngleAxisd(0.5 * kPi, axis).toRotationMatrix()).norm(),
             1e-9);
+}
+
+// Helices of several radii and pitches, streamed: the samples lie on the cylinder of the
+// radius asked and rise by the pitch asked per turn; AnalyzePath measures kappa and tau of
+// 4.18-4.19 along them.
+TEST_F(PiecesTest, StreamedHelicesHaveTheRadiusAndPitchAsked) {
+  struct Helix {
+    double radius, pitch;
+  };
+  for (const Helix h : {Helix{0.05, 0.02}, Helix{0.2, -0.05}, Helix{0.01, 0.1}}) {
+    const double c = h.pitch / (2 * kPi), turns = 3.0;
+    auto request = from_json<v1::PlanRequest>(R"({"path": {
+        "start": {"position": {"x": 0.5, "z": 0.3}, "tangent": {"x": 1}, "normal": {"y": 1}},
+        "pieces": [{"helix": {}}]}, "motion": {"durationS": 4, "cycleRateHz": 250}, "analysisPoints": 501})");
+    auto& piece = *request.mutable_path()->mutable_pieces(0);
+    piece.set_length_m(turns * 2 * kPi * std::hypot(h.radius, c));
+    piece.mutable_helix()->set_radius(h.radius);
+    piece.mutable_helix()->set_pitch(h.pitch);
+    grpc::Status status;
+    const auto samples = stream_all(request, status);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    ASSERT_EQ(samples.size(), 1001u);
+    const double kappa = h.radius / (h.radius * h.radius + c * c), tau = c / (h.radius * h.radius + c * c);
+    const Vector3d p0(0.5, 0.0, 0.3), axis = Vector3d(tau, 0.0, kappa).normalized();
+    const Vector3d centre = p0 + h.radius * Vector3d::UnitY();
+    double angle = 0.0, previous = 0.0;
+    const Vector3d e1 = (p0 - centre).normalized(), e2 = axis.cross(e1);
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+      const Vector3d d = vec3(samples[k].position()) - centre;
+      const Vector3d radial = d - d.dot(axis) * axis;
+      ASSERT_NEAR(radial.norm(), h.radius, 1e-9) << h.radius << " " << h.pitch;
+      const double a = std::atan2(radial.dot(e2), radial.dot(e1));
+      if (k > 0) angle += std::remainder(a - previous, 2 * kPi);
+      previous = a;
+      // The rise along the axis is the pitch per turn of the angle turned.
+      ASSERT_NEAR(d.dot(axis), h.pitch * angle / (2 * kPi), 1e-9) << h.radius << " " << h.pitch;
+    }
+    EXPECT_NEAR(std::abs(angle), turns * 2 * kPi, 1e-9);
+    v1::PathProfile profile;
+    ASSERT_TRUE(analyze(request, profile).ok());
+    for (const auto& p : profile.points()) {
+      ASSERT_NEAR(p.curvature(), kappa, 1e-9 * kappa);
+      ASSERT_NEAR(p.torsion(), tau, 1e-9 * std::max(1.0, std::abs(tau)));
+    }
+  }
+}
+
+// The seam timed by optimize.timing (time-optimal; jerk-limited) on the UR5e and as one step
+// of a sequence followed by a line: planned, streamed within the joint limits, never at rest
+// on the seam.
+TEST_F(PiecesTest, TheSeamIsTimedByTheOptimiserAndRunsInASequence) {
+  const auto model = robot_model("ur5e");
+  const Seam seam = seam_at_home(model);
+  for (const bool jerk : {false, true}) {
+    auto request = seam.request("ur5e", 1000.0, 1e-4);
+    request.mutable_optimize()->mutable_timing()->set_time_optimal(true);
+    request.mutable_optimize()->mutable_timing()->set_jerk_limited(jerk);
+    const v1::PlanResponse plan = plan_ok(request);
+    EXPECT_TRUE(plan.optimization().has_timing());
+    grpc::Status status;
+    const auto samples = stream_all(request, status);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    EXPECT_EQ(samples.size(), plan.motion().sample_count());
+    expect_within_joint_limits(model, samples, jerk ? "jerk-limited" : "time-optimal");
+    for (std::size_t k = 1; k + 1 < samples.size(); ++k) ASSERT_GT(samples[k].speed(), 0.0) << samples[k].t();
+    std::printf("[ measured ] seam on the UR5e, %s: %.4f s\n", jerk ? "jerk-limited" : "time-optimal",
+                plan.motion().duration_s());
+  }
+  // A sequence: the seam, then a line up by 5 cm from where it ends.
+  const auto single = seam.request("ur5e", 500.0, 1e-4);
+  v1::PlanRequest sequence;
+  *sequence.mutable_robot() = single.robot();
+  sequence.mutable_motion()->set_duration_s(2.0);
+  sequence.mutable_motion()->set_cycle_rate_hz(500.0);
+  *sequence.add_sequence()->mutable_path() = single.path();
+  const Vector3d end = seam.p0 + (seam.a + seam.r) * seam.t + (seam.r + seam.b) * seam.n + Vector3d(0, 0, 0.05);
+  auto* goal = sequence.add_sequence()->mutable_linear_move()->mutable_goal();
+  set(goal->mutable_position(), end);
+  const Eigen::Quaterniond q(forward_kinematics(model, model.home()).linear());
+  goal->mutable_orientation()->set_w(q.w());
+  goal->mutable_orientation()->set_x(q.x());
+  goal->mutable_orientation()->set_y(q.y());
+  goal->mutable_orientation()->set_z(q.z());
+  grpc::Status status;
+  const auto samples = stream_all(sequence, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_LE((vec3(samples.back().position()) - end).norm(), 1e-9);
+  expect_within_joint_limits(model, samples, "sequence");
+  double on_seam = 0.0;
+  for (const auto& s : samples)
+    if (s.step() == 0) on_seam = std::max(on_seam, std::min(seam.distance(vec3(s.position())), 1.0));
+  EXPECT_LE(on_seam, 1e-4);
 }
 
 TEST_F(PiecesTest, AnalyzePathRecoversTheCurvatureAndTorsionAsked) {

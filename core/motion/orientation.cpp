@@ -219,11 +219,12 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
   for (std::size_t k = 0; k < n; ++k) {
     const KeyFrame& f = frames[k];
     const std::string field = frame_field(path, k, "orientation");
-    // A path of pieces held fixed may give the orientation held (see the header).
-    const bool held_start = k == 0 && path.spec.start && f.orientation_mode == OrientationMode::kFixed;
+    // A path that starts held fixed may give the orientation held (see the header).
+    const bool held_start = k == 0 && f.orientation_mode == OrientationMode::kFixed;
     if (f.orientation_mode != OrientationMode::kCustom && !(held_start && f.orientation)) {
       if (f.orientation)
-        violations.push_back({field, std::string("is only used with ORIENTATION_MODE_CUSTOM; this frame's mode is ") +
+        violations.push_back({field, std::string("is only used with ORIENTATION_MODE_CUSTOM (and ORIENTATION_MODE_FIXED "
+                                                 "on the first frame: the orientation held); this frame's mode is ") +
                                          mode_name(f.orientation_mode)});
       continue;
     }
@@ -257,9 +258,9 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
     if (f.cusp) ++cusps;  // the leaving side of frame i runs against its tangent
     so.flipped = cusps % 2 == 1;
 
-    if (i == 0 && path.spec.start && so.mode == OrientationMode::kFixed) {
-      // A path of pieces held fixed: as the robot starts, or as `start.orientation` says,
-      // whatever the curve does where it starts.
+    if (i == 0 && so.mode == OrientationMode::kFixed && (path.spec.start || custom[0])) {
+      // Held fixed as the frame's `orientation` says, or (a path of pieces) as the robot
+      // starts, whatever the curve does where it starts.
       so.q_start = custom[0] ? *custom[0] : start_W.normalized();
     } else if (i == 0) {
       if (so.mode != OrientationMode::kFrenet) {  // Deviation for kFrenet: see the header

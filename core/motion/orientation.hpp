@@ -63,10 +63,10 @@
 // there) and segment 0 is kFixed, kFrameBased or kCustom (modes that take any start), the
 // tool starts in `start_W`: the robot's tool orientation at its initial joints, or the
 // world axes (identity) without a robot. kParallelTransport needs the tool's z along the
-// tangent and a twist about it, so there a normal stays required. A path of pieces
-// (pieces.hpp) whose `start` is kFixed holds the tool as `start.orientation` gives it, or as
-// the robot starts (`start_W`), whatever the curve does there: a nozzle keeps pointing down
-// on a curved start.
+// tangent and a twist about it, so there a normal stays required. Frame 0 kFixed with an
+// `orientation` holds the tool as it says, and a path of pieces (pieces.hpp) whose `start`
+// is kFixed without one as the robot starts (`start_W`), whatever the curve does there: a
+// nozzle keeps pointing down on a curved start.
 //
 // Continuity: each segment starts where the previous one ended. For the tangent-following
 // modes (kFrenet, kParallelTransport) that is a condition, not a construction: where the

@@ -43,7 +43,9 @@ void check_frame(WireCheck& check, const v1::KeyFrame& frame, const std::string&
   const bool fixed = frame.orientation_mode() == v1::ORIENTATION_MODE_FIXED ||
                      frame.orientation_mode() == v1::ORIENTATION_MODE_UNSPECIFIED;
   if (!custom && !(held && fixed) && frame.has_orientation() && v1::OrientationMode_IsValid(frame.orientation_mode())) {
-    check.add(at + ".orientation", "is only used with orientationMode ORIENTATION_MODE_CUSTOM; orientationMode is " +
+    check.add(at + ".orientation", "is only used with orientationMode ORIENTATION_MODE_CUSTOM (and "
+                                   "ORIENTATION_MODE_FIXED on the first frame: the orientation held); "
+                                   "orientationMode is " +
                                        v1::OrientationMode_Name(frame.orientation_mode()));
   }
   if (frame.ease_orientation() && frame.orientation_mode() != v1::ORIENTATION_MODE_CUSTOM &&
@@ -67,7 +69,7 @@ void check_frame(WireCheck& check, const v1::KeyFrame& frame, const std::string&
 void check_path(WireCheck& check, const v1::PathSpec& path) {
   for (int i = 0; i < path.frames_size(); ++i) {
     const auto k = static_cast<std::size_t>(i);
-    check_frame(check, path.frames(i), at_frame(k), "frames[" + std::to_string(k) + "]");
+    check_frame(check, path.frames(i), at_frame(k), "frames[" + std::to_string(k) + "]", /*held=*/i == 0);
   }
   if (path.has_start()) check_frame(check, path.start(), "path.start", "start", /*held=*/true);
   if (path.pieces_size() > 0 && !path.has_start())

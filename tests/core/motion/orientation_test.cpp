@@ -365,6 +365,29 @@ TEST(Orientation, CuspKeepsToolZAlongKeyFrameTangent) {
   }
 }
 
+// Frame 0 fixed with an orientation given: the tool holds it from the first point of a
+// curved start (path C bends where it starts), not the frame's [-B N T].
+TEST(Orientation, AFixedStartWithAnOrientationHoldsIt) {
+  core::PathSpec spec = with_mode(demo_c(), OrientationMode::kFixed);
+  const Eigen::Quaterniond down(0.0, 1.0, 0.0, 0.0);  // the tool's z axis along -z of W
+  spec.frames[0].orientation = down;
+  const Path path = build_or_fail(spec);
+  const auto plan = core::plan_orientation(path);
+  ASSERT_TRUE(plan);
+  for (std::size_t i = 0; i < path.segment_count(); ++i) {
+    for (const double u : {0.0, 0.5, 1.0}) {
+      const auto o = core::orientation_at(*plan, path, i, u, 0.0, 0.3, 0.0);
+      EXPECT_LT(o.q_WT.angularDistance(down), 1e-12) << i << " " << u;
+      EXPECT_EQ(o.omega_W.norm(), 0.0);
+    }
+  }
+  // Another mode with an orientation is still refused by that field.
+  spec.frames[0].orientation_mode = OrientationMode::kFrenet;
+  const auto refused = core::plan_orientation(build_or_fail(spec));
+  ASSERT_FALSE(refused);
+  EXPECT_EQ(refused.error().front().field, "frames[0].orientation");
+}
+
 // Parallel transport through an exactly straight segment between curved ones: the frame
 // does not move there (no flip, omega = 0), while Frenet is refused on that segment.
 TEST(Orientation, ParallelTransportThroughStraightStretch) {

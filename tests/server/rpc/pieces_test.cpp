@@ -270,6 +270,38 @@ TEST_F(PiecesTest, TheSeamIsTimedByTheOptimiserAndRunsInASequence) {
   EXPECT_LE(on_seam, 1e-4);
 }
 
+// ORIENTATION_MODE_FIXED with an orientation on a curved start: held from the first sample,
+// on a path of pieces (start.orientation) and on key frames (frames[0].orientation); with
+// another mode the orientation is refused by its field.
+TEST_F(PiecesTest, AFixedStartHoldsTheOrientationGivenOnCurvedStarts) {
+  const Eigen::Quaterniond tilted(Eigen::AngleAxisd(2.8, Vector3d(1, 1, 0).normalized()));
+  auto pieces = from_json<v1::PlanRequest>(R"({"path": {
+      "start": {"position": {"x": 0.5}, "tangent": {"x": 1}, "normal": {"y": 1}},
+      "pieces": [{"lengthM": 0.2, "arc": {"radius": 0.1}}, {"lengthM": 0.1, "line": {}}],
+      "transitionTolerance": 0.0001}, "motion": {"durationS": 2, "cycleRateHz": 250}})");
+  auto frames = from_json<v1::PlanRequest>(R"({"path": {"frames": [
+      {"position": {"x": 0.5}, "tangent": {"x": 1}, "normal": {"y": 1}, "curvature": 10},
+      {"position": {"x": 0.6, "y": 0.05}, "tangent": {"y": 1}}]}, "motion": {"durationS": 2, "cycleRateHz": 250}})");
+  for (v1::KeyFrame* first : {pieces.mutable_path()->mutable_start(), frames.mutable_path()->mutable_frames(0)}) {
+    first->mutable_orientation()->set_w(tilted.w());
+    first->mutable_orientation()->set_x(tilted.x());
+    first->mutable_orientation()->set_y(tilted.y());
+    first->mutable_orientation()->set_z(tilted.z());
+  }
+  for (const auto* request : {&pieces, &frames}) {
+    grpc::Status status;
+    const auto samples = stream_all(*request, status);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    for (const auto& s : samples) ASSERT_LT(quat(s.orientation()).angularDistance(tilted), 1e-9) << s.t();
+  }
+  frames.mutable_path()->mutable_frames(0)->set_orientation_mode(v1::ORIENTATION_MODE_FRENET);
+  v1::PlanResponse response;
+  const auto status = plan(frames, response);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(violation_of(bad_request_violations(status), "path.frames[0].orientation"),
+              HasSubstr("ORIENTATION_MODE_FIXED on the first frame"));
+}
+
 TEST_F(PiecesTest, AnalyzePathRecoversTheCurvatureAndTorsionAsked) {
   // kappa(s) = 5 + 20 s, tau(s) = 2 - 10 s over 0.3 m (a twisted clothoid).
   const auto request = from_json<v1::PlanRequest>(R"({"path": {

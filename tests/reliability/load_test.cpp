@@ -90,7 +90,9 @@ class LoadTest : public ConfiguredServerTest {
           const auto status = stub->PlanTrajectory(&context, request, &response);
           if (!status.ok() || response.motion().sample_count() != kPathASamples) {
             std::lock_guard lock(mutex);
-            errors.push_back(std::to_string(status.error_code()) + " " + status.error_message());
+            errors.push_back("call " + std::to_string(i) + " at " + std::to_string(seconds_since(started)) + " s: code " +
+                             std::to_string(status.error_code()) + " " + status.error_message() + ", " +
+                             std::to_string(response.motion().sample_count()) + " samples");
           }
         }
       });

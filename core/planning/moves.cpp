@@ -206,6 +206,13 @@ void joint_move_at(const JointMovePlan& plan, double t, ProfileCursor& cursor, M
     out.q_dot(i) = x.v * dq;
     out.q_ddot(i) = x.a * dq;
   }
+  joint_tool_state(model, out);
+  out.t = t;
+  out.u = at_end ? 1.0 : x.s;
+  out.s = 0.0;
+}
+
+void joint_tool_state(const RobotModel& model, MoveSample& out) {
   // One walk of the chain for the pose, the Jacobian and its derivative.
   const detail::SerialChain chain(model);
   Eigen::Matrix3d R_WT;
@@ -216,9 +223,6 @@ void joint_move_at(const JointMovePlan& plan, double t, ProfileCursor& cursor, M
   chain.jacobian_dot(p_WT, z, o, J, out.q_dot, J_dot);
   const Vector6d V = J * out.q_dot;                        // (1.8)
   const Vector6d A = J * out.q_ddot + J_dot * out.q_dot;  // (1.10, 1.11)
-  out.t = t;
-  out.u = at_end ? 1.0 : x.s;
-  out.s = 0.0;
   out.p_W = p_WT;
   out.v_W = V.head<3>();
   out.a_W = A.head<3>();

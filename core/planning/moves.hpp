@@ -130,6 +130,12 @@ Expected<JointMovePlan> plan_joint_move(const ValidRobot& robot, const JointMove
 void joint_move_at(const JointMovePlan& plan, double t, ProfileCursor& cursor, MoveSample& out);
 void joint_move_at(const JointMovePlan& plan, double t, MoveSample& out);
 
+/// The tool's state in W of the joints out.q, out.q_dot, out.q_ddot (sizes: the model's):
+/// X_WT = FK(q) (kinematics.hpp), [v; omega] = J q_dot (1.8), [a; alpha] = J q_ddot +
+/// J_dot q_dot (1.10, 1.11), speed, manipulability; has_joints set. t, u and s untouched.
+/// No heap allocation.
+void joint_tool_state(const RobotModel& model, MoveSample& out);
+
 // ---------------------------------------------------------------------------------------
 // Cartesian straight-line move (thesis 6.2.2.2)
 

@@ -60,10 +60,6 @@ MotionSpec timed(double duration, TimeParameterization tp = TimeParameterization
 // ---------------------------------------------------------------------------------------
 // Validation
 
-bool names(const core::Violations& v, const std::string& field) {
-  return std::any_of(v.begin(), v.end(), [&](const auto& x) { return x.field == field; });
-}
-
 TEST(MotionSpec, DefaultsWithADurationAreValid) { EXPECT_TRUE(core::validate_motion(timed(10)).empty()); }
 
 TEST(MotionSpec, BadValuesNameTheField) {

@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "allocation_counter.hpp"
+#include "test_support.hpp"
 #include "core/planning/moves.hpp"
 #include "core/robot/kinematics.hpp"
 #include "core/robot/robot.hpp"
@@ -37,16 +38,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 const RobotModel& pa10() { return *core::find_builtin_robot("pa10"); }
 const RobotModel& ur5() { return *core::find_builtin_robot("ur5"); }
-
-std::string listed(const Violations& v) {
-  std::string out;
-  for (const auto& x : v) out += "  " + x.field + ": " + x.description + "\n";
-  return out;
-}
-
-bool names(const Violations& v, const std::string& field) {
-  return std::any_of(v.begin(), v.end(), [&](const auto& x) { return x.field == field; });
-}
 
 MotionSpec timed(double duration, ProfileShape shape = ProfileShape::kTrapezoidal, double rate = 100.0) {
   MotionSpec m;

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "test_support.hpp"
 #include "core/robot/robot.hpp"
 
 namespace geotraj::test {
@@ -30,16 +31,6 @@ RobotModel general_model() {
   RobotModel m = valid_model();
   m.dh.reset();
   return m;
-}
-
-bool names(const Violations& v, const std::string& field) {
-  return std::any_of(v.begin(), v.end(), [&](const auto& x) { return x.field == field; });
-}
-
-std::string listed(const Violations& v) {
-  std::string out;
-  for (const auto& x : v) out += "  " + x.field + ": " + x.description + "\n";
-  return out;
 }
 
 TEST(Robot, BuiltinsAreValid) {

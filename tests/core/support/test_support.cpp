@@ -1,5 +1,6 @@
 #include "test_support.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -136,6 +137,16 @@ int property_case_count(int fallback) {
     return fallback;
   }
   return static_cast<int>(n);
+}
+
+std::string listed(const core::Violations& v) {
+  std::string out;
+  for (const auto& x : v) out += "  " + x.field + ": " + x.description + "\n";
+  return out;
+}
+
+bool names(const core::Violations& v, const std::string& field) {
+  return std::any_of(v.begin(), v.end(), [&](const auto& x) { return x.field == field; });
 }
 
 }  // namespace geotraj::test

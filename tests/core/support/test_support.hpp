@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 #include <gtest/gtest.h>
 
+#include "core/error.hpp"
 #include "core/geometry/key_frame.hpp"
 #include "core/geometry/path.hpp"
 
@@ -109,6 +110,11 @@ std::string describe(const core::PathSpec& spec);
 
 /// Deterministic seed for random tests, and the number of random cases
 /// (environment variable GEOTRAJ_PROPERTY_CASES, else `fallback`).
+/// The violations one per line ("  field: description"), for failure messages.
+std::string listed(const core::Violations& v);
+/// Whether some violation names exactly `field`.
+bool names(const core::Violations& v, const std::string& field);
+
 inline constexpr std::uint64_t kPropertySeed = 20240611;
 int property_case_count(int fallback);
 

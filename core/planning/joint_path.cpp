@@ -289,9 +289,10 @@ void evaluate(const JointPath& path, double sigma, JointPathPoint& out, std::siz
 
 namespace {
 
-// The grid of one portion [r0, r1] of the path: each blend kBlendGridIntervals intervals
-// (cosine spacing in sigma), each line by its share of `line_intervals` (at least kMinLineIntervals), s from r0.
-std::vector<GridPoint> portion_grid(const JointPath& path, double r0, double r1, std::size_t line_intervals) {
+// The grid of one portion [r0, r1] of the path: each blend `blend_intervals` intervals
+// (cosine spacing in sigma, or uniform), each line by its share of `line_intervals` (at least
+// kMinLineIntervals), s from r0.
+std::vector<GridPoint> portion_grid(const JointPath& path, double r0, double r1, const JointPathOptions& options) {
   double lines = 0.0;
   for (const auto& seg : path.segments)
     if (seg.kind == JointPathSegment::Kind::kLine && seg.sigma1 > r0 && seg.sigma0 < r1) lines += seg.sigma1 - seg.sigma0;
@@ -299,19 +300,19 @@ std::vector<GridPoint> portion_grid(const JointPath& path, double r0, double r1,
   for (const auto& seg : path.segments) {
     if (!(seg.sigma1 > r0 && seg.sigma0 < r1)) continue;
     const double span = seg.sigma1 - seg.sigma0;
+    const bool blend = seg.kind == JointPathSegment::Kind::kBlend;
     const std::size_t k =
-        seg.kind == JointPathSegment::Kind::kBlend
-            ? kBlendGridIntervals
-            : std::max<std::size_t>(kMinLineIntervals, static_cast<std::size_t>(std::ceil(static_cast<double>(line_intervals) * span /
-                                                                          std::max(lines, 1e-300))));
+        blend ? std::max<std::size_t>(2, options.blend_intervals)
+              : std::max<std::size_t>(kMinLineIntervals,
+                                      static_cast<std::size_t>(std::ceil(static_cast<double>(options.line_intervals) *
+                                                                         span / std::max(lines, 1e-300))));
     for (std::size_t i = 1; i <= k; ++i) {
       // A blend's points crowd towards its ends (cosine spacing): the path acceleration is
       // constant on each interval, and the interval that meets a line must already respect
       // the blend's curvature at its far end; a short one leaves the joint accelerations
       // nearly continuous where the blend meets the line.
-      const double f = seg.kind == JointPathSegment::Kind::kBlend
-                           ? 0.5 * (1.0 - std::cos(std::numbers::pi * static_cast<double>(i) / static_cast<double>(k)))
-                           : static_cast<double>(i) / static_cast<double>(k);
+      const double f = blend && options.crowd_blend_ends ? 0.5 * (1.0 - std::cos(std::numbers::pi * static_cast<double>(i) / static_cast<double>(k)))
+                             : static_cast<double>(i) / static_cast<double>(k);
       sigmas.push_back(i == k ? seg.sigma1 : seg.sigma0 + span * f);
     }
   }
@@ -332,8 +333,76 @@ std::vector<GridPoint> portion_grid(const JointPath& path, double r0, double r1,
   return grid;
 }
 
-// sigma(t) of the whole path: the portions' profiles back to back (each starts at rest).
-SpeedProfile joined(const std::vector<SpeedProfile>& profiles, const std::vector<double>& rests) {
+// The portion holding sigma (its index in rests), and the grid interval of portion p.
+std::size_t portion_of(const std::vector<double>& rests, double sigma) {
+  const auto it = std::upper_bound(rests.begin(), rests.end(), sigma);
+  const auto p = static_cast<std::size_t>(std::max<std::ptrdiff_t>(1, it - rests.begin()) - 1);
+  return std::min(p, rests.size() - 2);
+}
+
+std::size_t interval_of(const std::vector<GridPoint>& grid, double s) {
+  const auto it = std::upper_bound(grid.begin(), grid.end(), s, [](double x, const GridPoint& g) { return x < g.s; });
+  const auto k = static_cast<std::size_t>(std::max<std::ptrdiff_t>(1, it - grid.begin()) - 1);
+  return std::min(k, grid.size() - 2);
+}
+
+// One pass over the samples of `plan` at `rate` [Hz] (check_joint_path_samples).
+std::optional<Violations> check_pass(const JointPathPlan& plan, double rate, const TimeOptimalLimits& limits,
+                                     const JointPathOptions& options, JointPathCheck& out) {
+  const std::size_t count = grid_sample_count(plan.duration_s, rate);
+  const bool jerk = limits.joint_jerk.size() > 0 && (limits.joint_jerk.array() < kInf).any();
+  ProfileCursor cursor;
+  std::size_t hint = 0;
+  JointPathPoint point;
+  JointVector q_ddot, q_ddot_prev;
+  double t_prev = 0.0;
+  SampleCheck& check = out.check;
+  for (std::size_t i = 0; i < count; ++i) {
+    if (i % 256 == 0 && options.stop.stop_requested()) return Violations{{"motion", "stopped: the call was cancelled"}};
+    const double t = grid_time(i, count, plan.duration_s, rate);
+    const ProfileState x = evaluate(plan.profile, t, cursor);
+    evaluate(plan.path, x.s, point, hint);
+    const std::size_t p = portion_of(plan.path.rests, x.s);
+    const auto& grid = plan.grids[p];
+    const std::size_t k = interval_of(grid, x.s - plan.path.rests[p]);
+    q_ddot = point.q_s * x.a + point.q_ss * (x.v * x.v);
+    const double dt = t - t_prev;
+    // A ratio r > 1 shrinks the points around the interval by 1 / r^2 for a velocity, 1 / r
+    // for an acceleration, 1 / r^2 for a jerk (as check_time_optimal_samples does).
+    auto note = [&](double value, double limit, int order, Eigen::Index j, double& usage) {
+      if (!(limit < kInf)) return;
+      const double r = value / limit;
+      usage = std::max(usage, r);
+      if (r > check.worst_usage) {
+        static constexpr const char* kKind[] = {"", " velocity ", " acceleration ", " jerk "};
+        check.worst_usage = r;
+        check.worst = "joint " + std::to_string(j) + kKind[order] + number(value, 6) + " of " + number(limit, 6) +
+                      " at t = " + number(t, 6) + " s (sigma = " + number(x.s, 6) + ", " + number(rate, 6) + " Hz)";
+      }
+      if (r > 1.0 + options.sample_tolerance) {
+        check.broken = true;
+        const double f = (order == 2 ? 1.0 / r : 1.0 / (r * r)) * (1.0 - 1e-6);
+        auto& shrink = order == 3 ? check.jerk_shrink[p] : check.shrink[p];
+        const std::size_t N = grid.size() - 1;
+        const std::size_t lo = order == 3 && k > 0 ? k - 1 : k, hi = order == 3 ? std::min(N, k + 2) : k + 1;
+        for (std::size_t g = lo; g <= hi; ++g) shrink[g] = std::min(shrink[g], f);
+      }
+    };
+    for (Eigen::Index j = 0; j < point.q_s.size(); ++j) {
+      note(std::abs(point.q_s(j) * x.v), limits.joint_velocity(j), 1, j, out.velocity_usage);
+      note(std::abs(q_ddot(j)), limits.joint_acceleration(j), 2, j, out.acceleration_usage);
+      if (jerk && i > 0 && dt > 0.0)
+        note(std::abs(q_ddot(j) - q_ddot_prev(j)) / dt, limits.joint_jerk(j), 3, j, out.jerk_usage);
+    }
+    q_ddot_prev = q_ddot;
+    t_prev = t;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+SpeedProfile joined_profile(const std::vector<SpeedProfile>& profiles, const std::vector<double>& rests) {
   SpeedProfile out;
   double t = 0.0;
   for (std::size_t p = 0; p < profiles.size(); ++p) {
@@ -349,63 +418,28 @@ SpeedProfile joined(const std::vector<SpeedProfile>& profiles, const std::vector
   return out;
 }
 
-// The portion holding sigma (its index in rests), and the grid interval of portion p.
-std::size_t portion_of(const std::vector<double>& rests, double sigma) {
-  const auto it = std::upper_bound(rests.begin(), rests.end(), sigma);
-  const auto p = static_cast<std::size_t>(std::max<std::ptrdiff_t>(1, it - rests.begin()) - 1);
-  return std::min(p, rests.size() - 2);
-}
-
-std::size_t interval_of(const std::vector<GridPoint>& grid, double s) {
-  const auto it = std::upper_bound(grid.begin(), grid.end(), s, [](double x, const GridPoint& g) { return x < g.s; });
-  const auto k = static_cast<std::size_t>(std::max<std::ptrdiff_t>(1, it - grid.begin()) - 1);
-  return std::min(k, grid.size() - 2);
-}
-
-// The samples of `plan` at `rate` [Hz] against the joint limits: the worst usages, and the
-// grid points to tighten (as check_time_optimal_samples: a ratio r > 1 shrinks the points
-// around the interval by 1 / r^2 for a velocity, 1 / r for an acceleration).
-std::optional<Violations> check_samples(const JointPathPlan& plan, double rate,
-                                        const std::vector<std::vector<GridPoint>>& grids,
-                                        const TimeOptimalLimits& limits, const JointPathOptions& options,
-                                        double& velocity_usage, double& acceleration_usage, SampleCheck& out) {
-  const std::size_t count = grid_sample_count(plan.duration_s, rate);
-  ProfileCursor cursor;
-  std::size_t hint = 0;
-  JointPathPoint point;
-  for (std::size_t i = 0; i < count; ++i) {
-    if (i % 256 == 0 && options.stop.stop_requested()) return Violations{{"motion", "stopped: the call was cancelled"}};
-    const double t = grid_time(i, count, plan.duration_s, rate);
-    const ProfileState x = evaluate(plan.profile, t, cursor);
-    evaluate(plan.path, x.s, point, hint);
-    const std::size_t p = portion_of(plan.path.rests, x.s);
-    const std::size_t k = interval_of(grids[p], x.s - plan.path.rests[p]);
-    for (Eigen::Index j = 0; j < point.q_s.size(); ++j) {
-      const double v = std::abs(point.q_s(j) * x.v);
-      const double a = std::abs(point.q_s(j) * x.a + point.q_ss(j) * x.v * x.v);
-      const double rv = v / limits.joint_velocity(j), ra = a / limits.joint_acceleration(j);
-      velocity_usage = std::max(velocity_usage, rv);
-      acceleration_usage = std::max(acceleration_usage, ra);
-      for (const auto& [r, order] : {std::pair{rv, 1}, std::pair{ra, 2}}) {
-        if (r > out.worst_usage) {
-          out.worst_usage = r;
-          out.worst = "joint " + std::to_string(j) + (order == 1 ? " velocity " : " acceleration ") +
-                      number(order == 1 ? v : a, 6) + " of " +
-                      number(order == 1 ? limits.joint_velocity(j) : limits.joint_acceleration(j), 6) + " at t = " +
-                      number(t, 6) + " s (sigma = " + number(x.s, 6) + ", " + number(rate, 6) + " Hz)";
-        }
-        if (r > 1.0 + options.sample_tolerance) {
-          out.broken = true;
-          const double f = (order == 2 ? 1.0 / r : 1.0 / (r * r)) * (1.0 - 1e-6);
-          for (std::size_t g = k; g <= k + 1; ++g) out.shrink[p][g] = std::min(out.shrink[p][g], f);
-        }
-      }
-    }
+Expected<JointPathCheck> check_joint_path_samples(const JointPathPlan& plan, const TimeOptimalLimits& limits,
+                                                  const JointPathOptions& options) {
+  JointPathCheck out;
+  out.check.shrink.resize(plan.grids.size());
+  out.check.jerk_shrink.resize(plan.grids.size());
+  for (std::size_t p = 0; p < plan.grids.size(); ++p) {
+    out.check.shrink[p].assign(plan.grids[p].size(), 1.0);
+    out.check.jerk_shrink[p].assign(plan.grids[p].size(), 1.0);
   }
-  return std::nullopt;
+  const double rate = plan.spec.cycle_rate_hz;
+  if (auto failed = check_pass(plan, rate, limits, options, out)) return tl::make_unexpected(std::move(*failed));
+  out.check.check_rate_hz = rate;
+  if (out.check.broken) return out;
+  double multiple = options.check_rate_hz > rate ? std::ceil(options.check_rate_hz / rate * (1.0 - 1e-12)) : 1.0;
+  const double budget = static_cast<double>(options.max_check_samples) / std::max(1.0, plan.duration_s * rate);
+  multiple = std::min(multiple, std::max(1.0, std::floor(budget)));
+  if (multiple > 1.0) {
+    if (auto failed = check_pass(plan, rate * multiple, limits, options, out)) return tl::make_unexpected(std::move(*failed));
+    out.check.check_rate_hz = rate * multiple;
+  }
+  return out;
 }
-
-}  // namespace
 
 Expected<JointPathPlan> plan_joint_path(const ValidRobot& robot, JointPath path, const MotionSpec& motion,
                                         const JointPathOptions& options) {
@@ -416,7 +450,8 @@ Expected<JointPathPlan> plan_joint_path(const ValidRobot& robot, JointPath path,
     return tl::make_unexpected(v);
   JointPathPlan plan{.model = robot, .spec = motion, .path = std::move(path), .profile = {}, .duration_s = 0.0,
                      .sample_count = 0, .binding = {}, .velocity_usage = 0.0, .acceleration_usage = 0.0,
-                     .refinements = 0, .check_rate_hz = 0.0, .grid_points = 0, .duration_grid_error = 0.0};
+                     .refinements = 0, .check_rate_hz = 0.0, .grid_points = 0, .duration_grid_error = 0.0,
+                     .grids = {}, .solutions = {}, .limit_scale = {}, .limits = {}};
   const double rate = motion.cycle_rate_hz;
   auto finish = [&](double duration) -> Expected<JointPathPlan> {
     if (!(duration * rate < kMaxMotionSamples))
@@ -435,69 +470,55 @@ Expected<JointPathPlan> plan_joint_path(const ValidRobot& robot, JointPath path,
   MotionSpec joint_only = motion;
   joint_only.max_speed.reset(), joint_only.max_acceleration.reset(), joint_only.max_jerk.reset();
   joint_only.max_angular_speed.reset(), joint_only.max_angular_acceleration.reset();
-  const TimeOptimalLimits limits = time_optimal_limits(joint_only, &model);
+  plan.limits = time_optimal_limits(joint_only, &model);
+  const TimeOptimalLimits& limits = plan.limits;
 
   const auto& rests = plan.path.rests;
   const std::size_t P = rests.size() - 1;
-  std::vector<std::vector<GridPoint>> grids(P);
-  std::vector<std::vector<double>> sigma(P);
+  plan.grids.resize(P);
+  plan.limit_scale.resize(P);
+  plan.solutions.resize(P);
   for (std::size_t p = 0; p < P; ++p) {
-    grids[p] = portion_grid(plan.path, rests[p], rests[p + 1], options.line_intervals);
-    sigma[p].assign(grids[p].size(), 1.0);
-    plan.grid_points += grids[p].size();
+    plan.grids[p] = portion_grid(plan.path, rests[p], rests[p + 1], options);
+    plan.limit_scale[p].assign(plan.grids[p].size(), 1.0);
+    plan.grid_points += plan.grids[p].size();
   }
-  std::vector<TimeOptimalSolution> solutions(P);
   for (int round = 0;; ++round) {
     if (options.stop.stop_requested()) return tl::unexpected(Violations{{"motion", "stopped: the call was cancelled"}});
     std::vector<SpeedProfile> profiles(P);
     for (std::size_t p = 0; p < P; ++p) {
-      auto sol = time_optimal_detail::sweep(grids[p], limits, &sigma[p]);
+      auto sol = time_optimal_detail::sweep(plan.grids[p], limits, &plan.limit_scale[p]);
       if (!sol) {
         Violations v = sol.error();
         for (auto& fv : v) fv.description += " (joint path, sigma from " + number(rests[p], 6) + ")";
         return tl::make_unexpected(v);
       }
       profiles[p] = sol->profile;
-      solutions[p] = std::move(*sol);
+      plan.solutions[p] = std::move(*sol);
     }
-    plan.profile = joined(profiles, rests);
+    plan.profile = joined_profile(profiles, rests);
     plan.duration_s = plan.profile.duration;
     plan.refinements = round;
-    // The samples at the cycle rate, then (when they pass) at the check rate.
-    SampleCheck check;
-    check.shrink.resize(P);
-    for (std::size_t p = 0; p < P; ++p) check.shrink[p].assign(grids[p].size(), 1.0);
-    plan.velocity_usage = plan.acceleration_usage = 0.0;
-    if (auto failed = check_samples(plan, rate, grids, limits, options, plan.velocity_usage, plan.acceleration_usage,
-                                    check))
-      return tl::make_unexpected(std::move(*failed));
-    plan.check_rate_hz = rate;
-    if (!check.broken) {
-      double multiple = options.check_rate_hz > rate ? std::ceil(options.check_rate_hz / rate * (1.0 - 1e-12)) : 1.0;
-      const double budget = static_cast<double>(options.max_check_samples) / std::max(1.0, plan.duration_s * rate);
-      multiple = std::min(multiple, std::max(1.0, std::floor(budget)));
-      if (multiple > 1.0) {
-        if (auto failed = check_samples(plan, rate * multiple, grids, limits, options, plan.velocity_usage,
-                                        plan.acceleration_usage, check))
-          return tl::make_unexpected(std::move(*failed));
-        plan.check_rate_hz = rate * multiple;
-      }
-    }
-    if (!check.broken) break;
+    auto check = check_joint_path_samples(plan, limits, options);
+    if (!check) return tl::make_unexpected(check.error());
+    plan.velocity_usage = check->velocity_usage;
+    plan.acceleration_usage = check->acceleration_usage;
+    plan.check_rate_hz = check->check.check_rate_hz;
+    if (!check->check.broken) break;
     if (round >= options.max_refinements)
       return tl::make_unexpected(Violations{unattainable(
-          "motion", "the sampled joint path still exceeds a limit by " + number(100.0 * (check.worst_usage - 1.0), 6) +
-                        " % after " + std::to_string(round) + " refinements (" + check.worst + ")")});
-    check.jerk_shrink = check.shrink;  // unused (no jerk factors)
-    tighten_limits(check, round, options.uniform_refinement_from, sigma, nullptr);
+          "motion", "the sampled joint path still exceeds a limit by " +
+                        number(100.0 * (check->check.worst_usage - 1.0), 6) + " % after " + std::to_string(round) +
+                        " refinements (" + check->check.worst + ")")});
+    tighten_limits(check->check, round, options.uniform_refinement_from, plan.limit_scale, nullptr);
   }
   // The duration's grid error: the same limits on every second grid point.
   double half_duration = 0.0;
   for (std::size_t p = 0; p < P; ++p) {
     std::vector<GridPoint> half;
     std::vector<double> half_sigma;
-    for (const std::size_t i : every_second_point(grids[p].size()))
-      half.push_back(grids[p][i]), half_sigma.push_back(sigma[p][i]);
+    for (const std::size_t i : every_second_point(plan.grids[p].size()))
+      half.push_back(plan.grids[p][i]), half_sigma.push_back(plan.limit_scale[p][i]);
     if (auto sol = time_optimal_detail::sweep(half, limits, &half_sigma)) {
       half_duration += sol->duration;
     } else {
@@ -507,13 +528,13 @@ Expected<JointPathPlan> plan_joint_path(const ValidRobot& robot, JointPath path,
   plan.duration_grid_error = std::isfinite(half_duration) ? std::abs(half_duration - plan.duration_s) : 0.0;
   double t0 = 0.0;
   for (std::size_t p = 0; p < P; ++p) {
-    for (BindingStretch st : solutions[p].binding) {
+    for (BindingStretch st : plan.solutions[p].binding) {
       st.portion = p;
       st.s_start += rests[p], st.s_end += rests[p];
       st.t_start += t0, st.t_end += t0;
       plan.binding.push_back(st);
     }
-    t0 += solutions[p].duration;
+    t0 += plan.solutions[p].duration;
   }
   if (motion.duration_s > 0.0) {
     // The given duration: the same motion stretched (or compressed) uniformly in time.

@@ -47,6 +47,7 @@
 #include "core/motion/speed_profile.hpp"
 #include "core/planning/binding.hpp"
 #include "core/planning/moves.hpp"
+#include "core/planning/time_optimal.hpp"
 #include "core/robot/robot.hpp"
 
 namespace geotraj::core {
@@ -143,8 +144,15 @@ double blend_peak_curvature(double c, double theta);
 /// Options of plan_joint_path.
 struct JointPathOptions {
   /// Grid intervals of the lines of a portion together, shared by length (each line at
-  /// least kMinLineIntervals); each blend has kBlendGridIntervals more.
+  /// least kMinLineIntervals); each blend has `blend_intervals` more.
   std::size_t line_intervals = 400;
+  std::size_t blend_intervals = kBlendGridIntervals;
+  /// Crowd each blend's grid points towards its ends (cosine spacing; else uniform): the
+  /// sweep's acceleration is constant on each interval, so short intervals where a blend
+  /// meets a line keep the joint accelerations nearly continuous there. The jerk-limited
+  /// timing, which ramps every step, takes a uniform grid (its windows are as wide as the
+  /// intervals: tiny ones make its programme stiff).
+  bool crowd_blend_ends = true;
   /// The sample check and its refinements, as TimeOptimalOptions (time_optimal.hpp).
   int max_refinements = 8;
   int uniform_refinement_from = 4;
@@ -175,7 +183,34 @@ struct JointPathPlan {
   std::size_t grid_points = 0;     ///< of the sweep, over every portion
   /// |T(N) - T(N / 2)| [s]: the duration against the one on every second grid point.
   double duration_grid_error = 0.0;
+  /// What the sweep solved (what a jerk-limited timing starts from): per portion between
+  /// rests, its grid (s from the portion's start), its exact solution and the refinements'
+  /// per-point limit scales; the limits (speedScale applied).
+  std::vector<std::vector<GridPoint>> grids;
+  std::vector<TimeOptimalSolution> solutions;
+  std::vector<std::vector<double>> limit_scale;
+  TimeOptimalLimits limits;
 };
+
+/// The samples of `plan` against `limits`, as check_time_optimal_samples does for a path:
+/// at the cycle rate, then (if every sample there is within the limits) at the check rate
+/// (options.check_rate_hz, a multiple of the cycle rate, within options.max_check_samples):
+/// |q_dot_j|, |q_ddot_j| and, where limits.joint_jerk has finite values, the joint jerk as
+/// the difference of successive accelerations over the period. The factors to tighten the
+/// grid points around each excess (SampleCheck::shrink, jerk_shrink) refer to plan.grids.
+struct JointPathCheck {
+  SampleCheck check;
+  double velocity_usage = 0.0;      ///< largest |q_dot_j| / limit
+  double acceleration_usage = 0.0;  ///< largest |q_ddot_j| / limit
+  double jerk_usage = 0.0;          ///< largest mean jerk over a period / limit (0 without)
+};
+/// Errors (field `motion`): options.stop requested.
+Expected<JointPathCheck> check_joint_path_samples(const JointPathPlan& plan, const TimeOptimalLimits& limits,
+                                                  const JointPathOptions& options);
+
+/// sigma(t) of a whole path from its portions' profiles (each rest to rest, over
+/// [rests[p], rests[p + 1]]): back to back in time.
+SpeedProfile joined_profile(const std::vector<SpeedProfile>& profiles, const std::vector<double>& rests);
 
 /// Times `path` (built by build_joint_path for robot):
 ///  - motion.duration_s = 0: the fastest motion within the joints' maxVelocity and

@@ -186,32 +186,17 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
   return out;
 }
 
-core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
-                                                       const core::OrientationPlan& orientation,
-                                                       const core::MotionSpec& spec, const core::RobotModel* robot,
-                                                       const core::JointVector& seed,
-                                                       const core::TimeOptimalOptions& exact_options,
-                                                       JerkTimingOptions options) {
-  core::TimeOptimalOptions exact_stoppable = exact_options;
-  if (!exact_stoppable.stop.stop_possible()) exact_stoppable.stop = options.stop;
-  auto exact = core::plan_time_optimal(path, orientation, spec, robot, seed, exact_stoppable);
-  if (!exact) return tl::make_unexpected(exact.error());
-  const double sc = spec.speed_scale, sc3 = sc * sc * sc * spec.acceleration_scale;  // and the reserve
-  if (robot && options.joint_jerk.size() == 0) {
-    const auto n = static_cast<Eigen::Index>(robot->dof());
-    options.joint_jerk = core::JointVector::Constant(n, kInf);
-    for (Eigen::Index j = 0; j < n; ++j)
-      if (const auto& mj = robot->limits[static_cast<std::size_t>(j)].max_jerk) options.joint_jerk(j) = *mj * sc3;
-  }
-  if (!options.max_jerk && spec.max_jerk) options.max_jerk = *spec.max_jerk * sc3;
-
-  JerkLimitedPlan out;
+core::Expected<JerkRounds> jerk_limited_rounds(const std::vector<std::vector<core::GridPoint>>& grids,
+                                               const std::vector<core::TimeOptimalSolution>& exact,
+                                               const core::TimeOptimalLimits& exact_limits, JerkTimingOptions options,
+                                               const std::stop_token& exact_stop, const JerkRoundHooks& hooks) {
+  JerkRounds out;
   out.report.status = OptimizerStatus::kConverged;
   const double budget = options.time_budget_s;
   const auto t0 = std::chrono::steady_clock::now();
   // The NLP meets its limits to Ipopt's tolerance, not exactly: it works within limits
   // shrunk by kJerkLimitMargin, so that the samples stay within the real ones.
-  core::TimeOptimalLimits limits = exact->limits;
+  core::TimeOptimalLimits limits = exact_limits;
   limits.joint_velocity *= 1.0 - kJerkLimitMargin;
   limits.joint_acceleration *= 1.0 - kJerkLimitMargin;
   limits.speed *= 1.0 - kJerkLimitMargin;
@@ -222,25 +207,25 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
   const std::optional<double> max_jerk = options.max_jerk;
   options.joint_jerk *= 1.0 - kJerkLimitMargin;
   if (options.max_jerk) *options.max_jerk *= 1.0 - kJerkLimitMargin;
-  const std::size_t P = exact->grids.size();
+  const std::size_t P = grids.size();
   std::vector<std::vector<double>> sigma(P), jerk_sigma(P);
   for (std::size_t p = 0; p < P; ++p) {
-    sigma[p].assign(exact->grids[p].size(), 1.0);
-    jerk_sigma[p].assign(exact->grids[p].size(), 1.0);
+    sigma[p].assign(grids[p].size(), 1.0);
+    jerk_sigma[p].assign(grids[p].size(), 1.0);
   }
   // The samples are checked against every limit, the jerk included.
-  core::TimeOptimalLimits checked = exact->limits;
+  core::TimeOptimalLimits checked = exact_limits;
   checked.joint_jerk = joint_jerk;
   if (max_jerk) checked.jerk = *max_jerk;
   // The starts: the exact sweep's b (within the margin), then each round's result.
-  std::vector<core::TimeOptimalSolution> starts = exact->solutions;
+  std::vector<core::TimeOptimalSolution> starts = exact;
   for (auto& st : starts)
     for (double& b : st.b) b *= (1.0 - kJerkLimitMargin) * (1.0 - kJerkLimitMargin);
   const double first_scale = options.start_scale;
   // The call's cancellation or deadline (the token) ends the work between any two steps: a
   // degenerate limit (maxJerk 1e-10 m/s^3) makes a motion of hours whose every sample the
   // check below visits, round after round.
-  const auto cancelled = [&] { return options.stop.stop_requested() || exact_stoppable.stop.stop_requested(); };
+  const auto cancelled = [&] { return options.stop.stop_requested() || exact_stop.stop_requested(); };
   const auto stopped = [] {
     return core::Violations{{"motion", "stopped: the call was cancelled (or its deadline passed) while the "
                                        "jerk-limited timing ran"}};
@@ -258,7 +243,7 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
       // smallest sigma^2 of the portion (velocities by sigma, accelerations by sigma^2).
       options.start_scale =
           round == 0 ? first_scale : std::pow(*std::min_element(sigma[p].begin(), sigma[p].end()), 2) * first_scale;
-      JerkTiming jt = optimise_jerk_timing(exact->grids[p], limits, starts[p], options);
+      JerkTiming jt = optimise_jerk_timing(grids[p], limits, starts[p], options);
       if (round == 0) out.report.objective_before += jt.report.objective_before;
       out.report.iterations += jt.report.iterations;
       if (static_cast<int>(jt.report.status) > static_cast<int>(out.report.status)) {
@@ -269,18 +254,13 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
       profiles.push_back(jt.profile);
       out.portions.push_back(std::move(jt));
     }
-    auto motion = core::assemble_motion(spec, exact->motion.portions, profiles);
-    if (!motion) return tl::make_unexpected(motion.error());
-    out.motion = std::move(*motion);
-    out.motion.spec.duration_s = 0.0;
+    if (auto assembled = hooks.assemble(profiles); !assembled) return tl::make_unexpected(assembled.error());
     out.refinements = round;
-    // Every sample at the cycle rate against the real limits, as plan_time_optimal checks
+    // Every sample at the cycle rate against the real limits, as the exact timing checks
     // the sweep's; where one breaks a limit, that interval's limits tighten and the NLP runs
     // again from its last result.
     if (cancelled()) return tl::make_unexpected(stopped());
-    // With the call's token (exact_stoppable): the check stops within 256 samples of it.
-    auto check = core::check_time_optimal_samples(path, orientation, out.motion, exact->grids, checked, robot, seed,
-                                                  exact_stoppable);
+    auto check = hooks.check(checked);
     if (!check) return tl::make_unexpected(check.error());
     out.worst_sample_usage = check->worst_usage;
     out.check_rate_hz = check->check_rate_hz;
@@ -308,13 +288,9 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
           for (double& j : jt.jerk) j /= c * c * c;
           slower.push_back(jt.profile);
         }
-        auto slowed = core::assemble_motion(spec, exact->motion.portions, slower);
-        if (!slowed) return tl::make_unexpected(slowed.error());
-        out.motion = std::move(*slowed);
-        out.motion.spec.duration_s = 0.0;
+        if (auto assembled = hooks.assemble(slower); !assembled) return tl::make_unexpected(assembled.error());
         if (cancelled()) return tl::make_unexpected(stopped());
-        check = core::check_time_optimal_samples(path, orientation, out.motion, exact->grids, checked, robot, seed,
-                                                 exact_stoppable);
+        check = hooks.check(checked);
         if (!check) return tl::make_unexpected(check.error());
       }
       if (check->broken)
@@ -337,10 +313,11 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
   for (const JerkTiming& jt : out.portions) out.report.objective_after += jt.report.objective_after;
   // The grid error of the duration: the same programme, limits and tightenings on every
   // second grid point (no sample check), against the result.
-  double half_duration = 0.0;
+  double half_duration = 0.0, duration = 0.0;
+  for (const JerkTiming& jt : out.portions) duration += jt.profile.duration;
   for (std::size_t p = 0; p < P && std::isfinite(half_duration); ++p) {
     if (cancelled()) return tl::make_unexpected(stopped());
-    const auto& grid = exact->grids[p];
+    const auto& grid = grids[p];
     std::vector<core::GridPoint> half;
     JerkTimingOptions ho = options;
     ho.limit_scale.clear();
@@ -361,8 +338,54 @@ core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
     const JerkTiming jt = optimise_jerk_timing(half, limits, *start, ho);
     half_duration = jt.report.status == OptimizerStatus::kConverged ? half_duration + jt.duration : kInf;
   }
-  out.duration_grid_error = std::isfinite(half_duration) ? std::abs(half_duration - out.motion.duration_s) : 0.0;
+  out.duration_grid_error = std::isfinite(half_duration) ? std::abs(half_duration - duration) : 0.0;
   out.report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+core::Expected<JerkLimitedPlan> plan_time_optimal_jerk(const core::Path& path,
+                                                       const core::OrientationPlan& orientation,
+                                                       const core::MotionSpec& spec, const core::RobotModel* robot,
+                                                       const core::JointVector& seed,
+                                                       const core::TimeOptimalOptions& exact_options,
+                                                       JerkTimingOptions options) {
+  core::TimeOptimalOptions exact_stoppable = exact_options;
+  if (!exact_stoppable.stop.stop_possible()) exact_stoppable.stop = options.stop;
+  auto exact = core::plan_time_optimal(path, orientation, spec, robot, seed, exact_stoppable);
+  if (!exact) return tl::make_unexpected(exact.error());
+  const double sc = spec.speed_scale, sc3 = sc * sc * sc * spec.acceleration_scale;  // and the reserve
+  if (robot && options.joint_jerk.size() == 0) {
+    const auto n = static_cast<Eigen::Index>(robot->dof());
+    options.joint_jerk = core::JointVector::Constant(n, kInf);
+    for (Eigen::Index j = 0; j < n; ++j)
+      if (const auto& mj = robot->limits[static_cast<std::size_t>(j)].max_jerk) options.joint_jerk(j) = *mj * sc3;
+  }
+  if (!options.max_jerk && spec.max_jerk) options.max_jerk = *spec.max_jerk * sc3;
+
+  JerkLimitedPlan out;
+  JerkRoundHooks hooks;
+  hooks.assemble = [&](const std::vector<core::SpeedProfile>& profiles) -> core::Expected<void> {
+    auto motion = core::assemble_motion(spec, exact->motion.portions, profiles);
+    if (!motion) return tl::make_unexpected(motion.error());
+    out.motion = std::move(*motion);
+    out.motion.spec.duration_s = 0.0;
+    return {};
+  };
+  // With the call's token (exact_stoppable): the check stops within 256 samples of it.
+  hooks.check = [&](const core::TimeOptimalLimits& checked) {
+    return core::check_time_optimal_samples(path, orientation, out.motion, exact->grids, checked, robot, seed,
+                                            exact_stoppable);
+  };
+  auto rounds = jerk_limited_rounds(exact->grids, exact->solutions, exact->limits, std::move(options),
+                                    exact_stoppable.stop, hooks);
+  if (!rounds) return tl::make_unexpected(rounds.error());
+  out.portions = std::move(rounds->portions);
+  out.report = std::move(rounds->report);
+  out.refinements = rounds->refinements;
+  out.slowed_by = rounds->slowed_by;
+  out.worst_sample_usage = rounds->worst_sample_usage;
+  out.check_rate_hz = rounds->check_rate_hz;
+  out.duration_grid_error = rounds->duration_grid_error;
   out.exact = std::move(*exact);
   return out;
 }

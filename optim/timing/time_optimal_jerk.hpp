@@ -41,6 +41,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <optional>
 #include <stop_token>
 #include <vector>
@@ -158,6 +159,41 @@ struct JerkLimitedPlan {
   /// tightenings) on every second grid point, an estimate of its error from the grid.
   double duration_grid_error = 0.0;
 };
+
+/// What the rounds of a jerk-limited timing ask of the motion they time.
+struct JerkRoundHooks {
+  /// Makes (and keeps) the motion of the portions' profiles, in order.
+  std::function<core::Expected<void>(const std::vector<core::SpeedProfile>&)> assemble;
+  /// Checks the samples of the motion last assembled against `limits` (the real ones,
+  /// jerk included); the factors refer to the grids the rounds were given.
+  std::function<core::Expected<core::SampleCheck>(const core::TimeOptimalLimits& limits)> check;
+};
+
+/// The outcome of jerk_limited_rounds (the fields of JerkLimitedPlan but the motion).
+struct JerkRounds {
+  std::vector<JerkTiming> portions;
+  OptimizerReport report;
+  int refinements = 0;
+  double slowed_by = 1.0;
+  double worst_sample_usage = 0.0;
+  double check_rate_hz = 0.0;
+  double duration_grid_error = 0.0;
+};
+
+/// The jerk-limited timing of any motion along a parameterised path, portion by portion,
+/// from its exact sweep (`grids`, `exact` solutions under `exact_limits`): the NLP on every
+/// portion within the limits shrunk by kJerkLimitMargin (options.joint_jerk, max_jerk: the
+/// real jerk limits, speedScale applied), the motion assembled and its samples checked
+/// (hooks), the grid points around any excess tightened (core::tighten_limits) and the NLP
+/// run again from its last result, at most options.max_refinements times; still broken,
+/// the last result slowed uniformly by the worst usage (at most three times). What
+/// plan_time_optimal_jerk does for a Cartesian path and the joint paths' timing for theirs.
+/// Errors: the hooks'; `motion` when the samples still break a limit after the slow-down,
+/// or once options.stop or `exact_stop` is requested.
+core::Expected<JerkRounds> jerk_limited_rounds(const std::vector<std::vector<core::GridPoint>>& grids,
+                                               const std::vector<core::TimeOptimalSolution>& exact,
+                                               const core::TimeOptimalLimits& exact_limits, JerkTimingOptions options,
+                                               const std::stop_token& exact_stop, const JerkRoundHooks& hooks);
 
 /// The exact plan's options under a jerk-limited one: 200 grid intervals per portion (the
 /// NLP's cost grows with the grid: 4 ms at 100 points, 62 ms at 1,000), the rest as

@@ -11,6 +11,7 @@
 #include <limits>
 #include <numbers>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -106,10 +107,8 @@ MotionSpec fastest(double rate = 1000.0) {
 JointPathPlan plan(const JointPathSpec& spec, const MotionSpec& motion = fastest()) {
   auto timed = core::plan_joint_path(pa10(), build(spec), motion);
   EXPECT_TRUE(timed.has_value()) << (timed ? "" : listed(timed.error()));
-  return timed ? *timed : JointPathPlan{.model = pa10(), .spec = {}, .path = {}, .profile = {}, .duration_s = 0.0,
-                                        .sample_count = 0, .binding = {}, .velocity_usage = 0.0,
-                                        .acceleration_usage = 0.0, .refinements = 0, .check_rate_hz = 0.0,
-                                        .grid_points = 0, .duration_grid_error = 0.0};
+  if (!timed) throw std::runtime_error("plan_joint_path failed");  // the test fails here
+  return *timed;
 }
 
 std::vector<MoveSample> samples_of(const JointPathPlan& p) {

@@ -1,4 +1,4 @@
-// How soon the planner's budget stops long work (issue: a cancelled optimisation stops its
+// How soon the planner's budget stops long work (a cancelled optimisation stops its
 // CPU within 50 ms). Each iteration starts one kind of long work (tests/planner/long_work.hpp:
 // the breakpoint optimiser on Table B.1, the PA-10's joint-space pass over 600,000 samples,
 // an analysis of 10^6 points), lets it run 100 ms, requests the stop and times the wait until

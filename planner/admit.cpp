@@ -120,7 +120,7 @@ Violations check_motion(const core::MotionSpec& spec, const MotionInput& given, 
                                            "robot.approach): a motion with a durationS is timed by it instead"}};
     }
   }
-  if (geometry.joint_move) return {};
+  if (geometry.joint_move || geometry.joint_path) return {};  // core checks their motion
   // A minimum time that the time-optimal timing sets: the limits given, and the joint ones
   // with a robot, make it, so the Cartesian ones that the profiles need are optional here
   // (the planner asks for maxAcceleration without a robot).
@@ -197,30 +197,32 @@ core::Expected<std::shared_ptr<const Robot>> resolved(const RobotSpec& spec, con
 // the request's). `robot`: resolved already (a sequence resolves it once for its steps).
 core::Expected<Request> admit_motion(const GeometryInput& geometry, const MotionInput& motion,
                                      const RobotSpec* robot_spec, std::shared_ptr<const Robot> robot,
-                                     const std::optional<OptimizeInput>& optimize, bool placeholder_start) {
+                                     const std::optional<OptimizeInput>& optimize, bool placeholder_start,
+                                     bool first = true) {
   Request out;
   Violations violations;
   const int kinds = geometry.kinds();
   if (kinds != 1) {
     return tl::unexpected(Violations{
-        {"path", kinds == 0 ? "is required: give the key frames of a `path`, or a `jointMove` or a `linearMove`"
-                            : "give exactly one of `path`, `jointMove` and `linearMove`"}});
+        {"path", kinds == 0 ? "is required: give the key frames of a `path`, or a `jointMove`, a `linearMove` or a "
+                              "`jointPath`"
+                            : "give exactly one of `path`, `jointMove`, `linearMove` and `jointPath`"}});
   }
   if (optimize && geometry.joint_move) {
     violations.push_back({"optimize", "applies to a `path` or a linearMove's timing: a jointMove is timed by its "
                                       "slowest joint already"});
   }
-  if (optimize && geometry.linear_move) {
-    if (optimize->tangent_scales || optimize->breakpoints) {
-      violations.push_back({optimize->tangent_scales ? "optimize.tangentScales" : "optimize.breakpoints",
-                            "shapes a path: a linearMove is straight (optimize.timing applies to it)"});
-    }
+  // A line and a joint path take optimize.timing only; the shape optimisers are refused.
+  const auto timing_only = [&](const char* why) {
+    if (optimize->tangent_scales || optimize->breakpoints)
+      violations.push_back({optimize->tangent_scales ? "optimize.tangentScales" : "optimize.breakpoints", why});
     Optimize timing;
     timing.budget_s = optimize->values.budget_s;
     timing.time_optimal = optimize->values.time_optimal;
     timing.jerk_limited = optimize->values.jerk_limited;
     out.optimize = timing;
-  }
+  };
+  if (optimize && geometry.linear_move) timing_only("shapes a path: a linearMove is straight (optimize.timing applies to it)");
   if (optimize && geometry.path && (geometry.path->spec.start || !geometry.path->spec.pieces.empty()) &&
       (optimize->tangent_scales || optimize->breakpoints)) {
     violations.push_back({optimize->tangent_scales ? "optimize.tangentScales" : "optimize.breakpoints",
@@ -228,6 +230,10 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
                           "applies to it)"});
   }
   if (optimize && geometry.path) out.optimize = optimize->values;
+  if (optimize && geometry.joint_path) {
+    timing_only("shapes a Cartesian path: a jointPath's blends are set by its blendTolerance (optimize.timing "
+                "applies to it)");
+  }
   const core::MotionSpec spec = motion_spec(motion);
   append(violations, check_motion(spec, motion, geometry, robot_spec, out.optimize ? &*out.optimize : nullptr));
   out.motion = spec;
@@ -240,6 +246,40 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
     auto move = joint_move_geometry(*geometry.joint_move, *out.robot);
     if (!move) return tl::unexpected(std::move(move.error()));
     out.geometry = std::move(*move);
+    return out;
+  }
+  if (geometry.joint_path) {
+    if (!out.robot) violations.push_back({"robot", "is required by a jointPath: the joints belong to a robot model"});
+    // A joint path is timed by its joints' limits; its tool goes where they take it.
+    const auto cartesian = [&](const char* name, bool given) {
+      if (given) {
+        violations.push_back({std::string("motion.") + name,
+                              "is a Cartesian limit; a jointPath is timed by its joints' limits (its tool goes "
+                              "where the joints take it): drop it"});
+      }
+    };
+    cartesian("maxSpeed", spec.max_speed.has_value());
+    cartesian("maxAcceleration", spec.max_acceleration.has_value());
+    cartesian("maxJerk", spec.max_jerk.has_value());
+    cartesian("maxAngularSpeed", spec.max_angular_speed.has_value());
+    cartesian("maxAngularAcceleration", spec.max_angular_acceleration.has_value());
+    // Its first waypoint is the start: where the robot is, when the request says where.
+    const auto& waypoints = geometry.joint_path->waypoints;
+    if (out.robot && robot_spec && !robot_spec->initial_joints.empty() && !waypoints.empty() &&
+        waypoints.front().positions.size() == robot_spec->initial_joints.size() && first) {
+      for (std::size_t j = 0; j < waypoints.front().positions.size(); ++j) {
+        const double d = std::abs(waypoints.front().positions[j] - robot_spec->initial_joints[j]);
+        if (!(d <= kSequenceJointTolerance)) {
+          violations.push_back(
+              {"jointPath.waypoints[0].positions[" + std::to_string(j) + "]",
+               "is " + core::number(d, 6) + " from robot.initialJoints[" + std::to_string(j) + "] (" +
+                   core::number(robot_spec->initial_joints[j]) + "): a jointPath starts where the robot is (within " +
+                   core::number(kSequenceJointTolerance) + "); leave initialJoints out, or start there"});
+        }
+      }
+    }
+    if (!violations.empty()) return tl::unexpected(std::move(violations));
+    out.geometry = *geometry.joint_path;
     return out;
   }
   // Following a Cartesian pose (a path or a straight line) takes six joints at least.
@@ -263,7 +303,7 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
 
 core::Expected<Request> admit_single(const RequestInput& input, const RobotCatalog& catalog, Use use,
                                      const StopAt& stop_at) {
-  const bool moves = input.geometry.joint_move || input.geometry.linear_move;
+  const bool moves = input.geometry.joint_move || input.geometry.linear_move || input.geometry.joint_path;
   if (!input.motion) {
     if (use == Use::kStream) {
       return tl::unexpected(Violations{
@@ -364,7 +404,7 @@ core::Expected<Request> admit_sequence(const RequestInput& input, const RobotCat
     robot = std::move(*r);
   }
   Request out;
-  bool any_path = false, any_line = false, first_rate_named = false;
+  bool any_path = false, any_line = false, any_joint_path = false, first_rate_named = false;
   for (std::size_t i = 0; i < input.sequence.size(); ++i) {
     const StepInput& step = input.sequence[i];
     const std::string field = "sequence[" + std::to_string(i) + "]";
@@ -381,22 +421,25 @@ core::Expected<Request> admit_sequence(const RequestInput& input, const RobotCat
     }
     any_path = any_path || step.geometry.path.has_value();
     any_line = any_line || step.geometry.linear_move.has_value();
+    any_joint_path = any_joint_path || step.geometry.joint_path.has_value();
     check_blend(step, i, input.sequence.size(), violations);
     check_rate(input, i, first_rate_named, violations);
     const int kinds = step.geometry.kinds();
     if (kinds != 1) {
-      violations.push_back({field, kinds == 0 ? "is empty: give a `path`, a `jointMove` or a `linearMove`"
-                                              : "give exactly one of `path`, `jointMove` and `linearMove`"});
+      violations.push_back({field, kinds == 0 ? "is empty: give a `path`, a `jointMove`, a `linearMove` or a `jointPath`"
+                                              : "give exactly one of `path`, `jointMove`, `linearMove` and `jointPath`"});
       continue;
     }
     const bool start_given = (step.geometry.joint_move && !step.geometry.joint_move->start.empty()) ||
-                             (step.geometry.linear_move && step.geometry.linear_move->start);
+                             (step.geometry.linear_move && step.geometry.linear_move->start) ||
+                             step.geometry.joint_path.has_value();  // its first waypoint
     // optimize applies to the paths; its timing to the lines (the shape optimisers are
     // checked for the whole sequence below).
     std::optional<OptimizeInput> optimize = step.geometry.joint_move ? std::nullopt : input.optimize;
-    if (optimize && step.geometry.linear_move) optimize->tangent_scales = optimize->breakpoints = false;
+    if (optimize && (step.geometry.linear_move || step.geometry.joint_path))
+      optimize->tangent_scales = optimize->breakpoints = false;
     auto admitted = admit_motion(step.geometry, motion, input.robot ? &*input.robot : nullptr, robot, optimize,
-                                 /*placeholder_start=*/i > 0 && !start_given);
+                                 /*placeholder_start=*/i > 0 && !start_given, /*first=*/i == 0);
     const std::vector<std::string> own_fields = step.motion ? given_fields(*step.motion) : std::vector<std::string>{};
     if (!admitted) {
       for (auto& v : admitted.error()) {
@@ -414,10 +457,11 @@ core::Expected<Request> admit_sequence(const RequestInput& input, const RobotCat
     out.sequence.push_back(Step{std::move(admitted->geometry), *admitted->motion, step.motion.has_value(), own_fields,
                                 start_given, step.blend_tolerance.value_or(0.0), {}});
   }
-  // optimize.timing times the paths and lines (a blended chain of lines included); the
-  // shape optimisers need a path.
-  if (input.optimize && !any_path && !any_line) {
-    violations.push_back({"optimize", "applies to the paths and lines of a sequence, and this one has neither"});
+  // optimize.timing times the paths, lines and joint paths (a blended chain of lines
+  // included); the shape optimisers need a path.
+  if (input.optimize && !any_path && !any_line && !any_joint_path) {
+    violations.push_back(
+        {"optimize", "applies to the paths, lines and joint paths of a sequence, and this one has none"});
   } else if (input.optimize && !any_path && (input.optimize->tangent_scales || input.optimize->breakpoints)) {
     violations.push_back({input.optimize->tangent_scales ? "optimize.tangentScales" : "optimize.breakpoints",
                           "shapes the paths of a sequence, and this one has none (optimize.timing times its lines)"});

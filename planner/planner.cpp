@@ -11,6 +11,7 @@
 #include "core/geometry/analysis.hpp"
 #include "core/motion/orientation.hpp"
 #include "core/robot/kinematics.hpp"
+#include "optim/timing/joint_path_jerk.hpp"
 #include "optim/timing/time_optimal_jerk.hpp"
 #include "planner/plan_detail.hpp"
 
@@ -151,6 +152,66 @@ Expected<core::MotionPlan> time_optimal_timing(const core::Path& path, const cor
   return plan;
 }
 
+// The timing of a joint path through waypoints (core/planning/joint_path.hpp) for `robot`
+// (its model's jerk limits defaulted by the caller where the limits time the motion): the
+// time-optimal sweep where optimize.timing.timeOptimal asks for it alone, else the
+// jerk-limited NLP warm-started from it (optim/timing/joint_path_jerk.hpp); a durationS
+// stretches either. The timing report where the limits time it (durationS 0).
+Expected<core::Trajectory> joint_path_trajectory(const core::JointPathSpec& spec, const core::MotionSpec& motion,
+                                                 const Robot& robot, bool jerk_limited, const Budget& budget,
+                                                 Clock::time_point deadline, OptimizerReports& reports) {
+  auto path = core::build_joint_path(robot.model, spec);
+  if (!path) return tl::unexpected(invalid(core::prefixed(std::move(path.error()), "jointPath.")));
+  const auto started = Clock::now();
+  TimingReport timing;
+  std::optional<core::JointPathPlan> plan;
+  if (jerk_limited) {
+    optim::JerkTimingOptions options;
+    options.time_budget_s = std::max(0.0, std::chrono::duration<double>(deadline - started).count());
+    options.stop = budget.stop;
+    core::JointPathOptions exact = optim::joint_path_jerk_exact_options();
+    exact.stop = budget.stop;
+    auto result = optim::plan_joint_path_jerk(robot.model, std::move(*path), motion, exact, options);
+    if (!result) {
+      if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+      return tl::unexpected(invalid(std::move(result.error())));
+    }
+    timing.jerk_limited = true;
+    timing.report = result->rounds.report;
+    timing.check_rate_hz = result->plan.check_rate_hz;
+    timing.worst_limit_usage = result->rounds.worst_sample_usage;
+    timing.refinements = result->rounds.refinements;
+    timing.duration_grid_error_s = result->rounds.duration_grid_error;
+    timing.report.objective_before = result->exact_duration_s;  // the sweep it started from
+    plan = std::move(result->plan);
+  } else {
+    core::JointPathOptions exact;
+    exact.stop = budget.stop;
+    auto result = core::plan_joint_path(robot.model, std::move(*path), motion, exact);
+    if (!result) {
+      if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+      return tl::unexpected(invalid(std::move(result.error())));
+    }
+    timing.binding = result->binding;
+    timing.report.status = optim::OptimizerStatus::kConverged;
+    timing.report.iterations = result->refinements + 1;
+    timing.check_rate_hz = result->check_rate_hz;
+    timing.worst_limit_usage = std::max(result->velocity_usage, result->acceleration_usage);
+    timing.refinements = result->refinements;
+    timing.duration_grid_error_s = result->duration_grid_error;
+    timing.report.objective_before = result->duration_s;
+    plan = std::move(*result);
+  }
+  observe(budget, jerk_limited ? "joint_path_jerk" : "joint_path", started);
+  if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+  if (motion.duration_s == 0.0) {
+    timing.report.seconds = seconds_since(started);
+    timing.report.objective_after = plan->duration_s;
+    reports.timing = std::move(timing);
+  }
+  return core::Trajectory(std::in_place_type<core::JointPathPlan>, std::move(*plan));
+}
+
 // The jerk bounds of `model`'s joints without max_jerk under core::jerk_bound's default.
 DefaultJerk default_jerk_of(const core::RobotModel& model) {
   DefaultJerk used;
@@ -187,7 +248,8 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
   const bool time_optimal = request.optimize && request.optimize->time_optimal;
   bool jerk_limited = request.optimize && request.optimize->jerk_limited;
   const bool joint = std::holds_alternative<core::JointMoveSpec>(request.geometry) ||
-                     std::holds_alternative<JointMoveToPose>(request.geometry);
+                     std::holds_alternative<JointMoveToPose>(request.geometry) ||
+                     std::holds_alternative<core::JointPathSpec>(request.geometry);
   // Within every limit the model gives: where the limits time the motion and the model has
   // jerk limits, a path or a line is timed jerk-limited and a joint move is a double S, for
   // PlanTrajectory, StreamSamples and Execute alike (live execution keeps the model's jerk
@@ -225,8 +287,11 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
   // The tool's angular limits are imposed where the motion is as fast as its limits allow:
   // the time-optimal sweep, a line's minimum time. Elsewhere they would be ignored: refused.
   const std::string angular_field = motion.max_angular_speed ? "motion.maxAngularSpeed" : "motion.maxAngularAcceleration";
-  const bool path_or_line = !std::holds_alternative<core::JointMoveSpec>(request.geometry) &&
-                            !std::holds_alternative<JointMoveToPose>(request.geometry);
+  const bool path_or_line = !joint;
+  if (const auto* waypoints = std::get_if<core::JointPathSpec>(&request.geometry)) {
+    // Jerk-limited unless the sweep alone is asked for (optimize.timing.timeOptimal).
+    return joint_path_trajectory(*waypoints, motion, *robot, !time_optimal || jerk_limited, budget, deadline, reports);
+  }
   if (angular && path_or_line) {
     const bool line = !std::holds_alternative<core::PathSpec>(request.geometry);
     std::string why;
@@ -343,7 +408,8 @@ core::CartesianLimits cartesian_limits(const core::MotionSpec& motion, bool tool
 }
 
 bool joint_geometry(const Geometry& geometry) {
-  return std::holds_alternative<core::JointMoveSpec>(geometry) || std::holds_alternative<JointMoveToPose>(geometry);
+  return std::holds_alternative<core::JointMoveSpec>(geometry) || std::holds_alternative<JointMoveToPose>(geometry) ||
+         std::holds_alternative<core::JointPathSpec>(geometry);
 }
 
 Expected<RobotPass> robot_pass(const core::Trajectory& trajectory, const Robot& robot,

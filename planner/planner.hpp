@@ -29,6 +29,7 @@
 #include "core/geometry/path.hpp"
 #include "core/motion/motion.hpp"
 #include "core/planning/joint_motion.hpp"
+#include "core/planning/joint_path.hpp"
 #include "core/planning/corner_blend.hpp"
 #include "core/planning/moves.hpp"
 #include "core/planning/time_optimal.hpp"
@@ -39,6 +40,11 @@
 #include "optim/tangent_scales/tangent_scales.hpp"
 
 namespace geotraj::planner {
+
+/// How far a given joint start (a jointMove's start in a sequence, a jointPath's first
+/// waypoint) may be from where the robot is (the previous step's end, robot.initialJoints)
+/// [rad or m], joint by joint.
+inline constexpr double kSequenceJointTolerance = 1e-6;
 
 /// What a plan does when its path starts away from the tool pose of the robot's initial
 /// joints (RobotSpec.approach).
@@ -103,7 +109,7 @@ struct LinearMoveToJoints {
 /// What a request plans: the key frames of a path, a joint move or a straight-line move,
 /// each move to joints or to a pose.
 using Geometry = std::variant<core::PathSpec, core::JointMoveSpec, core::LinearMoveSpec, JointMoveToPose,
-                              LinearMoveToJoints>;
+                              LinearMoveToJoints, core::JointPathSpec>;
 
 /// One step of a sequence (PlanRequest.sequence[i]), converted. Its errors are named
 /// `sequence[i].<field>`.

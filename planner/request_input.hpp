@@ -97,8 +97,12 @@ struct GeometryInput {
   std::optional<PathInput> path;  ///< present when given, readable or not
   std::optional<JointMoveInput> joint_move;
   std::optional<LinearMoveInput> linear_move;
+  std::optional<core::JointPathSpec> joint_path;  ///< PlanRequest.jointPath as given
 
-  int kinds() const { return int(path.has_value()) + int(joint_move.has_value()) + int(linear_move.has_value()); }
+  int kinds() const {
+    return int(path.has_value()) + int(joint_move.has_value()) + int(linear_move.has_value()) +
+           int(joint_path.has_value());
+  }
 };
 
 /// PlanRequest.optimize as given: the optimisers' options (their values checked by the

@@ -22,7 +22,6 @@ namespace {
 // ---------------------------------------------------------------------------------------
 // Sequences
 
-constexpr double kSequenceJointTolerance = 1e-6;  // [rad or m]: a given start must be the previous end
 
 // Violations of step i named from the request's root: the step's own fields under
 // `sequence[i].`, the request's motion (when the step has none of its own) and robot as
@@ -55,6 +54,7 @@ double rotation_angle(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) 
 std::string kind_of(const Geometry& g) {
   if (std::holds_alternative<core::PathSpec>(g)) return "path";
   if (std::holds_alternative<core::JointMoveSpec>(g) || std::holds_alternative<JointMoveToPose>(g)) return "jointMove";
+  if (std::holds_alternative<core::JointPathSpec>(g)) return "jointPath";
   return "linearMove";
 }
 
@@ -106,7 +106,26 @@ Expected<Geometry> started_at(const Step& step, std::size_t i, const StepEnd& en
                                          " rad): a step starts where the previous one ends; leave `start` out to "
                                          "take that"}});
   };
+  // A joint path's first waypoint is its start: there (and then exactly there).
+  const auto path_start = [&](core::JointPathSpec& path) -> std::optional<Error> {
+    if (path.waypoints.empty() || path.waypoints.front().positions.size() != static_cast<std::size_t>(end.q.size()))
+      return std::nullopt;  // build_joint_path names it
+    auto& first = path.waypoints.front().positions;
+    for (std::size_t j = 0; j < first.size(); ++j) {
+      const double d = std::abs(first[j] - end.q(static_cast<Eigen::Index>(j)));
+      if (!(d <= kSequenceJointTolerance)) {
+        return invalid(core::Violations{
+            {field + "jointPath.waypoints[0].positions[" + std::to_string(j) + "]",
+             "is " + core::number(d, 6) + " from joint " + std::to_string(j) + "'s value where sequence[" +
+                 std::to_string(i - 1) + "] ends (" + core::number(end.q(static_cast<Eigen::Index>(j))) +
+                 "): a step starts where the previous one ends"}});
+      }
+    }
+    first.assign(end.q.data(), end.q.data() + end.q.size());
+    return std::nullopt;
+  };
   std::optional<Error> error;
+  if (auto* m = std::get_if<core::JointPathSpec>(&g)) error = path_start(*m);
   if (auto* m = std::get_if<core::JointMoveSpec>(&g)) error = joint_start(m->start);
   if (auto* m = std::get_if<JointMoveToPose>(&g)) error = joint_start(m->start);
   if (auto* m = std::get_if<core::LinearMoveSpec>(&g)) error = pose_start(m->start);
@@ -140,6 +159,7 @@ double arc_length_of(const core::StepMotion& m) {
 core::StepMotion as_step(core::Trajectory&& t) {
   if (auto* m = std::get_if<core::PathMotion>(&t)) return core::StepMotion(std::move(*m));
   if (auto* m = std::get_if<core::JointMovePlan>(&t)) return core::StepMotion(std::move(*m));
+  if (auto* m = std::get_if<core::JointPathPlan>(&t)) return core::StepMotion(std::move(*m));
   return core::StepMotion(std::move(std::get<core::LinearMovePlan>(t)));
 }
 
@@ -164,11 +184,14 @@ Expected<core::BlendedChain> blended_chain(const Request& request, std::size_t f
                                      "'s: give the motion on " + named(first) + " only"}}));
     }
     Geometry g = step.geometry;
-    if (std::holds_alternative<core::JointMoveSpec>(g) || std::holds_alternative<JointMoveToPose>(g)) {
+    if (std::holds_alternative<core::JointMoveSpec>(g) || std::holds_alternative<JointMoveToPose>(g) ||
+        std::holds_alternative<core::JointPathSpec>(g)) {
+      const bool waypoints = std::holds_alternative<core::JointPathSpec>(g);
       return tl::unexpected(invalid(core::Violations{
           {named(k > first ? k - 1 : k) + ".blendTolerance",
-           "a joint move's corners are not blended (its tool does not follow a path): rest before and after it "
-           "(blendTolerance 0)"}}));
+           std::string(waypoints ? "a joint path's ends are" : "a joint move's corners are") +
+               " not blended with a Cartesian step (its tool does not follow a path): rest before and after it "
+               "(blendTolerance 0)"}}));
     }
     if (k > first || first > 0) {
       auto started = started_at(step, k, at, robot);
@@ -295,7 +318,8 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     }
     const bool path = std::holds_alternative<core::PathSpec>(sub.geometry);
     if ((path || std::holds_alternative<core::LinearMoveSpec>(sub.geometry) ||
-         std::holds_alternative<LinearMoveToJoints>(sub.geometry)) &&
+         std::holds_alternative<LinearMoveToJoints>(sub.geometry) ||
+         std::holds_alternative<core::JointPathSpec>(sub.geometry)) &&
         last == i) {
       sub.optimize = request.optimize;  // a line takes its timing flags only
     }

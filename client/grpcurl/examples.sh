@@ -28,6 +28,9 @@
 #                             in 1.5 s, a joint move to above the place pose, down a line
 #   sequence_blended_ur5.json PlanRequest with a sequence of three lines whose two corners are
 #                             blended within 2 cm: one motion without a rest at the corners
+#   plan_joint_path_panda.json PlanRequest with a jointPath: nine Panda waypoints of a pick and
+#                             place (as a sampling planner returns them) passed within 0.05 rad
+#                             without stopping, as fast as the joint limits allow (jerk-limited)
 #   plan_panda_path_c.json    PlanRequest: the thesis's path C on the Franka Panda (a URDF model),
 #                             the tool pointing down, as fast as the arm's limits allow at 1 kHz,
 #                             from its home by a joint move to the path's start (robot.approach)
@@ -71,7 +74,8 @@ call AnalyzePath "$here/analyze_demo_path_a.json"
 
 echo "== ListRobots"
 grpcurl -plaintext -d '{}' "$address" geotraj.v1.TrajectoryService/ListRobots
-for request in plan_pa10_path_c plan_panda_path_c joint_move_pa10 linear_move_ur5 sequence_ur5 sequence_blended_ur5; do
+for request in plan_pa10_path_c plan_panda_path_c joint_move_pa10 linear_move_ur5 sequence_ur5 sequence_blended_ur5 \
+  plan_joint_path_panda; do
   call PlanTrajectory "$here/$request.json"
 done
 

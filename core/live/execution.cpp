@@ -36,11 +36,12 @@ double tangential(const TrajectorySample& x) {
 }
 
 // The Cartesian limits a step's plan keeps, and so live execution with it: a path's and a
-// straight line's own motion spec; none for a joint move (its tool goes where the joints
+// straight line's own motion spec; none for a joint move or path (its tool goes where the joints
 // take it, at whatever Cartesian rates their limits give).
 const MotionSpec* kept_cartesian(const PathMotion& m) { return &m.timing.spec; }
 const MotionSpec* kept_cartesian(const LinearMovePlan& m) { return &m.spec; }
 const MotionSpec* kept_cartesian(const JointMovePlan&) { return nullptr; }
+const MotionSpec* kept_cartesian(const JointPathPlan&) { return nullptr; }
 const MotionSpec* kept_cartesian(const SequenceMotion&) { return nullptr; }  // per step, below
 const MotionSpec* kept_cartesian(const StepMotion& m) {
   return std::visit([](const auto& step) { return kept_cartesian(step); }, m);

@@ -16,14 +16,16 @@ Overloaded(F...) -> Overloaded<F...>;
 std::size_t sample_count(const StepMotion& step) {
   return std::visit(Overloaded{[](const PathMotion& m) { return m.timing.sample_count; },
                                [](const JointMovePlan& m) { return m.sample_count; },
-                               [](const LinearMovePlan& m) { return m.sample_count; }},
+                               [](const LinearMovePlan& m) { return m.sample_count; },
+                               [](const JointPathPlan& m) { return m.sample_count; }},
                     step);
 }
 
 double duration(const StepMotion& step) {
   return std::visit(Overloaded{[](const PathMotion& m) { return m.timing.duration_s; },
                                [](const JointMovePlan& m) { return m.duration_s; },
-                               [](const LinearMovePlan& m) { return m.duration_s; }},
+                               [](const LinearMovePlan& m) { return m.duration_s; },
+                               [](const JointPathPlan& m) { return m.duration_s; }},
                     step);
 }
 
@@ -31,7 +33,8 @@ std::size_t sample_count(const Trajectory& trajectory) {
   return std::visit(Overloaded{[](const PathMotion& m) { return m.timing.sample_count; },
                                [](const JointMovePlan& m) { return m.sample_count; },
                                [](const LinearMovePlan& m) { return m.sample_count; },
-                               [](const SequenceMotion& m) { return m.sample_count; }},
+                               [](const SequenceMotion& m) { return m.sample_count; },
+                               [](const JointPathPlan& m) { return m.sample_count; }},
                     trajectory);
 }
 
@@ -39,14 +42,16 @@ double duration(const Trajectory& trajectory) {
   return std::visit(Overloaded{[](const PathMotion& m) { return m.timing.duration_s; },
                                [](const JointMovePlan& m) { return m.duration_s; },
                                [](const LinearMovePlan& m) { return m.duration_s; },
-                               [](const SequenceMotion& m) { return m.duration_s; }},
+                               [](const SequenceMotion& m) { return m.duration_s; },
+                               [](const JointPathPlan& m) { return m.duration_s; }},
                     trajectory);
 }
 
 const MotionSpec& motion_spec(const StepMotion& step) {
   return std::visit(Overloaded{[](const PathMotion& m) -> const MotionSpec& { return m.timing.spec; },
                                [](const JointMovePlan& m) -> const MotionSpec& { return m.spec; },
-                               [](const LinearMovePlan& m) -> const MotionSpec& { return m.spec; }},
+                               [](const LinearMovePlan& m) -> const MotionSpec& { return m.spec; },
+                               [](const JointPathPlan& m) -> const MotionSpec& { return m.spec; }},
                     step);
 }
 
@@ -54,7 +59,8 @@ const MotionSpec& motion_spec(const Trajectory& trajectory) {
   return std::visit(Overloaded{[](const PathMotion& m) -> const MotionSpec& { return m.timing.spec; },
                                [](const JointMovePlan& m) -> const MotionSpec& { return m.spec; },
                                [](const LinearMovePlan& m) -> const MotionSpec& { return m.spec; },
-                               [](const SequenceMotion& m) -> const MotionSpec& { return motion_spec(m.steps.front()); }},
+                               [](const SequenceMotion& m) -> const MotionSpec& { return motion_spec(m.steps.front()); },
+                               [](const JointPathPlan& m) -> const MotionSpec& { return m.spec; }},
                     trajectory);
 }
 
@@ -82,10 +88,11 @@ StepSampler::StepSampler(StepRef step, const RobotModel* robot, const JointVecto
     : step_(step) {
   std::visit(Overloaded{[&](const PathMotion* m) { path_sampler_.emplace(m->path, m->timing); },
                         [&](const JointMovePlan* m) { joint_sampler_.emplace(*m); },
-                        [&](const LinearMovePlan* m) { linear_sampler_.emplace(*m); }},
+                        [&](const LinearMovePlan* m) { linear_sampler_.emplace(*m); },
+                        [&](const JointPathPlan* m) { joint_path_sampler_.emplace(*m); }},
              step);
-  // Joint moves carry their joints; the others need the IK at every sample.
-  if (robot != nullptr && !joint_sampler_) tracker_.emplace(*robot, seed, options);
+  // Joint moves and joint paths carry their joints; the others need the IK at every sample.
+  if (robot != nullptr && !joint_sampler_ && !joint_path_sampler_) tracker_.emplace(*robot, seed, options);
   if (tracker_ && path_sampler_) {
     const PathMotion& m = *std::get<const PathMotion*>(step_);
     path_between_.emplace(m.path, m.orientation, *path_sampler_);
@@ -112,7 +119,9 @@ CartesianState move_state(const MoveSample& ms) {
 bool StepSampler::next(TrajectorySample& out) {
   if (path_sampler_) {
     if (!path_sampler_->next(motion_sample_)) return false;
-  } else if (!(joint_sampler_ ? joint_sampler_->next(move_sample_) : linear_sampler_->next(move_sample_))) {
+  } else if (!(joint_sampler_        ? joint_sampler_->next(move_sample_)
+                : joint_path_sampler_ ? joint_path_sampler_->next(move_sample_)
+                                      : linear_sampler_->next(move_sample_))) {
     return false;
   }
   finish(out);
@@ -124,6 +133,8 @@ void StepSampler::at(double t, TrajectorySample& out) {
     path_sampler_->at(t, motion_sample_);
   } else if (joint_sampler_) {
     joint_sampler_->at(t, move_sample_);
+  } else if (joint_path_sampler_) {
+    joint_path_sampler_->at(t, move_sample_);
   } else {
     linear_sampler_->at(t, move_sample_);
   }
@@ -153,7 +164,7 @@ void StepSampler::finish(TrajectorySample& out) {
     out.q_WT = ms.q_WT;
   }
   out.has_joints = false;
-  if (joint_sampler_ && move_sample_.has_joints) {
+  if ((joint_sampler_ || joint_path_sampler_) && move_sample_.has_joints) {
     out.has_joints = true;
     JointSample& j = out.joints;
     j.q = move_sample_.q;

@@ -15,6 +15,7 @@
 #include "core/motion/motion.hpp"
 #include "core/motion/orientation.hpp"
 #include "core/planning/joint_motion.hpp"
+#include "core/planning/joint_path.hpp"
 #include "core/planning/moves.hpp"
 #include "core/robot/robot.hpp"
 
@@ -27,8 +28,9 @@ struct PathMotion {
   OrientationPlan orientation;
 };
 
-/// One rest-to-rest motion: along a path, a joint move or a straight-line move.
-using StepMotion = std::variant<PathMotion, JointMovePlan, LinearMovePlan>;
+/// One rest-to-rest motion: along a path, a joint move, a straight-line move or a joint path
+/// through waypoints.
+using StepMotion = std::variant<PathMotion, JointMovePlan, LinearMovePlan, JointPathPlan>;
 
 /// Motions executed one after the other, the robot at rest at each junction (a sequence).
 /// Sample times stay on one grid of the cycle rate: step k starts at the first grid time at
@@ -53,7 +55,7 @@ struct SequenceMotion {
 SequenceMotion make_sequence(std::vector<StepMotion> steps, double rate_hz);
 
 /// Any planned trajectory.
-using Trajectory = std::variant<PathMotion, JointMovePlan, LinearMovePlan, SequenceMotion>;
+using Trajectory = std::variant<PathMotion, JointMovePlan, LinearMovePlan, SequenceMotion, JointPathPlan>;
 
 /// The motion spec a trajectory was timed with: its own, or its first step's (the steps of a
 /// sequence share one cycle rate; each holds the request's motion unless it has its own).
@@ -83,7 +85,7 @@ struct TrajectorySample {
 };
 
 /// A view of one step motion, wherever it is held.
-using StepRef = std::variant<const PathMotion*, const JointMovePlan*, const LinearMovePlan*>;
+using StepRef = std::variant<const PathMotion*, const JointMovePlan*, const LinearMovePlan*, const JointPathPlan*>;
 
 /// Samples one step motion (see TrajectorySampler); a sequence runs one per step.
 class StepSampler {
@@ -104,6 +106,7 @@ class StepSampler {
   std::optional<MotionSampler> path_sampler_;
   std::optional<JointMoveSampler> joint_sampler_;
   std::optional<LinearMoveSampler> linear_sampler_;
+  std::optional<JointPathSampler> joint_path_sampler_;
   std::optional<JointTracker> tracker_;
   std::optional<PathMotionSource> path_between_;  // with the tracker: the path between samples
   MotionSample motion_sample_;
@@ -114,7 +117,7 @@ class StepSampler {
 /// Samples a trajectory in time order (no heap allocation per sample; a sequence allocates
 /// once per step). With `robot`, path motions and linear moves go through the JointTracker
 /// (IK at every sample, seeded by `seed`, and in a sequence by the joints at the end of the
-/// previous step); joint moves carry their joints and need no IK. Successive orientation
+/// previous step); joint moves and joint paths carry their joints and need no IK. Successive orientation
 /// quaternions are kept in one hemisphere (q and -q are one rotation), so the stream of
 /// quaternions is continuous. `trajectory` and `robot` must outlive the sampler.
 class TrajectorySampler {

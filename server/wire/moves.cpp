@@ -1,4 +1,5 @@
-// PlanRequest.jointMove and linearMove as given (planner::JointMoveInput, LinearMoveInput).
+// PlanRequest.jointMove, linearMove and jointPath as given (planner::JointMoveInput,
+// LinearMoveInput, core::JointPathSpec: core checks the joint path's values).
 #include <utility>
 
 #include "server/wire/convert.hpp"
@@ -15,6 +16,19 @@ planner::JointMoveInput wire_detail::joint_move_input(const v1::JointMove& move,
   in.goal.assign(move.goal().begin(), move.goal().end());
   if (move.has_goal_pose()) in.goal_pose = pose_from_proto(move.goal_pose(), prefix + "jointMove.goalPose", out);
   return in;
+}
+
+core::JointPathSpec wire_detail::joint_path_input(const v1::JointPath& path) {
+  core::JointPathSpec spec;
+  spec.blend_tolerance = path.blend_tolerance();
+  spec.waypoints.reserve(static_cast<std::size_t>(path.waypoints_size()));
+  for (const v1::JointWaypoint& w : path.waypoints()) {
+    core::JointWaypoint waypoint;
+    waypoint.positions.assign(w.positions().begin(), w.positions().end());
+    waypoint.stop = w.stop();
+    spec.waypoints.push_back(std::move(waypoint));
+  }
+  return spec;
 }
 
 planner::LinearMoveInput wire_detail::linear_move_input(const v1::LinearMove& move) {

@@ -24,6 +24,7 @@ planner::RequestInput request_input_from_proto(const v1::PlanRequest& request, c
   }
   if (request.has_joint_move()) in.geometry.joint_move = joint_move_input(request.joint_move(), "", out);
   if (request.has_linear_move()) in.geometry.linear_move = linear_move_input(request.linear_move());
+  if (request.has_joint_path()) in.geometry.joint_path = joint_path_input(request.joint_path());
   if (request.has_motion()) in.motion = motion_input(request.motion(), "motion", out);
   if (request.has_robot()) in.robot = robot_spec_from_proto(request.robot(), out);
   if (request.has_optimize()) in.optimize = optimize_input(request, limits, out);

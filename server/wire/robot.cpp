@@ -300,7 +300,9 @@ std::string describe(const core::LimitEvent& e) {
       return joint + " acceleration " + core::number(e.value, 6) + " exceeds maxAcceleration " + core::number(e.limit, 6) + where;
     case core::LimitKind::kJerk:
       return joint + " jerk " + core::number(e.value, 6) + " (the change of its acceleration over the sample step) exceeds maxJerk " +
-             core::number(e.limit, 6) + where + ": an acceleration step (a trapezoidal profile); MOTION_PROFILE_S_CURVE or durationS 0 keeps the jerk limits";
+             core::number(e.limit, 6) + where +
+             ": an acceleration step (a trapezoidal profile, or the time-optimal sweep that optimize.timing.timeOptimal "
+             "asks for alone); MOTION_PROFILE_S_CURVE, durationS 0 or optimize.timing.jerkLimited keeps the jerk limits";
     case core::LimitKind::kIk:
       return "the inverse kinematics did not converge" + where + " (position residual " + core::number(e.value, 6) +
              " m): the pose is out of reach or at a singularity";

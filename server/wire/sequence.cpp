@@ -24,6 +24,7 @@ void wire_detail::sequence_input(const v1::PlanRequest& request, const ServiceLi
     if (step.has_path()) s.geometry.path = path_input(step.path(), limits);
     if (step.has_joint_move()) s.geometry.joint_move = joint_move_input(step.joint_move(), prefix, in.violations);
     if (step.has_linear_move()) s.geometry.linear_move = linear_move_input(step.linear_move());
+    if (step.has_joint_path()) s.geometry.joint_path = joint_path_input(step.joint_path());
     if (step.has_motion()) s.motion = motion_input(step.motion(), prefix + "motion", in.violations);
     if (step.has_blend_tolerance()) s.blend_tolerance = step.blend_tolerance();
     in.sequence.push_back(std::move(s));

@@ -62,6 +62,7 @@ planner::MotionInput motion_input(const v1::MotionSpec& motion, const std::strin
 // PlanRequest.jointMove and linearMove as given; poses that cannot be read into `out` under
 // `prefix` ("" or "sequence[1].").
 planner::JointMoveInput joint_move_input(const v1::JointMove& move, const std::string& prefix, core::Violations& out);
+core::JointPathSpec joint_path_input(const v1::JointPath& path);
 planner::LinearMoveInput linear_move_input(const v1::LinearMove& move);
 
 // PlanRequest.optimize as given: the budget within the server's limit, the optimisers'

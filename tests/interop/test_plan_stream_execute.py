@@ -7,7 +7,7 @@ Cases: every request file under --requests (client/grpcurl/*.json) that parses a
 PlanRequest and has a motion, in two modes: "fixed" (a durationS: the file's own, or
 FIXED_DURATION_S's where the file has durationS 0) and "fastest" (durationS 0, as fast as
 the limits allow; only where a robot is given). Beside the files, the move kinds they do
-not hold, built as test_python_moves.py builds them. Today's list (29 cases):
+not hold, built as test_python_moves.py builds them. Today's list (31 cases):
   analyze_demo_path_a.json, plan_demo_path_a/b/c.json   path, no robot    fixed 10 s
   plan_pa10_path_c.json (reportOnly)                     path, PA-10       fixed 10 s, fastest
   plan_pa10_path_c.json, durationS 20                    path, PA-10       fixed 20 s (the file's
@@ -19,6 +19,8 @@ not hold, built as test_python_moves.py builds them. Today's list (29 cases):
                                                                            fixed 8 s, fastest
   plan_panda_path_c.json, robot.approach linear          path + approach linear     fixed 8 s, fastest
   joint_move_pa10.json                                   jointMove to joints        fixed 3 s, fastest
+  plan_joint_path_panda.json                             jointPath, nine Panda waypoints
+                                                                           fixed 4 s, fastest
   jointMove to a pose (UR5)      sequence_ur5.json's third step's pose              fixed 2 s, fastest
   linear_move_ur5.json                                   linearMove to a pose       fixed 2 s, fastest
   linearMove to joints (UR5)     linear_move_ur5.json with goalJoints               fixed 2 s, fastest

@@ -447,7 +447,7 @@ TEST(Urdf, HostileDocumentsAreRefusedBeforeTheParsers) {
       << "well-formed UTF-8 is fine";
 }
 
-// --- bounds before the parsers (issue 28) ------------------------------------------------
+// --- bounds before the parsers ------------------------------------------------------------
 
 core::Violations refused(const std::string& text) {
   auto m = planner::robot_from_urdf(text);

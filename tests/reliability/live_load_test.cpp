@@ -1,4 +1,4 @@
-// Live calls do not starve the server (issue 28, item 5): with 64 or 200 Jogs at 10 kHz
+// Live calls do not starve the server: with 64 or 200 Jogs at 10 kHz
 // asked for at once, health checks on the gRPC port answer within their 1 s deadline and
 // another robot's 250 Hz Jog keeps its cadence. The server makes set points on its pacing
 // threads (not gRPC's) and admits live calls within --max-live-rate-hz and a --max-streams

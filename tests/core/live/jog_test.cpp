@@ -250,7 +250,7 @@ INSTANTIATE_TEST_SUITE_P(BuiltinArms, JogLimits,
 // ---------------------------------------------------------------------------------------
 // Joint jogging
 
-// Regression (issue 28): a velocityScale of 5e-324 made every joint's jog speed 0, and an
+// Regression: a velocityScale of 5e-324 made every joint's jog speed 0, and an
 // acceleration of 1e308 an infinite jerk bound (over jerkRampS): the jogger's check aborted the
 // server. validate_jog_limits names them first; at the ends of the limits' range it jogs.
 TEST(Jog, DerivedBoundsAreValidatedAndTheRangesEndsJog) {

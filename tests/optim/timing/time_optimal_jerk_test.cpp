@@ -558,7 +558,7 @@ TEST(JerkTiming, ImpliedRowIsTheDominatedJoint) {
   EXPECT_GT(worst, 0.99);  // joint 1's limit binds
 }
 
-// Regression (issue 28): with a Cartesian maxJerk of 1e-10 m/s^3 the jerk-limited motion of
+// Regression: with a Cartesian maxJerk of 1e-10 m/s^3 the jerk-limited motion of
 // the PA-10 along demo path C lasts hours, and the sample check of its every sample ran on,
 // deaf to the call's stop token, 22 s past a 2 s deadline. The token requested while it
 // plans (as gRPC does at the deadline) now ends it with `motion` "stopped", not a plan. The

@@ -1,4 +1,4 @@
-// Extreme values through the real service (issue 28, items 3 and 6): every numeric field of
+// Extreme values through the real service: every numeric field of
 // the live calls' first messages (JogStart, ExecuteOptions), of the robot (RobotSpec: its
 // model's limits, links, home and poses, jointLimits, scales, tolerances, initialJoints) and
 // of a URDF's <limit velocity> and <geotraj> block, each set to 0, -0, 5e-324, 1e-300, 1e308,

@@ -18,6 +18,7 @@
 #include <gmock/gmock.h>
 
 #include "tests/server/support/file_capture.hpp"
+#include "tests/server/support/live_client.hpp"
 #include "tests/server/support/production_support.hpp"
 
 namespace geotraj::testing {
@@ -27,48 +28,6 @@ using ::testing::HasSubstr;
 
 using Stream = grpc::ClientReaderWriter<v1::ExecuteRequest, v1::SampleBatch>;
 using JogStream = grpc::ClientReaderWriter<v1::JogRequest, v1::SampleBatch>;
-
-// What a live call streamed and how it ended.
-struct LiveRun {
-  grpc::Status status;
-  std::string reason;  // the trailer geotraj-stop-reason
-  std::vector<v1::Sample> samples;
-  v1::LiveStatus last;
-  v1::LiveStatus first;  // the first batch's
-};
-
-std::string trailer(const grpc::ClientContext& context, const std::string& key) {
-  const auto& trailers = context.GetServerTrailingMetadata();
-  const auto found = trailers.find(key);
-  return found == trailers.end() ? "" : std::string(found->second.data(), found->second.size());
-}
-
-// Runs a live call: writes `first`, then on each batch calls `on_batch` (which may write);
-// a heartbeat follows every batch unless `heartbeats` is false.
-template <class Request>
-LiveRun run_live(std::unique_ptr<grpc::ClientReaderWriter<Request, v1::SampleBatch>> stream, grpc::ClientContext& context,
-                 const Request& first,
-                 const std::function<void(grpc::ClientReaderWriter<Request, v1::SampleBatch>&, const LiveRun&)>& on_batch,
-                 bool heartbeats = true) {
-  LiveRun run;
-  stream->Write(first);
-  v1::SampleBatch batch;
-  while (stream->Read(&batch)) {
-    if (run.samples.empty()) run.first = batch.live();
-    for (const auto& s : batch.samples()) run.samples.push_back(s);
-    run.last = batch.live();
-    if (on_batch) on_batch(*stream, run);
-    if (heartbeats) {
-      Request beat;
-      beat.mutable_heartbeat();
-      stream->Write(beat);
-    }
-  }
-  stream->WritesDone();
-  run.status = stream->Finish();
-  run.reason = trailer(context, "geotraj-stop-reason");
-  return run;
-}
 
 v1::ExecuteRequest panda_plan(double deadman_s = 2.0) {
   v1::ExecuteRequest first;
@@ -246,32 +205,16 @@ TEST_F(Live, AStopEndsOnThePathAtRest) {
 }
 
 TEST_F(Live, OverridePauseAndResume) {
-  int step = 0;
-  double paused_at = 0.0;
   std::vector<v1::LiveState> states;
+  PauseResume script(/*pause_at=*/1.2, /*hold_s=*/0.3, /*override_at=*/0.6, /*override_percent=*/50.0);
   const auto run = execute(panda_plan(), [&](Stream& stream, const LiveRun& r) {
     states.push_back(r.last.state());
-    const double t = r.samples.back().t();
-    v1::ExecuteRequest c;
-    if (step == 0 && t >= 0.6) {
-      c.set_speed_override(50.0);
-    } else if (step == 1 && t >= 1.2) {
-      c.mutable_pause();
-    } else if (step == 2 && r.last.state() == v1::LIVE_STATE_PAUSED) {
-      paused_at = t;
-      ++step;
-      return;
-    } else if (step == 3 && t >= paused_at + 0.3) {
-      c.mutable_resume();
-    } else {
-      return;
-    }
-    ++step;
-    stream.Write(c);
+    script(stream, r);
   });
+  const double paused_at = script.paused_at();
   ASSERT_TRUE(run.status.ok()) << run.status.error_message();
   EXPECT_EQ(run.reason, "completed");
-  EXPECT_EQ(step, 4);
+  EXPECT_TRUE(script.resumed());
   EXPECT_THAT(states, ::testing::IsSupersetOf({v1::LIVE_STATE_RUNNING, v1::LIVE_STATE_PAUSING, v1::LIVE_STATE_PAUSED}));
   // Held while paused: one pose, at rest.
   const v1::Sample* held = nullptr;
@@ -350,13 +293,14 @@ TEST_F(Live, BadMessagesNameTheirField) {
 }
 
 TEST_F(Live, ADeadlineBringsTheMotionToRestBeforeIt) {
-  // The PA-10's joint move (planned in milliseconds even under the sanitizers) at half speed
-  // lasts about 4.6 s: the 1.5 s deadline falls mid-motion.
+  // The PA-10's joint move (planned in milliseconds, and well within a second under
+  // ThreadSanitizer on a loaded machine) at a tenth of its speed lasts about 23 s: the 6 s
+  // deadline falls mid-motion, long after the first set points.
   v1::ExecuteRequest first;
   *first.mutable_plan() = example<v1::PlanRequest>("joint_move_pa10.json");
   first.mutable_plan()->mutable_motion()->set_cycle_rate_hz(250.0);
-  first.mutable_options()->set_speed_override(50.0);
-  const auto run = execute(first, nullptr, true, /*deadline_s=*/1.5);
+  first.mutable_options()->set_speed_override(10.0);
+  const auto run = execute(first, nullptr, true, /*deadline_s=*/6.0);
   EXPECT_EQ(run.status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED);
   EXPECT_EQ(run.reason, "deadline");
   expect_final_at_rest(run);

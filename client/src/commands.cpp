@@ -19,7 +19,9 @@
 
 #include "geotraj/v1/geotraj.grpc.pb.h"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "planner/robots.hpp"
 #include "report.hpp"
+#include "waypoints.hpp"
 
 namespace geotraj::cli {
 
@@ -65,6 +67,41 @@ std::vector<v1::PathSpec*> paths_of(v1::PlanRequest& request) {
 }
 
 }  // namespace
+
+bool read_plan_request(const CallOptions& options, v1::PlanRequest& request) {
+  const OptimizeFlags& flags = options.optimize;
+  if (options.input.empty()) {
+    request.mutable_motion()->set_duration_s(0.0);  // a request made of the flags
+  } else if (!read_request(options.input, request)) {
+    return false;
+  }
+  if (!flags.robot.empty()) request.mutable_robot()->set_name(flags.robot);
+  if (flags.rate_hz > 0.0) request.mutable_motion()->set_cycle_rate_hz(flags.rate_hz);
+  if (!flags.waypoints.empty()) {
+    WaypointFile file;
+    std::string error;
+    if (!read_waypoints(flags.waypoints, file, error)) {
+      std::cerr << "geotraj: --waypoints: " << error << '\n';
+      return false;
+    }
+    // The joints in the model's order, where the CLI knows the model (a built-in one).
+    std::vector<std::string> names;
+    if (const auto* model = planner::find_builtin_robot(request.robot().name()); model && request.has_robot()) {
+      for (const auto& joint : model->joints) names.push_back(joint.name);
+    }
+    if (!set_joint_path(file, names, flags.blend_tolerance, request, error)) {
+      std::cerr << "geotraj: --waypoints: " << error << '\n';
+      return false;
+    }
+  } else if (flags.blend_tolerance >= 0.0) {
+    if (!request.has_joint_path()) {
+      std::cerr << "geotraj: --blend-tolerance sets a jointPath's: the request has none (give --waypoints)\n";
+      return false;
+    }
+    request.mutable_joint_path()->set_blend_tolerance(flags.blend_tolerance);
+  }
+  return apply_flags(flags, request);
+}
 
 bool apply_flags(const OptimizeFlags& flags, v1::PlanRequest& request) {
   auto enum_value = [](const std::string& name, const std::string& prefix,
@@ -172,9 +209,10 @@ int answer(const CallOptions& options, const grpc::Status& status, const Respons
 template <class Request, class Response, class Call>
 int run(const CallOptions& options, Call call) {
   Request request;
-  if (!read_request(options.input, request)) return 2;
   if constexpr (std::is_same_v<Request, v1::PlanRequest>) {
-    if (!apply_flags(options.optimize, request)) return 2;
+    if (!read_plan_request(options, request)) return 2;
+  } else if (!read_request(options.input, request)) {
+    return 2;
   }
   grpc::ClientContext context;
   set_deadline(context, options.unary_timeout_s());
@@ -207,7 +245,7 @@ int run_analyze(const Connection& connection, const CallOptions& options) {
 
 int run_stream(const Connection& connection, const CallOptions& options) {
   v1::PlanRequest request;
-  if (!read_request(options.input, request) || !apply_flags(options.optimize, request)) return 2;
+  if (!read_plan_request(options, request)) return 2;
   auto stub = v1::TrajectoryService::NewStub(connection.channel);
   // The expected count, for the progress bar (a plan costs far less than its stream).
   std::uint64_t expected = 0;

@@ -26,6 +26,11 @@ struct OptimizeFlags {
   std::optional<double> velocity_scale;      ///< robot.velocityScale; absent: the request's
   std::optional<double> acceleration_scale;  ///< robot.accelerationScale; absent: the request's
   std::string approach;  ///< robot.approach (joint, linear); empty: the request's
+  /// --waypoints: joint waypoints (waypoints.hpp) as the request's jointPath; empty: none.
+  std::string waypoints;
+  double blend_tolerance = -1.0;  ///< jointPath.blendTolerance [rad or m]; < 0: the request's
+  std::string robot;              ///< robot.name; empty: the request's
+  double rate_hz = 0.0;           ///< motion.cycleRateHz [Hz]; 0: the request's
 };
 
 /// What `fk` and `ik` flags write into their requests (over a request file's own).
@@ -89,6 +94,10 @@ bool read_request(const std::string& input, google::protobuf::Message& request);
 /// The `--optimize-*` flags (and the robot's scales and approach) written into the request;
 /// false, with a message, for an unknown objective name or a flag the request cannot take.
 bool apply_flags(const OptimizeFlags& flags, v1::PlanRequest& request);
+/// The PlanRequest of a subcommand: its file read (none given with --waypoints: a request
+/// with a motion timed by the limits, durationS 0), then its flags applied (--robot, --rate,
+/// --waypoints and --blend-tolerance first). false, with a message, when it cannot be.
+bool read_plan_request(const CallOptions& options, v1::PlanRequest& request);
 
 // Each returns the process exit code: 0 on success, 1 when the call failed, 2 when the
 // request could not be read.

@@ -280,9 +280,7 @@ int run_execute(const Connection& connection, const CallOptions& options) {
     return 2;
   }
   v1::ExecuteRequest first;
-  if (!read_request(options.input, *first.mutable_plan()) || !apply_flags(options.optimize, *first.mutable_plan())) {
-    return 2;
-  }
+  if (!read_plan_request(options, *first.mutable_plan())) return 2;
   auto* execute_options = first.mutable_options();
   if (flags.deadman_s) execute_options->set_deadman_s(*flags.deadman_s);
   if (flags.override_percent) execute_options->set_speed_override(*flags.override_percent);

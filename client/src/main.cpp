@@ -80,6 +80,19 @@ int main(int argc, char** argv) {
     sub->add_option("--acceleration-scale", options.optimize.acceleration_scale,
                     "fraction of the robot's joint acceleration and jerk limits to use, in (0, 1] "
                     "(robot.accelerationScale)");
+    sub->add_option("--waypoints", options.optimize.waypoints,
+                    "joint waypoints as the request's jointPath (without a request file, the request is made of the "
+                    "flags): MoveIt's JointTrajectory in JSON ({\"joint_names\": [...], \"points\": [{\"positions\": "
+                    "[...]}, ...]}, or a RobotTrajectory's joint_trajectory), a JSON array of arrays, or text with one "
+                    "waypoint per line (an optional first line of joint names); joints named are put in a built-in "
+                    "robot's order; - for stdin");
+    sub->add_option("--blend-tolerance", options.optimize.blend_tolerance,
+                    "the joint-space distance at which the joint path may pass an interior waypoint [rad or m] "
+                    "(jointPath.blendTolerance); 0: rest at each")
+        ->check(kFinite)->check(CLI::NonNegativeNumber);
+    sub->add_option("--robot", options.optimize.robot, "a built-in robot's name (robot.name; see `geotraj robots`)");
+    sub->add_option("--rate", options.optimize.rate_hz, "the cycle rate [Hz] (motion.cycleRateHz)")
+        ->check(kFinite)->check(CLI::PositiveNumber);
     sub->add_option("--approach", options.optimize.approach,
                     "a path that starts away from the robot: joint or linear, a minimum-time move there first "
                     "(robot.approach)")
@@ -207,6 +220,10 @@ int main(int argc, char** argv) {
   // fk and ik read a request file only when --request names one (their flags suffice).
   for (auto* sub : {fk, ik}) {
     if (sub->parsed() && sub->count("--request") == 0) options.input.clear();
+  }
+  // A joint path made of --waypoints and the flags needs no request file.
+  for (auto* sub : {plan, analyze, stream, plot, execute}) {
+    if (sub->parsed() && sub->count("request") == 0 && !options.optimize.waypoints.empty()) options.input.clear();
   }
   if (!token_file.empty()) {
     std::ifstream in(token_file);

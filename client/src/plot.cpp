@@ -194,7 +194,7 @@ std::string python_of(const PlotFlags& flags) {
 int run_plot(const Connection& connection, const CallOptions& options) {
   const PlotFlags& flags = options.plot;
   v1::PlanRequest request;
-  if (!read_request(options.input, request) || !apply_flags(options.optimize, request)) return 2;
+  if (!read_plan_request(options, request)) return 2;
 
   std::string module;
   const auto candidates = module_candidates(flags);

@@ -160,6 +160,56 @@ TEST(Cli, StreamOfARobotRequestHasJointColumns) {
   }
 }
 
+// The joint values of the last CSV row of a stream (columns q0..q6 after the 21 tool columns).
+std::vector<double> last_joints(const std::string& csv) {
+  std::stringstream out(csv);
+  std::vector<std::string> last;
+  for (std::string line; std::getline(out, line);) last = csv_fields(line);
+  std::vector<double> q;
+  for (std::size_t j = 21; j < 28 && j < last.size(); ++j) q.push_back(std::stod(last[j]));
+  return q;
+}
+
+TEST(Cli, WaypointsFromMoveItAreAJointPathInTheRobotsJointOrder) {
+  // A RobotTrajectory's joint_trajectory with the Panda's first two joints swapped.
+  const std::string trajectory = R"({"joint_trajectory": {"joint_names": ["panda_joint2", "panda_joint1",
+      "panda_joint3", "panda_joint4", "panda_joint5", "panda_joint6", "panda_joint7"],
+      "points": [{"positions": [-0.785, 0.0, 0.0, -2.356, 0.0, 1.571, 0.785], "time_from_start": {"sec": 0}},
+                 {"positions": [-0.45, 0.35, 0.1, -2.2, 0.05, 1.8, 1.1]},
+                 {"positions": [-0.1, 0.42, 0.12, -2.35, 0.02, 2.25, 1.2]}]}})";
+  const CliRun run = run_cli("stream --waypoints - --robot panda --blend-tolerance 0.05 --rate 100", false, trajectory);
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_EQ(last_joints(run.out), (std::vector<double>{0.42, -0.1, 0.12, -2.35, 0.02, 2.25, 1.2}));
+  // The same waypoints as text (a header of names, a comment, commas or spaces).
+  const std::string text = "panda_joint2 panda_joint1 panda_joint3 panda_joint4 panda_joint5 panda_joint6 panda_joint7\n"
+                           "# from the planner\n-0.785 0 0 -2.356 0 1.571 0.785\n-0.45, 0.35, 0.1, -2.2, 0.05, 1.8, 1.1\n"
+                           "-0.1 0.42 0.12 -2.35 0.02 2.25 1.2\n";
+  const CliRun plain = run_cli("stream --waypoints - --robot panda --blend-tolerance 0.05 --rate 100", false, text);
+  ASSERT_EQ(plain.exit_code, 0) << plain.out;
+  EXPECT_EQ(plain.out, run.out);
+  // A request file gives the rest (here its robot and motion; its path is replaced).
+  const CliRun planned = run_cli("plan --json --waypoints - --blend-tolerance 0 " + example_path("plan_joint_path_panda.json"),
+                                 false, trajectory);
+  ASSERT_EQ(planned.exit_code, 0) << planned.out;
+  EXPECT_GT(from_json<v1::PlanResponse>(planned.out).motion().duration_s(), 0.0);
+}
+
+TEST(Cli, WaypointsThatCannotBeReadAreNamed) {
+  CliRun run = run_cli("plan --waypoints - --robot panda", true, "a b\n1 2\n");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.out, HasSubstr("the waypoints name no joint 'panda_joint1' of the robot"));
+  run = run_cli("plan --waypoints - --robot panda", true, "1 2 3\n4 5\n");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.out, HasSubstr("waypoint 1 has 2 values, the first 3"));
+  run = run_cli("plan --waypoints - --robot panda", true, R"({"points": [{"velocities": [1]}]})");
+  EXPECT_EQ(run.exit_code, 2);
+  EXPECT_THAT(run.out, HasSubstr("points[0].positions is not an array of numbers"));
+  // Read, and refused by the service by field: 3 values for 7 joints.
+  run = run_cli("plan --waypoints - --robot panda", true, "[[0, 0, 0], [1, 1, 1]]");
+  EXPECT_EQ(run.exit_code, 1);
+  EXPECT_THAT(run.out, HasSubstr("jointPath.waypoints[0].positions"));
+}
+
 TEST(Cli, PlanWithAReportOnlyRobotPrintsTheJointTable) {
   // Path C in the thesis's 10 s is too fast for the PA-10; the example asks for the report.
   const CliRun run = run_cli("plan " + example_path("plan_pa10_path_c.json"));

@@ -144,6 +144,8 @@ void plan_each_iteration(benchmark::State& state,
     benchmark::DoNotOptimize(plan->duration_s);
   }
   count(state, plan->duration_s, [&](double t) { return at(*plan, t); });
+  state.counters["refinements"] = plan->refinements;
+  state.counters["grid_points"] = static_cast<double>(plan->grid_points);
 }
 
 // geotraj's time-optimal sweep (G2 blends; the sample check at 2 kHz included).

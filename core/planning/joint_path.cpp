@@ -108,7 +108,7 @@ double blend_peak_curvature(double c, double theta) {
   using V = Eigen::Vector2d;
   const V w = V::Zero(), d1(1.0, 0.0), d2(std::cos(theta), std::sin(theta));
   const auto P = blend_points<V>(w, d1, d2, c, 1.0);
-  constexpr int kPoints = 129;
+  constexpr int kPoints = 65;
   double peak = 0.0;
   V b, b1, b2, b3;
   for (int i = 0; i < kPoints; ++i) {
@@ -231,7 +231,8 @@ Expected<JointPath> build_joint_path(const RobotModel& robot, const JointPathSpe
       line.kind = JointPathSegment::Kind::kLine;
       line.sigma0 = sigma;
       line.sigma1 = sigma + (to - from);
-      line.a = w[k] + from * d[k];
+      line.a = from > 0.0 ? JointVector(w[k] + from * d[k]) : w[k];
+      line.b = to < L[k] ? JointVector(w[k] + to * d[k]) : w[k + 1];  // a waypoint exactly
       line.d = d[k];
       line.waypoint = origin[k];
       path.segments.push_back(std::move(line));
@@ -273,7 +274,8 @@ void evaluate(const JointPath& path, double sigma, JointPathPoint& out, std::siz
   const JointPathSegment& seg = path.segments[hint];
   out.segment = hint;
   if (seg.kind == JointPathSegment::Kind::kLine) {
-    out.q = seg.a + (sigma - seg.sigma0) * seg.d;
+    const double f = std::clamp((sigma - seg.sigma0) / (seg.sigma1 - seg.sigma0), 0.0, 1.0);
+    out.q = (1.0 - f) * seg.a + f * seg.b;
     out.q_s = seg.d;
     out.q_ss.setZero(n);
     out.q_sss.setZero(n);
@@ -357,6 +359,11 @@ std::optional<Violations> check_pass(const JointPathPlan& plan, double rate, con
   JointVector q_ddot, q_ddot_prev;
   double t_prev = 0.0;
   SampleCheck& check = out.check;
+  struct Worst {
+    double value = 0.0, limit = 0.0, t = 0.0, sigma = 0.0;
+    int order = 0;
+    Eigen::Index joint = -1;
+  } worst;
   for (std::size_t i = 0; i < count; ++i) {
     if (i % 256 == 0 && options.stop.stop_requested()) return Violations{{"motion", "stopped: the call was cancelled"}};
     const double t = grid_time(i, count, plan.duration_s, rate);
@@ -374,10 +381,8 @@ std::optional<Violations> check_pass(const JointPathPlan& plan, double rate, con
       const double r = value / limit;
       usage = std::max(usage, r);
       if (r > check.worst_usage) {
-        static constexpr const char* kKind[] = {"", " velocity ", " acceleration ", " jerk "};
         check.worst_usage = r;
-        check.worst = "joint " + std::to_string(j) + kKind[order] + number(value, 6) + " of " + number(limit, 6) +
-                      " at t = " + number(t, 6) + " s (sigma = " + number(x.s, 6) + ", " + number(rate, 6) + " Hz)";
+        worst = {value, limit, t, x.s, order, j};  // described once, after the pass
       }
       if (r > 1.0 + options.sample_tolerance) {
         check.broken = true;
@@ -396,6 +401,12 @@ std::optional<Violations> check_pass(const JointPathPlan& plan, double rate, con
     }
     q_ddot_prev = q_ddot;
     t_prev = t;
+  }
+  if (worst.joint >= 0) {
+    static constexpr const char* kKind[] = {"", " velocity ", " acceleration ", " jerk "};
+    check.worst = "joint " + std::to_string(worst.joint) + kKind[worst.order] + number(worst.value, 6) + " of " +
+                  number(worst.limit, 6) + " at t = " + number(worst.t, 6) + " s (sigma = " + number(worst.sigma, 6) +
+                  ", " + number(rate, 6) + " Hz)";
   }
   return std::nullopt;
 }

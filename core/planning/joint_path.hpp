@@ -83,8 +83,9 @@ struct JointPathSegment {
   enum class Kind { kLine, kBlend };
   Kind kind = Kind::kLine;
   double sigma0 = 0.0, sigma1 = 0.0;
-  /// kLine: q = a + (sigma - sigma0) d, |d| = 1.
-  JointVector a, d;
+  /// kLine: from a to b, q = (1 - f) a + f b with f = (sigma - sigma0) / (sigma1 - sigma0)
+  /// (a and b exactly at its ends), q_s = d = (b - a) / |b - a|.
+  JointVector a, b, d;
   /// kBlend: the control points P0..P5 and h = sigma1 - sigma0 = 5 c l.
   std::array<JointVector, 6> P;
   /// The requested waypoint the piece passes (blend) or starts from (line).
@@ -138,7 +139,7 @@ void evaluate(const JointPath& path, double sigma, JointPathPoint& out, std::siz
 
 /// Largest curvature [1/(rad or m)] of the quintic blend of shape c across a corner of angle
 /// theta in (0, pi) [rad], for l = 1 (it scales as 1 / l): the planar curve of the file
-/// comment, measured at 129 points of its half (it is symmetric).
+/// comment, measured at 65 points of its half (it is symmetric).
 double blend_peak_curvature(double c, double theta);
 
 /// Options of plan_joint_path.

@@ -19,7 +19,7 @@ build: deps
 	JOBS=$(JOBS) bash scripts/build.sh $(BUILD_DIR) $(CMAKE_FLAGS)
 
 test: build
-	cd $(BUILD_DIR) && { ctest --output-on-failure -j $(JOBS) || { bash $(CURDIR)/scripts/ctest-failures.sh .; exit 1; }; }
+	cd $(BUILD_DIR) && { ctest --output-on-failure -O ctest-output.log -j $(JOBS) || { bash $(CURDIR)/scripts/ctest-failures.sh .; exit 1; }; }
 
 demo: build
 	bash scripts/demo.sh $(BUILD_DIR)
@@ -40,7 +40,7 @@ sanitize: deps
 	cmake -S . -B $(ASAN_DIR) $(SANITIZE_CONFIG) $(CMAKE_FLAGS)
 	cmake --build $(ASAN_DIR) -j $(JOBS)
 	cd $(ASAN_DIR) && export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 && \
-	  { ctest --output-on-failure -j $(JOBS) -LE '^(slow|heavy|interop|deploy|web)$$' || { bash $(CURDIR)/scripts/ctest-failures.sh .; exit 1; }; }
+	  { ctest --output-on-failure -O ctest-output.log -j $(JOBS) -LE '^(slow|heavy|interop|deploy|web)$$' || { bash $(CURDIR)/scripts/ctest-failures.sh .; exit 1; }; }
 
 # The server's concurrency tests under ThreadSanitizer: every RPC at once, cancelled midway,
 # the worker pool, health watches, the acceptor, streams (docs/reliability.md). gRPC and
@@ -51,7 +51,7 @@ tsan: deps
 	cmake -S . -B $(TSAN_DIR) -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG=-g1 -DGEOTRAJ_TSAN=ON -DGEOTRAJ_BUILD_BENCH=OFF -DGEOTRAJ_NPM_TESTS=OFF $(CMAKE_FLAGS)
 	cmake --build $(TSAN_DIR) -j $(JOBS) --target $(TSAN_TARGETS)
 	cd $(TSAN_DIR) && export TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 ignore_noninstrumented_modules=1 suppressions=$(CURDIR)/tests/tsan.supp" && \
-	  { ctest --output-on-failure -j $(JOBS) -R '$(TSAN_TESTS)' || { bash $(CURDIR)/scripts/ctest-failures.sh .; exit 1; }; }
+	  { ctest --output-on-failure -O ctest-output.log -j $(JOBS) -R '$(TSAN_TESTS)' || { bash $(CURDIR)/scripts/ctest-failures.sh .; exit 1; }; }
 
 # libFuzzer targets (clang, ASan+UBSan, coverage) on the service's request parsing, validation
 # and planning: the regression inputs, then FUZZ_SECONDS per target, as many targets at once

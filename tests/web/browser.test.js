@@ -19,7 +19,11 @@
 // the family's local mode at path C's frame 1 draws 6 members x 2 branches on the circles of
 // radius 1/κ tangent to T at the frame, the backward branch leaving along -T, both branches
 // along -T at the cusp (frame 2), the forward one towards -N at an inflection, and lists a
-// value the server refuses.
+// value the server refuses; the Panda joint path of the start page fills the waypoint
+// editor, plans to the duration the API answers for its file, draws the tool's path and the
+// waypoints, replays the arm and passes every interior waypoint within the blend tolerance;
+// a waypoint value out of its joint's limits (and a negative tolerance) shows the server's
+// message at that input; removing a waypoint plans again as the API plans the file without it.
 //
 //   cd tests/web && PUPPETEER_SKIP_DOWNLOAD=1 npm ci && \
 //     GEOTRAJD=../../build/server/geotrajd GEOTRAJ_WEB_ROOT=../../build/share/geotraj/web npm test
@@ -197,7 +201,9 @@ function pageHelpers(pageOf, problems) {
     await input.evaluate((e) => e.select());
     await pageOf().keyboard.press('Backspace');
     await input.type(text);
-    assert.equal(await input.evaluate((e) => e.value), text, `${testid} after typing`);
+    // Read again: a re-render while typing (the robots' list arriving on a loaded machine)
+    // replaces the element, and the page carries the text being typed over to the new one.
+    assert.equal(await pageOf().$eval(sel(testid), (e) => e.value), text, `${testid} after typing`);
   }
   const dataValue = (testid) => pageOf().$eval(sel(testid), (e) => Number(e.dataset.value));
   const signature = () => pageOf().$eval(sel('view3d'), (e) => e.dataset.curveSignature || '');
@@ -209,6 +215,28 @@ function pageHelpers(pageOf, problems) {
     else await pageOf().screenshot({ path: file, fullPage });
     if (FIGURES && figure) fs.copyFileSync(file, path.join(FIGURES, `ui_${name}.png`));
   }
+  // The view's WebGL canvas read back: the fraction of its pixels drawn (not the white
+  // background), and the count of pixels in the transitions' pink (#e91e63: red, little
+  // green, blue well above green; the red of the tool and the T arrows has blue and green
+  // alike, viridis is never this red).
+  const canvasPixels = () => pageOf().$eval(`${sel('view3d')} canvas`, (canvas) => {
+    const copy = document.createElement('canvas');
+    copy.width = canvas.width;
+    copy.height = canvas.height;
+    const ctx = copy.getContext('2d');
+    ctx.drawImage(canvas, 0, 0);
+    const { data } = ctx.getImageData(0, 0, copy.width, copy.height);
+    let drawn = 0;
+    let pink = 0;
+    for (let i = 0; i < data.length; i += 4) {
+      if (data[i] < 240 || data[i + 1] < 240 || data[i + 2] < 240) ++drawn;
+      if (data[i] > 190 && data[i + 1] < 80 && data[i + 2] - data[i + 1] > 35) ++pink;
+    }
+    return { drawn: drawn / (data.length / 4), pink };
+  });
+  // The server's messages shown in the editor, by the field they stand at.
+  const shownErrors = () => pageOf().$$eval(`${sel('editor')} [data-error-for]`, (l) => l
+    .filter((e) => e.textContent).map((e) => `${e.dataset.errorFor}: ${e.textContent}`));
   async function seek(t) {
     await pageOf().$eval(sel('replay-slider'), (s, value) => {
       s.value = String(value);
@@ -226,7 +254,19 @@ function pageHelpers(pageOf, problems) {
     assert.equal(await settled(n), 'ready');
     await waitFor('robots', () => document.querySelector('[data-testid="robot-name"]')?.options.length > 1);
   }
-  return { waitFor, plans, settled, streamed, typeInto, dataValue, signature, screenshot, seek, startEmpty };
+  return { waitFor, plans, settled, streamed, typeInto, dataValue, signature, screenshot, canvasPixels, shownErrors, seek,
+    startEmpty };
+}
+
+// What POST /v1/plan answers for `request` on the server at `base`, asked from here (Node's
+// fetch): the page's numbers are checked against it.
+async function planOf(base, request) {
+  const answer = await fetch(new URL('v1/plan', base), {
+    method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(request),
+  });
+  const text = await answer.text();
+  assert.equal(answer.status, 200, `POST /v1/plan: ${text}`);
+  return JSON.parse(text);
 }
 
 describe('the operator page in chromium', () => {
@@ -253,7 +293,7 @@ describe('the operator page in chromium', () => {
     await stopServer(server);
   });
 
-  const { waitFor, plans, settled, streamed, typeInto, dataValue, signature, screenshot, seek } =
+  const { waitFor, plans, settled, streamed, typeInto, dataValue, signature, screenshot, canvasPixels, seek } =
     pageHelpers(() => page, problems);
 
   it('loads with the start page and no console errors', async () => {
@@ -272,17 +312,7 @@ describe('the operator page in chromium', () => {
     await streamed();
     // Pixels that differ from the white background, read back from the WebGL canvas.
     await new Promise((r) => setTimeout(r, 300));
-    const coloured = await page.$eval(`${sel('view3d')} canvas`, (canvas) => {
-      const copy = document.createElement('canvas');
-      copy.width = canvas.width;
-      copy.height = canvas.height;
-      const ctx = copy.getContext('2d');
-      ctx.drawImage(canvas, 0, 0);
-      const { data } = ctx.getImageData(0, 0, copy.width, copy.height);
-      let count = 0;
-      for (let i = 0; i < data.length; i += 4) if (data[i] < 240 || data[i + 1] < 240 || data[i + 2] < 240) ++count;
-      return count / (data.length / 4);
-    });
+    const coloured = (await canvasPixels()).drawn;
     assert.ok(coloured > 0.01, `only ${(coloured * 100).toFixed(3)} % of the canvas is drawn`);
     assert.match(await page.$eval(sel('colorbar'), (e) => e.textContent), /curvature κ \[1\/m\]/);
     await screenshot('overview');
@@ -437,15 +467,6 @@ describe('path C typed into the editor by hand', () => {
     await stopServer(server);
   });
 
-  // What POST /v1/plan answers for `request`, asked from here (Node's fetch, same server).
-  async function planOf(request) {
-    const answer = await fetch(new URL('v1/plan', base), {
-      method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(request),
-    });
-    const text = await answer.text();
-    assert.equal(answer.status, 200, `POST /v1/plan: ${text}`);
-    return JSON.parse(text);
-  }
   // Equal to 1e-9 relative (absolute below 1).
   function assertClose(actual, expected, what) {
     assert.equal(typeof expected, 'number', `${what}: the API answers ${expected}`);
@@ -527,7 +548,7 @@ describe('path C typed into the editor by hand', () => {
 
     // The thesis's frames 2 and 3 (1-based): what the page reads, what the API answers for
     // the file, and what the file asks.
-    const answer = await planOf(asked);
+    const answer = await planOf(base, asked);
     for (const i of [1, 2]) {
       for (const key of ['curvature', 'torsion']) {
         for (const side of ['approach', 'leave']) {
@@ -567,7 +588,7 @@ describe('path C typed into the editor by hand', () => {
       assert.equal(await settled(n), 'ready', `unspecified ${label}`);
       const request = JSON.parse(JSON.stringify(asked));
       if (value) request.path.unspecified = value;
-      const expected = (await planOf(request)).frames[0].leave?.curvature;
+      const expected = (await planOf(base, request)).frames[0].leave?.curvature;
       const shown = await page.$eval(sel('frame-0-curvature'), (e) => e.dataset.value);
       if (expected === undefined) assert.equal(shown, '', `frame 0 curvature under ${label}`);
       else assertClose(Number(shown), expected, `frame 0 curvature under ${label}`);
@@ -802,7 +823,8 @@ describe('a path of pieces built in the editor', () => {
   let page;
   let base;
   const problems = [];
-  const { waitFor, plans, settled, typeInto, dataValue, screenshot, startEmpty } = pageHelpers(() => page, problems);
+  const { waitFor, plans, settled, typeInto, dataValue, screenshot, canvasPixels, shownErrors, startEmpty } =
+    pageHelpers(() => page, problems);
 
   // Half-typed values (a start position on its way, a piece before its kind's fields) are
   // refused with 400 and shown beside their fields: the page working.
@@ -811,25 +833,6 @@ describe('a path of pieces built in the editor', () => {
   const viewData = () => page.$eval(sel('view3d'), (e) => ({ ...e.dataset }));
   const pieceKinds = () => page.$$eval(`${sel('editor')} fieldset.piece`, (l) => l.map((f) => f.dataset.kind));
   const legendHidden = () => page.$eval(sel('legend-segments'), (e) => e.hidden);
-  // The server's messages shown in the editor, by the field they stand at.
-  const shownErrors = () => page.$$eval(`${sel('editor')} [data-error-for]`, (l) => l
-    .filter((e) => e.textContent).map((e) => `${e.dataset.errorFor}: ${e.textContent}`));
-  // Pixels of the view in the transitions' pink (#e91e63), read back from the WebGL canvas:
-  // red, little green, blue well above green (the red of the tool and the T arrows has blue
-  // and green alike; viridis is never this red).
-  const pinkPixels = () => page.$eval(`${sel('view3d')} canvas`, (canvas) => {
-    const copy = document.createElement('canvas');
-    copy.width = canvas.width;
-    copy.height = canvas.height;
-    const ctx = copy.getContext('2d');
-    ctx.drawImage(canvas, 0, 0);
-    const { data } = ctx.getImageData(0, 0, copy.width, copy.height);
-    let count = 0;
-    for (let i = 0; i < data.length; i += 4) {
-      if (data[i] > 190 && data[i + 1] < 80 && data[i + 2] - data[i + 1] > 35) ++count;
-    }
-    return count;
-  });
 
   it('plans the weld seam typed as pieces: 5 segments, 3 drawn as exact pieces and 2 as transitions', async () => {
     await startEmpty(base);
@@ -878,11 +881,7 @@ describe('a path of pieces built in the editor', () => {
     assert.equal(await page.$eval(sel('status'), (e) => e.dataset.state), 'ready');
 
     // The request the editor built is the seam: the page's arc length is the API's for it.
-    const answer = await fetch(new URL('v1/plan', base), {
-      method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify({ path: seam }),
-    });
-    const planned = await answer.json();
-    assert.equal(answer.status, 200, JSON.stringify(planned));
+    const planned = await planOf(base, { path: seam });
     assert.deepEqual(planned.segments.map((s) => s.kind), ['SEGMENT_KIND_PIECE', 'SEGMENT_KIND_TRANSITION',
       'SEGMENT_KIND_PIECE', 'SEGMENT_KIND_TRANSITION', 'SEGMENT_KIND_PIECE']);
     const length = await dataValue('plan-arc-length');
@@ -891,7 +890,7 @@ describe('a path of pieces built in the editor', () => {
     // The transitions are on the canvas, in their colour, once the view frames the seam.
     await page.click('[data-action=fit]');
     await new Promise((r) => setTimeout(r, 300));
-    const pink = await pinkPixels();
+    const { pink } = await canvasPixels();
     assert.ok(pink > 30, `${pink} pixels of the transitions' pink on the canvas`);
     await screenshot('pieces', { figure: false });
     assert.deepEqual(problems, []);
@@ -955,6 +954,150 @@ describe('a path of pieces built in the editor', () => {
     assert.equal(await page.$eval(sel('piece-1-input-radius'), (e) => Number(e.value)), asked.path.pieces[1].arc.radius);
     assert.equal(await page.$eval(sel('path-transitionTolerance'), (e) => Number(e.value)), asked.path.transitionTolerance);
     assert.equal((await viewData()).drawnTransitions, '2');
+    assert.deepEqual(problems, []);
+  });
+});
+
+// A joint path (PlanRequest.jointPath: a sampling planner's waypoints, no Cartesian path):
+// the start page's Panda pick and place (client/grpcurl/plan_joint_path_panda.json) in the
+// waypoint editor, planned as POST /v1/plan plans the file, the tool's path drawn from the
+// samples with the tool at each waypoint marked, the arm replayed, every interior waypoint
+// passed within the blend tolerance; a waypoint value out of its joint's limits and a
+// negative tolerance show the server's messages at their inputs; removing a waypoint plans
+// again, as the API plans the file without it.
+describe('a joint path of waypoints', () => {
+  const file = path.join(repo, 'client', 'grpcurl', 'plan_joint_path_panda.json');
+  const asked = JSON.parse(fs.readFileSync(file, 'utf8'));
+  let page;
+  let base;
+  const problems = [];
+  const { plans, settled, streamed, typeInto, dataValue, screenshot, canvasPixels, shownErrors, seek } =
+    pageHelpers(() => page, problems);
+
+  // The values refused on purpose answer 400, shown at their inputs: the page working.
+  usePage(problems, refusedPlan, (opened) => ({ page, base } = opened));
+
+  const viewData = () => page.$eval(sel('view3d'), (e) => ({ ...e.dataset }));
+  const editorRows = () => page.$$eval(`${sel('waypoints')} tbody tr[data-testid^="waypoint-"]`, (rows) =>
+    rows.map((r) => [...r.querySelectorAll('input[type=text]')].map((i) => Number(i.value))));
+  // The readout of where the motion passes each waypoint: [{t, joint, tool}] (joint space
+  // [rad] and the tool [m]).
+  const passes = () => page.$$eval(`${sel('waypoint-readout')} tbody tr`, (rows) => rows.map((r, i) => {
+    const value = (key) => Number(r.querySelector(`[data-testid="pass-${i}-${key}"]`).dataset.value);
+    return { t: value('t'), joint: value('joint-distance'), tool: value('tool-distance') };
+  }));
+  // Where the motion passes waypoint i, as the file asks: exactly at the ends, within the
+  // blend tolerance elsewhere (the nearest of the samples at 1 kHz: 1e-3 rad to spare).
+  function assertPassed(shown, waypoints, tolerance) {
+    assert.equal(shown.length, waypoints.length);
+    shown.forEach((p, i) => {
+      const allowed = i === 0 || i === waypoints.length - 1 ? 0 : tolerance;
+      assert.ok(p.joint <= allowed + 1e-3, `waypoint ${i} passed at ${p.joint} rad, asked within ${allowed}`);
+      if (i > 0) assert.ok(p.t > shown[i - 1].t, `waypoint ${i} passed at t = ${p.t} s, before waypoint ${i - 1}`);
+      // The tool where the waypoint puts it (forward kinematics), near where the motion passes.
+      if (allowed === 0) assert.ok(p.tool <= 1e-9, `the tool ${p.tool} m off waypoint ${i}`);
+      else assert.ok(p.tool > 0 && p.tool < 0.05, `the tool ${p.tool} m off waypoint ${i}`);
+    });
+  }
+
+  it('plans the Panda joint path of the start page: its duration, the tool path and waypoints drawn, the arm replayed', async () => {
+    await page.goto(base, { waitUntil: 'load' });
+    await page.waitForSelector(`${sel('start-page')}[open]`);
+    assert.equal(await page.$eval(sel('start-joint-path'), (b) => b.dataset.start), 'jointPathPanda');
+    await page.goto(`${base}#jointPathPanda`, { waitUntil: 'load' });
+    assert.equal(await settled(0), 'ready');
+    assert.equal(await page.$eval('body', (b) => b.dataset.requestKind), 'jointPath');
+    assert.equal(await page.$eval(sel('editor'), (e) => e.dataset.kind), 'jointPath');
+
+    // The editor: a row per waypoint of the file, an input per joint, the tolerance.
+    const waypoints = asked.jointPath.waypoints;
+    assert.deepEqual(await editorRows(), waypoints.map((w) => w.positions));
+    assert.equal(await page.$eval(sel('jointPath-blendTolerance'), (e) => Number(e.value)), asked.jointPath.blendTolerance);
+    assert.equal(await page.$eval(sel('waypoint-0-remove'), (b) => b.disabled), false);
+
+    // The plan: the duration the API answers for the file, within every limit.
+    const planned = await planOf(base, asked);
+    const duration = await dataValue('plan-duration');
+    assert.ok(duration > 0, `the duration shown is ${duration}`);
+    assert.equal(duration, planned.motion.durationS);
+    assert.equal(await dataValue('plan-waypoints'), waypoints.length);
+    assert.match(await page.$eval(sel('plan-robot-feasible'), (e) => e.textContent), /panda: within every limit/);
+    assert.equal(await page.$eval(sel('general-errors'), (e) => e.textContent), '');
+    assert.ok(await page.$eval(sel('plot-binding'), (e) => Number(e.dataset.stretches || 0)) > 0, 'no limit report');
+
+    // The samples: the tool's path drawn from them, coloured by the tool's speed, the
+    // waypoints marked; the arm replayed; the joints plotted.
+    await streamed();
+    const drawn = await viewData();
+    assert.equal(drawn.curveKind, 'tool');
+    assert.ok(Number(drawn.curvePoints) > 100, `the tool's path has ${drawn.curvePoints} points`);
+    assert.equal(drawn.waypoints, String(waypoints.length));
+    assert.equal(drawn.frames, '0');
+    assert.match(await page.$eval(sel('colorbar'), (e) => e.textContent), /tool speed \[m\/s\]/);
+    assert.equal(await page.$eval(sel('plot-joint-positions'), (e) => Number(e.dataset.series)), 7);
+    assert.equal(await page.$eval(sel('plot-joint-velocities'), (e) => Number(e.dataset.series)), 7);
+    assertPassed(await passes(), waypoints, asked.jointPath.blendTolerance);
+    const a = await seek(duration * 0.25);
+    const b = await seek(duration * 0.75);
+    const d = Math.hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    assert.ok(d > 1e-3, `the arm's tool is at ${a} and ${b}`);
+    const links = Number(drawn.robotLinks || 0);
+    assert.ok(links >= 7, `the arm is drawn with ${links} links`);
+    await new Promise((r) => setTimeout(r, 300));
+    const coloured = (await canvasPixels()).drawn;
+    assert.ok(coloured > 0.01, `only ${(coloured * 100).toFixed(3)} % of the canvas is drawn`);
+    await screenshot('joint_path', { fullPage: true, figure: false });
+    assert.deepEqual(problems, []);
+  });
+
+  it("shows the server's message at a waypoint value out of its joint's limits, and at the tolerance", async () => {
+    const input = 'waypoint-3-joint-1';
+    const field = 'jointPath.waypoints[3].positions[1]';
+    let n = await plans();
+    await typeInto(input, '2.5');
+    assert.equal(await settled(n), 'error');
+    const slot = `${sel('waypoints')} [data-error-for="${field}"]`;
+    assert.match(await page.$eval(slot, (e) => e.textContent), /2\.5 is outside joint 1's position limits/);
+    assert.ok(await page.$eval(sel(input), (e) => e.classList.contains('invalid')), 'the input is not marked');
+    // At the input only: none listed above the editor with the messages that found no place.
+    assert.deepEqual((await shownErrors()).map((e) => e.split(':')[0]), [field]);
+    assert.deepEqual(await page.$$eval(`${sel('general-errors')} li`, (l) => l.map((e) => e.textContent)), []);
+    await screenshot('joint_path_field_error', { element: sel('joint-path'), figure: false });
+
+    n = await plans();
+    await typeInto(input, String(asked.jointPath.waypoints[3].positions[1]));
+    assert.equal(await settled(n), 'ready');
+    assert.equal(await page.$eval(slot, (e) => e.textContent), '');
+    assert.equal(await page.$eval(sel(input), (e) => e.classList.contains('invalid')), false);
+
+    n = await plans();
+    await typeInto('jointPath-blendTolerance', '-1');
+    assert.equal(await settled(n), 'error');
+    assert.deepEqual((await shownErrors()).map((e) => e.split(':')[0]), ['jointPath.blendTolerance']);
+    n = await plans();
+    await typeInto('jointPath-blendTolerance', String(asked.jointPath.blendTolerance));
+    assert.equal(await settled(n), 'ready');
+    assert.deepEqual(await shownErrors(), []);
+    await streamed();
+  });
+
+  it('plans again without a waypoint removed, as the API plans the file without it', async () => {
+    const before = await dataValue('plan-duration');
+    const n = await plans();
+    await page.click(sel('waypoint-4-remove'));
+    assert.equal(await settled(n), 'ready');
+    const waypoints = asked.jointPath.waypoints.filter((_, i) => i !== 4);
+    assert.deepEqual(await editorRows(), waypoints.map((w) => w.positions));
+    const without = JSON.parse(JSON.stringify(asked));
+    without.jointPath.waypoints = waypoints;
+    const planned = await planOf(base, without);
+    const duration = await dataValue('plan-duration');
+    assert.equal(duration, planned.motion.durationS);
+    assert.notEqual(duration, before);
+    assert.equal(await dataValue('plan-waypoints'), waypoints.length);
+    await streamed();
+    assert.equal((await viewData()).waypoints, String(waypoints.length));
+    assertPassed(await passes(), waypoints, asked.jointPath.blendTolerance);
     assert.deepEqual(problems, []);
   });
 });

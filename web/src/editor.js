@@ -1,14 +1,15 @@
 // The path editor: a path of key frames (every field of a KeyFrame) or of pieces (a start
 // frame and pieces: line, arc, helix, clothoid, profile, or a blend to a key frame), the
 // path's settings (reading of unspecified constraints, blend, derivative convention,
-// transition tolerance), the motion, the robot and the optimisers, written straight into
+// transition tolerance), or a joint path (a table of joint waypoints and the blend
+// tolerance), the motion, the robot and the optimisers, written straight into
 // the PlanRequest (proto JSON). Each input carries the request's field path (data-field),
 // and an element beside it (data-error-for) shows the field violation the server returns
 // for that path; where the server names a field otherwise than the JSON does (a piece's
 // `path.pieces[1].radius` is the JSON's `path.pieces[1].arc.radius`), the input carries the
 // server's name too (data-error-field).
 
-import { getField, setField } from './request.js';
+import { getField, setField, isJointPath } from './request.js';
 
 const el = (tag, attrs = {}, ...children) => {
   const node = document.createElement(tag);
@@ -458,14 +459,26 @@ export class Editor {
       this.stash = {};
       this.pieceEnds = null;
     }
+    // What a render of the same request must not lose (the robots' list arriving, a
+    // structural edit): the folds left open, and the text being typed, which may not be a
+    // number yet, with its caret.
+    const kept = request === this.request ? this.editingState() : null;
     this.request = request;
+    this.localErrors.clear();
+    this.root.replaceChildren();
+    if (isJointPath(request)) {
+      delete this.root.dataset.pathForm;
+      this.root.dataset.kind = 'jointPath';
+      this.root.append(this.jointPathCard());
+      this.appendSettings(request, true);
+      this.restoreEditing(kept);
+      return;
+    }
+    this.root.dataset.kind = 'path';
     request.path ??= { frames: [] };
     const form = pathForm(request.path);
     if (form === 'frames') request.path.frames ??= [];
     else request.path.pieces ??= [];
-    const focused = document.activeElement?.getAttribute?.('data-field');
-    this.localErrors.clear();
-    this.root.replaceChildren();
     this.root.dataset.pathForm = form;
 
     const path = el('fieldset', { class: 'settings', 'data-field': 'path' }, el('legend', { text: 'path' }));
@@ -521,22 +534,38 @@ export class Editor {
       this.root.append(add);
     }
 
+    this.appendSettings(request, false);
+    this.restoreEditing(kept);
+  }
+
+  // The motion, the robot and the optimisers. jointPath: a joint path is timed by its
+  // joints' limits (the Cartesian limits, the speed profile and u(t) do not apply) and
+  // starts at its first waypoint (no approach move, no tangent scales): those fields are
+  // shown only when the request gives them (the server refuses some of them: they can be
+  // emptied here).
+  appendSettings(request, jointPath) {
+    const shown = (field) => !jointPath || getField(request, field) !== undefined;
     const motion = el('fieldset', { class: 'settings', 'data-field': 'motion' }, el('legend', { text: 'motion' }));
     motion.append(this.errorSlot('motion'));
     motion.append(this.scalarRow('motion.durationS', 'duration (0: fastest)', 's', { testid: 'motion-durationS' }));
-    motion.append(this.selectRow('motion.profile', 'speed profile', ENUMS.profile, 'motion-profile'));
-    motion.append(this.scalarRow('motion.rampFraction', 'ramp fraction', '', { testid: 'motion-rampFraction' }));
-    motion.append(this.scalarRow('motion.rampTimeS', 'ramp time', 's', { testid: 'motion-rampTimeS' }));
+    if (shown('motion.profile')) motion.append(this.selectRow('motion.profile', 'speed profile', ENUMS.profile, 'motion-profile'));
+    if (shown('motion.rampFraction')) motion.append(this.scalarRow('motion.rampFraction', 'ramp fraction', '', { testid: 'motion-rampFraction' }));
+    if (shown('motion.rampTimeS')) motion.append(this.scalarRow('motion.rampTimeS', 'ramp time', 's', { testid: 'motion-rampTimeS' }));
     motion.append(this.scalarRow('motion.cycleRateHz', 'cycle rate', 'Hz', { testid: 'motion-cycleRateHz' }));
-    motion.append(this.selectRow('motion.timeParameterization', 'u(t)', ENUMS.timeParameterization, 'motion-timeParameterization'));
-    motion.append(this.scalarRow('motion.speedScale', 'speed scale', '', { testid: 'motion-speedScale' }));
-    motion.append(this.scalarRow('motion.maxSpeed', 'max speed', 'm/s', { testid: 'motion-maxSpeed' }));
-    motion.append(this.scalarRow('motion.maxAcceleration', 'max acceleration', 'm/s²', { testid: 'motion-maxAcceleration' }));
+    if (shown('motion.timeParameterization')) {
+      motion.append(this.selectRow('motion.timeParameterization', 'u(t)', ENUMS.timeParameterization, 'motion-timeParameterization'));
+    }
+    if (shown('motion.speedScale')) motion.append(this.scalarRow('motion.speedScale', 'speed scale', '', { testid: 'motion-speedScale' }));
+    if (shown('motion.maxSpeed')) motion.append(this.scalarRow('motion.maxSpeed', 'max speed', 'm/s', { testid: 'motion-maxSpeed' }));
+    if (shown('motion.maxAcceleration')) {
+      motion.append(this.scalarRow('motion.maxAcceleration', 'max acceleration', 'm/s²', { testid: 'motion-maxAcceleration' }));
+    }
     this.root.append(motion);
 
     const robot = el('fieldset', { class: 'settings', 'data-field': 'robot' }, el('legend', { text: 'robot' }));
     robot.append(this.errorSlot('robot'));
-    const names = [['', 'none (Cartesian plan)'], ...this.robots.map((r) => [r.name, r.name])];
+    const names = [['', jointPath ? 'none (a joint path needs one)' : 'none (Cartesian plan)'],
+      ...this.robots.map((r) => [r.name, r.name])];
     if (!request.robot?.model && !request.robot?.urdf) {
       robot.append(this.selectRow('robot.name', 'model', names, 'robot-name', true));
     } else {
@@ -545,7 +574,7 @@ export class Editor {
     if (request.robot) {
       robot.append(this.checkRow('robot.reportOnly', 'report limit violations instead of refusing', 'robot-reportOnly'));
       robot.append(this.jointsRow('robot.initialJoints', 'initial joints', 'robot-initialJoints'));
-      robot.append(this.selectRow('robot.approach', 'path away from the robot', ENUMS.approach, 'robot-approach'));
+      if (shown('robot.approach')) robot.append(this.selectRow('robot.approach', 'path away from the robot', ENUMS.approach, 'robot-approach'));
       robot.append(this.scalarRow('robot.velocityScale', 'velocity scale', '', { testid: 'robot-velocityScale' }));
       robot.append(this.scalarRow('robot.accelerationScale', 'acceleration scale', '', { testid: 'robot-accelerationScale' }));
     }
@@ -553,15 +582,148 @@ export class Editor {
 
     const optimize = el('fieldset', { class: 'settings', 'data-field': 'optimize' }, el('legend', { text: 'optimise' }));
     optimize.append(this.errorSlot('optimize'));
-    optimize.append(this.checkRow('optimize.timing.timeOptimal', 'time-optimal timing within the limits', 'optimize-timeOptimal'));
-    optimize.append(this.selectRow('optimize.tangentScales.objective', 'tangent scales', ENUMS.tangentScaleObjective,
-      'optimize-tangentScales'));
-    this.root.append(optimize);
-
-    if (focused) {
-      const again = this.root.querySelector(`[data-field="${CSS.escape(focused)}"]`);
-      if (again && again.focus) again.focus();
+    optimize.append(this.checkRow('optimize.timing.timeOptimal',
+      jointPath ? 'the time-optimal sweep alone (not jerk-limited)' : 'time-optimal timing within the limits',
+      'optimize-timeOptimal'));
+    if (shown('optimize.tangentScales.objective')) {
+      optimize.append(this.selectRow('optimize.tangentScales.objective', 'tangent scales', ENUMS.tangentScaleObjective,
+        'optimize-tangentScales'));
     }
+    this.root.append(optimize);
+  }
+
+  // The open folds (by their card's field and their summary) and the focused input's field,
+  // text and selection.
+  editingState() {
+    const fold = (d) => `${d.parentElement?.closest('[data-field]')?.getAttribute('data-field') ?? ''}|` +
+      `${d.querySelector('summary')?.textContent ?? ''}`;
+    const active = document.activeElement;
+    const inside = active && this.root.contains(active);
+    const typing = inside && active.tagName === 'INPUT' && active.type === 'text';
+    return {
+      fold,
+      open: new Set([...this.root.querySelectorAll('details[open]')].map(fold)),
+      field: inside ? active.getAttribute('data-field') : null,
+      text: typing ? { value: active.value, start: active.selectionStart, end: active.selectionEnd } : null,
+    };
+  }
+
+  restoreEditing(kept) {
+    if (!kept) return;
+    for (const d of this.root.querySelectorAll('details')) if (kept.open.has(kept.fold(d))) d.open = true;
+    if (!kept.field) return;
+    const again = this.root.querySelector(`[data-field="${CSS.escape(kept.field)}"]`);
+    if (!again || !again.focus) return;
+    if (kept.text && again.tagName === 'INPUT' && again.type === 'text') {
+      again.value = kept.text.value;
+      again.focus();
+      again.setSelectionRange(kept.text.start, kept.text.end);
+    } else {
+      again.focus();
+    }
+  }
+
+  // The request's robot model (a built-in one by name, or inline), or null.
+  robotModel() {
+    const spec = this.request.robot;
+    if (!spec) return null;
+    return spec.model || this.robots.find((r) => r.name === spec.name) || null;
+  }
+
+  // A joint path: the blend tolerance and a table of the waypoints, a row each (one input
+  // per joint, `stop`, insert after, remove), a column per joint of the robot (or per value
+  // of the longest waypoint, if more). The server's messages go under each row: its
+  // `jointPath.waypoints[i].positions[j]` at that row, the input marked.
+  jointPathCard() {
+    const jointPath = this.request.jointPath;
+    jointPath.waypoints ??= [];
+    const waypoints = jointPath.waypoints;
+    const card = el('fieldset', { class: 'settings joint-path', 'data-field': 'jointPath', 'data-testid': 'joint-path' },
+      el('legend', { text: 'joint path' }));
+    card.append(this.errorSlot('jointPath'));
+    card.append(el('div', { class: 'note', text: 'joint waypoints passed without stopping, on blends within the '
+      + 'tolerance of each interior one; the first and last met exactly, a stop rests there' }));
+    card.append(this.scalarRow('jointPath.blendTolerance', 'blend tolerance', 'rad',
+      { testid: 'jointPath-blendTolerance', placeholder: '0: rest at each',
+        title: 'the largest joint-space distance (over all joints, rad and m together) at which the path passes an interior waypoint' }));
+    card.append(this.errorSlot('jointPath.waypoints'));
+
+    const model = this.robotModel();
+    const names = (model?.links?.length ? model.links : model?.joints || []).map((j) => j.name || '');
+    const limits = model?.limits || [];
+    const columns = Math.max(names.length, limits.length, ...waypoints.map((w) => (w.positions || []).length), 1);
+    const table = el('table', { class: 'waypoints', 'data-testid': 'waypoints' });
+    const head = el('tr', {}, el('th', { text: '#' }));
+    for (let j = 0; j < columns; ++j) {
+      const l = limits[j];
+      const range = l ? ` [${l.minPosition ?? 0}, ${l.maxPosition ?? 0}]` : '';
+      head.append(el('th', { text: `j${j}`, title: `joint ${j}${names[j] ? ` ${names[j]}` : ''}${range} [rad or m]` }));
+    }
+    head.append(el('th', { text: 'stop', title: 'rest at this waypoint' }), el('th'));
+    table.append(el('thead', {}, head));
+    const body = el('tbody');
+    const edit = (action) => () => {
+      action();
+      this.render(this.request);
+      this.onChange('structure');
+    };
+    waypoints.forEach((waypoint, i) => {
+      const base = `jointPath.waypoints[${i}]`;
+      const row = el('tr', { 'data-testid': `waypoint-${i}`, 'data-field': base }, el('td', { class: 'index', text: `${i}` }));
+      for (let j = 0; j < columns; ++j) row.append(el('td', {}, this.jointInput(i, j)));
+      const stop = el('input', { type: 'checkbox', 'data-field': `${base}.stop`, 'data-testid': `waypoint-${i}-stop`,
+        title: `rest at waypoint ${i}` });
+      stop.checked = Boolean(waypoint.stop);
+      stop.addEventListener('change', () => {
+        setField(this.request, `${base}.stop`, stop.checked ? true : undefined);
+        this.onChange('value');
+      });
+      const insert = el('button', { type: 'button', class: 'small', text: '+', 'data-testid': `waypoint-${i}-insert`,
+        title: i < waypoints.length - 1 ? `insert a waypoint halfway to waypoint ${i + 1}` : 'add a copy of this waypoint after it' });
+      insert.addEventListener('click', edit(() => waypoints.splice(i + 1, 0, midWaypoint(waypoint, waypoints[i + 1]))));
+      const remove = el('button', { type: 'button', class: 'small', text: '✕', 'data-testid': `waypoint-${i}-remove`,
+        title: `remove waypoint ${i}` });
+      remove.disabled = waypoints.length <= 2;
+      remove.addEventListener('click', edit(() => waypoints.splice(i, 1)));
+      row.append(el('td', {}, stop), el('td', { class: 'actions' }, insert, remove));
+      body.append(row);
+      // The messages of this waypoint: the row's, its count's, each value's.
+      const slots = el('td', { colspan: String(columns + 3) }, this.errorSlot(base), this.errorSlot(`${base}.positions`));
+      for (let j = 0; j < columns; ++j) slots.append(this.errorSlot(`${base}.positions[${j}]`));
+      body.append(el('tr', { class: 'waypoint-errors' }, slots));
+    });
+    table.append(body);
+    card.append(el('div', { class: 'table-wrap' }, table));
+    const add = el('button', { type: 'button', 'data-testid': 'waypoint-add', text: '+ add a waypoint at the end' });
+    add.addEventListener('click', edit(() => waypoints.push(midWaypoint(waypoints[waypoints.length - 1]))));
+    card.append(add);
+    return card;
+  }
+
+  // The value of joint j at waypoint i: an empty box is 0 (a waypoint gives every joint),
+  // a value past the end of a short list fills the values before it with 0.
+  jointInput(i, j) {
+    const field = `jointPath.waypoints[${i}].positions[${j}]`;
+    const input = el('input', {
+      type: 'text', inputmode: 'decimal', spellcheck: 'false', 'data-field': field,
+      'data-testid': `waypoint-${i}-joint-${j}`, 'aria-label': `waypoint ${i} joint ${j}`, placeholder: '—',
+      value: formatNumber(getField(this.request, field)),
+    });
+    input.addEventListener('input', () => {
+      const text = input.value.trim();
+      const value = text === '' ? 0 : Number(text);
+      if (!Number.isFinite(value)) {
+        this.setLocalError(field, `"${text}" is not a number`);
+        return;
+      }
+      this.setLocalError(field, null);
+      const waypoint = this.request.jointPath.waypoints[i];
+      waypoint.positions ??= [];
+      while (waypoint.positions.length < j) waypoint.positions.push(0);
+      waypoint.positions[j] = value;
+      this.onChange('value');
+    });
+    return input;
   }
 
   // Comma- or space-separated joint values.
@@ -643,6 +805,13 @@ export class Editor {
     }
     return unplaced;
   }
+}
+
+// A waypoint halfway from a to b (rounded to 1e-4), or a copy of a without b; not a stop.
+function midWaypoint(a, b) {
+  const p = a?.positions || [];
+  const q = b?.positions || p;
+  return { positions: p.map((v, j) => Number((((v ?? 0) + (q[j] ?? v ?? 0)) / 2).toFixed(4))) };
 }
 
 // The form of a path: 'pieces' (a start and pieces) or 'frames' (key frames).

@@ -1,7 +1,9 @@
 // The operator's page: wires the editor, the 3-D view, the readout, the plots, the family
 // view and the replay to geotrajd's JSON API. Every edit replans (debounced): plan and
 // analysis at once for the view, then the stream of samples for the replay, the speed and
-// the joints.
+// the joints. A joint path (joint waypoints, no Cartesian path) is drawn from its samples:
+// the tool's path, the tool at each waypoint (forward kinematics) and where the motion
+// passes them.
 
 import 'uplot/dist/uPlot.min.css';
 import '../style.css';
@@ -10,9 +12,9 @@ import { Editor, pathForm } from './editor.js';
 import { View3D } from './view3d.js';
 import { Plots } from './plots.js';
 import { Family } from './family.js';
-import { Replay } from './replay.js';
-import { renderFrames, renderSummary, renderWarnings } from './readout.js';
-import { presets, analysisRequest, cloneRequest, commandLines } from './request.js';
+import { Replay, fkRobot } from './replay.js';
+import { renderFrames, renderSummary, renderWarnings, renderWaypoints, waypointPasses } from './readout.js';
+import { presets, analysisRequest, cloneRequest, commandLines, isJointPath } from './request.js';
 
 const $ = (selector) => document.querySelector(selector);
 const byTestId = (id) => document.querySelector(`[data-testid="${id}"]`);
@@ -21,6 +23,8 @@ const REQUEST_KEY = 'geotraj.request';
 const DEBOUNCE_MS = 30;
 const STREAM_DEBOUNCE_MS = 200;
 const ANALYSIS_POINTS = 401;
+// The most points of a joint path's tool path drawn (from its samples).
+const TOOL_PATH_POINTS = 2000;
 
 const state = {
   request: null,
@@ -34,6 +38,10 @@ const state = {
   streamTimer: null,
   profile: null,
   samples: null,
+  // A joint path: where the motion passes its waypoints (readout.waypointPasses), and the
+  // tool's position at each waypoint by joint values and robot (POST /v1/fk, kept).
+  passes: null,
+  waypointTools: new Map(),
 };
 
 const body = document.body;
@@ -77,6 +85,39 @@ function showErrors(error) {
     list.append(li);
   }
   if (list.children.length) generalErrors.append(list);
+}
+
+// The page for a path or for a joint path (the mode of the request being edited): the
+// readout's title, the waypoints' legend, the colour modes (a joint path's tool path is
+// coloured by speed: it has no curvature to show), the family (of key frames) hidden. On a
+// change of mode what the other one drew goes.
+const colorSelect = byTestId('color-mode');
+function applyMode(jointPath) {
+  const was = body.dataset.requestKind === 'jointPath';
+  body.dataset.requestKind = jointPath ? 'jointPath' : 'path';
+  byTestId('readout-title').textContent = jointPath ? 'Waypoints passed' : 'Achieved at the key frames';
+  byTestId('legend-waypoints').hidden = !jointPath;
+  byTestId('family').hidden = jointPath;
+  byTestId('family-title').hidden = jointPath;
+  for (const option of colorSelect.options) option.disabled = jointPath && option.value !== 'speed';
+  if (jointPath === was) return;
+  if (jointPath) {
+    state.colorModeBefore = colorSelect.value;
+    colorSelect.value = 'speed';
+  } else {
+    colorSelect.value = state.colorModeBefore || 'curvature';
+    view.colorMode = colorSelect.value;
+  }
+  state.profile = null;
+  state.segmentKinds = null;
+  state.samples = null;
+  state.speedAtS = null;
+  state.passes = null;
+  view.fitExtra = [];
+  view.setCurve([], null);
+  view.setWaypoints(null);
+  plots.setTimeMarks([]);
+  byTestId('readout').replaceChildren();
 }
 
 function saveLocally() {
@@ -220,7 +261,8 @@ async function replan() {
   showErrors(error);
 
   const frames = request.path?.frames || [];
-  const pieces = pathForm(request.path) === 'pieces';
+  const jointPath = isJointPath(request);
+  const pieces = !jointPath && pathForm(request.path) === 'pieces';
   // A path with an approach move is planned as a sequence: its path's report is a step's.
   const report = response?.steps?.length
     ? response.steps.find((step) => step.kind === 'path' || step.kind === 'blended') || {}
@@ -238,7 +280,14 @@ async function replan() {
   for (const id of ['readout', 'summary']) byTestId(id).classList.toggle('stale', !response);
   if (response) {
     state.response = report;
-    renderFrames(byTestId('readout'), request, report);
+    if (jointPath) {
+      // Where the motion passes the waypoints comes with the samples: until then, the last
+      // one's (if it has as many waypoints).
+      const count = request.jointPath.waypoints?.length || 0;
+      renderWaypoints(byTestId('readout'), request, state.passes?.length === count ? state.passes : null);
+    } else {
+      renderFrames(byTestId('readout'), request, report);
+    }
     renderSummary(byTestId('summary'), response, request);
     // A path of pieces: the joins of its segments (start, piece and transition ends).
     plots.setFrameMarks(frameArcLengths(report, pieces ? (report.frames || []).length : frames.length));
@@ -251,6 +300,7 @@ async function replan() {
     else plots.setBinding(null, 0);
   }
   if (profile) plots.setProfile(profile.points || []);
+  else if (jointPath) plots.setProfile(null, 'a joint path has no Cartesian path: see the joints below');
   const elapsed = performance.now() - editTime;
   state.plans += 1;
   body.dataset.plans = String(state.plans);
@@ -298,12 +348,83 @@ async function streamSamples(request, generation) {
   }
   if (generation !== state.generation) return;
   state.samples = samples;
-  state.speedAtS = speedLookup(samples);
-  if (view.colorMode === 'speed' && state.profile) view.setCurve(state.profile.points || [], state.speedAtS, state.segmentKinds);
+  const jointPath = isJointPath(request);
+  let passes = null;
+  if (jointPath) {
+    // No Cartesian path: the tool's path is where the samples take it.
+    state.speedAtS = null;
+    passes = waypointPasses(request.jointPath.waypoints, samples);
+    state.passes = passes;
+    plots.setTimeMarks((passes || []).map((p) => p.t));
+    view.setCurve(toolPath(samples), null, null, true);
+    renderWaypoints(byTestId('readout'), request, passes);
+  } else {
+    plots.setTimeMarks([]);
+    state.speedAtS = speedLookup(samples);
+    if (view.colorMode === 'speed' && state.profile) view.setCurve(state.profile.points || [], state.speedAtS, state.segmentKinds);
+  }
   plots.setSamples(samples, robotInfo(request.robot));
-  await replay.load(samples, request.robot || null);
+  await Promise.all([replay.load(samples, request.robot || null),
+    jointPath ? markWaypoints(request, samples, passes, generation) : null]);
   if (generation !== state.generation) return;
+  if (jointPath) {
+    // The arm in view with its tool's path (the path is small beside it): once per request,
+    // and on `fit view`.
+    view.fitExtra = [...replay.fk.values()].flat();
+    if (state.fitArm) view.refit();
+    state.fitArm = false;
+  }
   body.dataset.streamState = 'ready';
+}
+
+// The samples of a joint path as the view's tool path: {position, speed}, at most
+// TOOL_PATH_POINTS of them (the last one always).
+function toolPath(samples) {
+  const step = Math.max(1, Math.ceil(samples.length / TOOL_PATH_POINTS));
+  const points = [];
+  for (let i = 0; i < samples.length; i += step) points.push(samples[i]);
+  if (points[points.length - 1] !== samples[samples.length - 1]) points.push(samples[samples.length - 1]);
+  return points.map((x) => ({ position: x.position || {}, speed: x.speed ?? 0 }));
+}
+
+// The tool's position {x, y, z} [m] at joint values `joints` of the robot `spec` (its FK
+// part), by POST /v1/fk, kept for the next plans.
+function waypointTool(spec, joints) {
+  const key = JSON.stringify([spec, joints]);
+  let known = state.waypointTools.get(key);
+  if (!known) {
+    if (state.waypointTools.size > 2000) state.waypointTools.clear();
+    known = api.forwardKinematics({ robot: spec, joints }).then((answer) => answer.pose?.position || {});
+    known.catch(() => state.waypointTools.delete(key));
+    state.waypointTools.set(key, known);
+  }
+  return known;
+}
+
+// The waypoints of a joint path in the view: the tool at each (forward kinematics), and the
+// tool where the motion passes it (passes); the readout then says how far apart they are.
+async function markWaypoints(request, samples, passes, generation) {
+  const waypoints = request.jointPath.waypoints || [];
+  const spec = fkRobot(request.robot || {});
+  let tools;
+  try {
+    tools = await api.mapLimited(waypoints, 4, (w) => waypointTool(spec, w.positions || []));
+  } catch (e) {
+    if (generation !== state.generation) return;
+    view.setWaypoints(null);
+    byTestId('readout').append(Object.assign(document.createElement('div'), { className: 'plot-note',
+      textContent: `the waypoints' tool positions: forward kinematics failed: ${e.summary || e.message}` }));
+    return;
+  }
+  if (generation !== state.generation) return;
+  const at = (i) => (passes ? samples[passes[i].index].position || {} : null);
+  view.setWaypoints(waypoints.map((w, i) => ({ position: tools[i], passed: at(i), label: `w${i}`, stop: Boolean(w.stop) })));
+  if (!passes) return;
+  passes.forEach((p, i) => {
+    const q = at(i);
+    p.tool = Math.hypot((tools[i].x ?? 0) - (q.x ?? 0), (tools[i].y ?? 0) - (q.y ?? 0), (tools[i].z ?? 0) - (q.z ?? 0));
+  });
+  renderWaypoints(byTestId('readout'), request, passes);
 }
 
 // Tool speed [m/s] at arc length s [m], from the samples (nearest sample in s).
@@ -324,12 +445,15 @@ function speedLookup(samples) {
 
 function setRequest(request) {
   state.request = request;
-  request.path ??= { frames: [] };
+  const jointPath = isJointPath(request);
+  if (!jointPath) request.path ??= { frames: [] };
+  applyMode(jointPath);
   view.fitted = false;
+  state.fitArm = jointPath;
   state.speedAtS = null;
   family.clear();
   editor.render(request);
-  family.updateFrames(request.path.frames || []);
+  family.updateFrames(request.path?.frames || []);
   family.suggestRange();
   saveLocally();
   state.editTime = performance.now();
@@ -436,6 +560,7 @@ byTestId('show-frames').addEventListener('change', (e) => {
   const marked = viewFrames(state.request);
   view.setFrames(marked.frames, state.response?.warnings || [], state.profile?.points, extent(state.profile?.points),
     marked.labels);
+  if (view.lastWaypoints) view.setWaypoints(view.lastWaypoints);
 });
 $('[data-action=fit]').addEventListener('click', () => view.refit());
 

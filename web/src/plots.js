@@ -1,7 +1,8 @@
 // The 2-D plots (uPlot): curvature and torsion along s, their derivatives, the tool speed
 // against the speed profile, the joints' positions, velocities and accelerations with their
 // limits, and the binding-limit timeline of a time-optimal plan. Every plot has a title,
-// axes with units and a legend; key frames are vertical lines on the plots over s.
+// axes with units and a legend; key frames are vertical lines on the plots over s, the
+// waypoints of a joint path on the plots over time (when the motion passes them).
 
 import uPlot from 'uplot';
 import { PALETTE } from './colormap.js';
@@ -15,7 +16,8 @@ const el = (tag, className, text) => {
 
 const num = (v) => (typeof v === 'number' && Number.isFinite(v) ? v : null);
 
-// Vertical dashed lines at the key frames' arc lengths, labelled with the frame index.
+// Vertical dashed lines at the key frames' arc lengths (or the waypoints' times), labelled
+// with the frame's (waypoint's) index.
 function frameLinesPlugin(getMarks) {
   return {
     hooks: {
@@ -82,7 +84,8 @@ class Chart {
     this.card.setAttribute('data-testid', testid);
     this.title = title;
     this.body = el('div', 'plot-body');
-    this.note = el('div', 'plot-note', note || '');
+    this.baseNote = note || '';
+    this.note = el('div', 'plot-note', this.baseNote);
     this.card.append(this.body, this.note);
     parent.append(this.card);
     this.plot = null;
@@ -112,6 +115,10 @@ class Chart {
   }
 }
 
+const SPEED_NOTE = 'The sampled tool speed |v| and the profile ds/dt from the samples\' arc length; they differ where u(t) does not follow s(t).';
+const SPEED_NOTE_JOINTS = 'The tool speed |v| of the samples (the tool where the joints take it: a joint path has no arc length to profile). Numbered: when the motion passes each waypoint.';
+const WAYPOINT_NOTE = ' Numbered: when the motion passes each waypoint.';
+
 const series = (label, color, scale, extra = {}) => ({ label, stroke: color, width: 1.5,
   ...(scale ? { scale } : {}), spanGaps: false, points: { show: false }, ...extra });
 
@@ -119,12 +126,12 @@ export class Plots {
   constructor(root) {
     this.root = root;
     this.frameMarks = [];
+    this.timeMarks = [];
     this.curvature = new Chart(root, 'plot-curvature', 'Curvature and torsion along the path',
       'Dashed: key frames (arc length s at each).');
     this.derivatives = new Chart(root, 'plot-derivatives', 'Derivatives of curvature and torsion along the path',
       'Per metre of arc, whatever the request\'s convention.');
-    this.speed = new Chart(root, 'plot-speed', 'Tool speed against the speed profile',
-      'The sampled tool speed |v| and the profile ds/dt from the samples\' arc length; they differ where u(t) does not follow s(t).');
+    this.speed = new Chart(root, 'plot-speed', 'Tool speed against the speed profile', SPEED_NOTE);
     this.jointPos = new Chart(root, 'plot-joint-positions', 'Joint positions', 'Dashed: position limits.');
     this.jointVel = new Chart(root, 'plot-joint-velocities', 'Joint velocities', 'Dashed: ±velocity limits.');
     this.jointAcc = new Chart(root, 'plot-joint-accelerations', 'Joint accelerations', 'Dashed: ±acceleration limits.');
@@ -143,10 +150,16 @@ export class Plots {
     this.frameMarks = frameS.map((x, i) => ({ x, label: `${i}` }));
   }
 
-  setProfile(points) {
+  // t: the times [s] at which the motion passes the waypoints of a joint path ([] for none).
+  setTimeMarks(t) {
+    this.timeMarks = t.map((x, i) => ({ x, label: `w${i}` }));
+  }
+
+  // points: PathProfile.points, or null (then `message` says why there is none).
+  setProfile(points, message = 'no path profile yet') {
     if (!points || points.length < 2) {
-      this.curvature.empty('no path profile yet');
-      this.derivatives.empty('no path profile yet');
+      this.curvature.empty(message);
+      this.derivatives.empty(message);
       return;
     }
     const s = points.map((p) => p.s ?? 0);
@@ -181,18 +194,24 @@ export class Plots {
       return;
     }
     const t = samples.map((x) => x.t ?? 0);
+    const timeMarks = () => this.timeMarks;
+    // The profile ds/dt needs the samples' arc length s: a joint path's samples have none.
+    const alongPath = samples.some((x) => x.s !== undefined);
     const profile = samples.map((x, i) => {
       const a = samples[Math.max(0, i - 1)];
       const b = samples[Math.min(samples.length - 1, i + 1)];
       const dt = (b.t ?? 0) - (a.t ?? 0);
       return dt > 0 && (a.step ?? 0) === (b.step ?? 0) ? Math.abs(((b.s ?? 0) - (a.s ?? 0)) / dt) : null;
     });
+    this.speed.title = alongPath ? 'Tool speed against the speed profile' : 'Tool speed';
     this.speed.show({
       scales: { x: { time: false } },
       axes: [{ label: 'time t [s]' }, { label: 'speed [m/s]' }],
       series: [{ label: 't [s]' }, series('tool speed |v| [m/s]', PALETTE[0]),
-        series('profile ds/dt [m/s]', PALETTE[1], undefined, { dash: [6, 4] })],
-    }, [t, samples.map((x) => x.speed ?? 0), profile]);
+        ...(alongPath ? [series('profile ds/dt [m/s]', PALETTE[1], undefined, { dash: [6, 4] })] : [])],
+      plugins: [frameLinesPlugin(timeMarks)],
+    }, [t, samples.map((x) => x.speed ?? 0), ...(alongPath ? [profile] : [])]);
+    this.speed.note.textContent = alongPath ? SPEED_NOTE : SPEED_NOTE_JOINTS;
 
     const n = samples[0].joints ? samples[0].joints.length : 0;
     if (!n) {
@@ -205,6 +224,7 @@ export class Plots {
       series(`${j}${names[j] ? ` ${names[j]}` : ''}`, PALETTE[j % PALETTE.length]));
     const column = (key, j) => samples.map((x) => num(x[key]?.[j]) ?? 0);
     const make = (chart, key, unit, what, limitPair) => {
+      chart.note.textContent = chart.baseNote + (this.timeMarks.length ? WAYPOINT_NOTE : '');
       const bands = limits.length ? limits.map((l, j) => limitPair(l, j)) : null;
       const data = [t, ...Array.from({ length: n }, (_, j) => column(key, j))];
       let lo = Infinity;
@@ -217,7 +237,7 @@ export class Plots {
         scales: { x: { time: false }, y: { range: [lo - pad, hi + pad] } },
         axes: [{ label: 'time t [s]' }, { label: `${what} [${unit}]` }],
         series: [{ label: 't [s]' }, ...jointSeries.map((s) => ({ ...s }))],
-        plugins: [limitLinesPlugin(() => bands)],
+        plugins: [limitLinesPlugin(() => bands), frameLinesPlugin(timeMarks)],
       }, data);
     };
     make(this.jointPos, 'joints', 'rad', 'joint position',

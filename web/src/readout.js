@@ -1,7 +1,7 @@
 // The readout of a plan: the geometry achieved at every key frame next to what was asked
-// (PlanResponse.frames), the plan's summary (arc length, closed loop, motion, robot,
-// optimisers) and its warnings. Every value has a stable data-testid and its full
-// precision in data-value.
+// (PlanResponse.frames), or for a joint path where the motion passes each waypoint; the
+// plan's summary (arc length, closed loop, motion, robot, optimisers) and its warnings.
+// Every value has a stable data-testid and its full precision in data-value.
 
 import { fmt } from './plots.js';
 
@@ -111,8 +111,15 @@ export function renderSummary(root, response, request) {
     item(`step ${step.index ?? 0}: ${step.kind || ''}`, `plan-step-${step.index ?? 0}`, step.durationS ?? 0,
       `s from t = ${fmt(step.startTimeS ?? 0)} s, ${fmt(step.arcLength ?? 0)} m`);
   }
-  item('arc length', 'plan-arc-length', response.arcLength ?? 0, 'm');
-  item('segments', 'plan-segments', (response.segments || []).length);
+  const jointPath = request?.jointPath;
+  if (jointPath) {
+    // No Cartesian path: no arc length, no segments.
+    item('waypoints', 'plan-waypoints', (jointPath.waypoints || []).length);
+    item('blend tolerance', 'plan-blend-tolerance', jointPath.blendTolerance ?? 0, 'rad (joint space)');
+  } else {
+    item('arc length', 'plan-arc-length', response.arcLength ?? 0, 'm');
+    item('segments', 'plan-segments', (response.segments || []).length);
+  }
   if (response.closedLoop) {
     item('closed-loop max error', 'plan-closed-loop', response.closedLoop.maxError ?? 0,
       response.closedLoop.worstField ? `at ${response.closedLoop.worstField}` : '');
@@ -164,4 +171,101 @@ export function renderWarnings(root, warnings, violations) {
   }
   if (list.children.length) root.append(list);
   root.dataset.count = String((warnings || []).length);
+}
+
+// Where a motion passes the waypoints of a joint path: for each waypoint, the sample nearest
+// it in joint space (Euclidean over the joints, as the blend tolerance is), the samples taken
+// in the waypoints' order (a waypoint visited again later is matched to its own pass: the
+// indices are the non-decreasing sequence with the least sum of distances). Returns
+// [{index, t, distance}] (null without samples or waypoints).
+export function waypointPasses(waypoints, samples) {
+  const n = waypoints?.length || 0;
+  const m = samples?.length || 0;
+  if (!n || !m || !samples[0].joints?.length) return null;
+  const distance = (w, k) => {
+    const q = samples[k].joints || [];
+    const p = w.positions || [];
+    let sum = 0;
+    for (let j = 0; j < Math.max(p.length, q.length); ++j) sum += ((p[j] ?? 0) - (q[j] ?? 0)) ** 2;
+    return Math.sqrt(sum);
+  };
+  // cost[k]: the least sum for the waypoints so far with the last one at sample k;
+  // from[i][k]: the sample of waypoint i - 1 on that best sequence.
+  let cost = new Float64Array(m);
+  const from = [];
+  for (let k = 0; k < m; ++k) cost[k] = distance(waypoints[0], k);
+  for (let i = 1; i < n; ++i) {
+    const next = new Float64Array(m);
+    const back = new Int32Array(m);
+    let best = Infinity;
+    let arg = 0;
+    for (let k = 0; k < m; ++k) {
+      if (cost[k] < best) {
+        best = cost[k];
+        arg = k;
+      }
+      next[k] = best + distance(waypoints[i], k);
+      back[k] = arg;
+    }
+    from.push(back);
+    cost = next;
+  }
+  let k = 0;
+  for (let j = 1; j < m; ++j) if (cost[j] < cost[k]) k = j;
+  const indices = new Array(n);
+  for (let i = n - 1; i >= 0; --i) {
+    indices[i] = k;
+    if (i > 0) k = from[i - 1][k];
+  }
+  return indices.map((index, i) => ({ index, t: samples[index].t ?? 0, distance: distance(waypoints[i], index) }));
+}
+
+// How near the motion may pass waypoint i of a joint path [rad]: the blend tolerance at an
+// interior waypoint, 0 at the ends, at a stop and with no tolerance (met exactly).
+export function allowedDistance(jointPath, i) {
+  const count = jointPath.waypoints?.length || 0;
+  if (i === 0 || i === count - 1 || jointPath.waypoints[i]?.stop) return 0;
+  return jointPath.blendTolerance ?? 0;
+}
+
+// The waypoints of a joint path and where the motion passes them (passes: waypointPasses,
+// with `tool`: the tool's distance [m] there from where the waypoint puts it, when known;
+// null: not streamed yet).
+export function renderWaypoints(root, request, passes) {
+  const jointPath = request.jointPath || {};
+  const waypoints = jointPath.waypoints || [];
+  const table = el('table', { class: 'readout', 'data-testid': 'waypoint-readout' });
+  const head = el('tr');
+  for (const text of ['waypoint', 't [s]', 'joint distance [rad]', 'tool distance [m]']) head.append(el('th', {}, text));
+  const thead = el('thead');
+  thead.append(head);
+  table.append(thead);
+  const body = el('tbody');
+  waypoints.forEach((w, i) => {
+    const pass = passes?.[i];
+    const row = el('tr', { 'data-testid': `pass-${i}-row` });
+    row.append(el('td', {}, `${i}${w.stop ? ' stop' : ''}`));
+    const cell = (testid, value) => {
+      const td = el('td');
+      td.append(valueSpan(testid, value));
+      row.append(td);
+      return td;
+    };
+    cell(`pass-${i}-t`, pass?.t);
+    const d = cell(`pass-${i}-joint-distance`, pass?.distance);
+    if (pass) {
+      const allowed = allowedDistance(jointPath, i);
+      d.title = `within ${allowed} rad asked`;
+      // The nearest sample, not the nearest point between samples: 1e-4 rad to spare.
+      d.classList.add(pass.distance <= allowed + 1e-4 ? 'met' : 'missed');
+    }
+    cell(`pass-${i}-tool-distance`, pass?.tool);
+    body.append(row);
+  });
+  table.append(body);
+  root.replaceChildren(table);
+  root.append(el('div', { class: 'plot-note' }, passes
+    ? 'Where the motion passes each waypoint: the nearest sample in joint space (its time, its distance; green: within '
+      + 'the blend tolerance, or met at the ends and stops) and how far the tool is there from where the waypoint puts it.'
+    : 'waiting for the samples'));
 }

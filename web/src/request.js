@@ -5,6 +5,7 @@ import demoPathC from '../../client/grpcurl/plan_demo_path_c.json';
 import pa10PathC from '../../client/grpcurl/plan_pa10_path_c.json';
 import seamUr5e from '../../client/grpcurl/plan_seam_ur5e.json';
 import helix from '../../client/grpcurl/plan_helix.json';
+import jointPathPanda from '../../client/grpcurl/plan_joint_path_panda.json';
 
 const clone = (value) => JSON.parse(JSON.stringify(value));
 
@@ -34,7 +35,15 @@ export const presets = {
   seamUr5e: () => clone(seamUr5e),
   // A path of pieces: a line, five turns of a helix, a line, client/grpcurl/plan_helix.json.
   helix: () => clone(helix),
+  // Joint waypoints (a sampling planner's output) on the Panda, passed without stopping:
+  // client/grpcurl/plan_joint_path_panda.json.
+  jointPathPanda: () => clone(jointPathPanda),
 };
+
+// A joint path (PlanRequest.jointPath: joint waypoints instead of a Cartesian path).
+export function isJointPath(request) {
+  return Boolean(request?.jointPath);
+}
 
 // Field paths as the server writes them: "path.frames[2].curvature".
 export function parsePath(field) {

@@ -1,8 +1,9 @@
 // The 3-D view (three.js, z up as the robots' world frame W): the curve coloured by
 // curvature, torsion or speed with its colour bar (a path of pieces drawn segment by
 // segment: exact pieces thick, transitions dashed in their own colour, blends as a key-frame
-// path's), the key frames with their T, N, B arrows, cusps, inflections and plan warnings
-// marked, a family of curves, and the robot as capsules. Orbit (left drag), pan (right
+// path's), or, for a joint path, the tool's path from the samples coloured by its speed with
+// the tool at each waypoint marked; the key frames with their T, N, B arrows, cusps,
+// inflections and plan warnings marked, a family of curves, and the robot as capsules. Orbit (left drag), pan (right
 // drag), zoom (wheel). Lengths in metres.
 
 import * as THREE from 'three';
@@ -85,11 +86,14 @@ export class View3D {
     this.marks = new THREE.Group();
     this.family = new THREE.Group();
     this.robot = new THREE.Group();
-    this.scene.add(this.grid, this.curve, this.frames, this.marks, this.family, this.robot);
+    this.waypoints = new THREE.Group();
+    this.scene.add(this.grid, this.curve, this.frames, this.marks, this.family, this.robot, this.waypoints);
     this.lineMaterials = [];
     this.colorMode = 'curvature';
     this.showFrames = true;
     this.fitted = false;
+    // Points `fit view` frames with the curve (a joint path's arm), in W [m].
+    this.fitExtra = [];
     this.buildGrid(-0.5, 1, -0.5, 0.5, 1);
 
     new ResizeObserver(() => this.resize()).observe(container);
@@ -195,9 +199,9 @@ export class View3D {
     return line;
   }
 
-  // The values the curve is coloured by, at each profile point.
-  colorValues(points, speedAtS) {
-    switch (this.colorMode) {
+  // The values the curve is coloured by (mode), at each profile point.
+  colorValues(points, speedAtS, mode) {
+    switch (mode) {
       case 'torsion': return points.map((p) => (p.torsion ?? NaN));
       case 'speed': return speedAtS ? points.map((p) => speedAtS(p.s ?? 0)) : points.map((p) => p.speed ?? 0);
       case 'parametricSpeed': return points.map((p) => p.speed ?? 0);
@@ -208,9 +212,12 @@ export class View3D {
   // profile: PathProfile.points; speedAtS: the tool speed [m/s] at arc length s from the
   // streamed samples, or null (speed then falls back to |dp/du|); segmentKinds: the kind of
   // each segment of a path of pieces (PlanResponse.segments[].kind), or null: one line.
-  setCurve(points, speedAtS, segmentKinds = null) {
+  // toolPath: the points are where the tool went ({position, speed}: the samples of a joint
+  // path, which has no Cartesian path), coloured by the tool's speed whatever the mode.
+  setCurve(points, speedAtS, segmentKinds = null, toolPath = false) {
     disposeGroup(this.curve);
-    this.lastCurve = { points, speedAtS, segmentKinds };
+    this.lastCurve = { points, speedAtS, segmentKinds, toolPath };
+    this.container.dataset.curveKind = toolPath ? 'tool' : 'path';
     if (!points || points.length < 2) {
       this.container.dataset.curvePoints = '0';
       this.setSegmentLegend(null);
@@ -218,9 +225,9 @@ export class View3D {
       this.render();
       return;
     }
-    let mode = this.colorMode;
-    if (mode === 'speed' && !speedAtS) mode = 'parametricSpeed';
-    const values = this.colorValues(points, speedAtS);
+    let mode = toolPath ? 'speed' : this.colorMode;
+    if (mode === 'speed' && !speedAtS && !toolPath) mode = 'parametricSpeed';
+    const values = this.colorValues(points, speedAtS, mode);
     const scale = makeScale(values, COLOR_MODES[mode].diverging);
     const colors = values.flatMap((v) => scale.color(v));
     const positions = points.map((p) => v3(p.position));
@@ -317,7 +324,8 @@ export class View3D {
   setColorMode(mode, speedAtS) {
     this.colorMode = mode;
     if (this.lastCurve) {
-      this.setCurve(this.lastCurve.points, speedAtS ?? this.lastCurve.speedAtS, this.lastCurve.segmentKinds);
+      this.setCurve(this.lastCurve.points, speedAtS ?? this.lastCurve.speedAtS, this.lastCurve.segmentKinds,
+        this.lastCurve.toolPath);
     }
   }
 
@@ -437,6 +445,46 @@ export class View3D {
     this.render();
   }
 
+  // The waypoints of a joint path: [{position: the tool there (forward kinematics of the
+  // waypoint), passed: the tool where the motion passes nearest the waypoint (or null), label,
+  // stop}], or null. Each drawn as a dot in a translucent ball about the tool's position,
+  // tagged, with a thin line to where the motion passes; the tags follow showFrames.
+  // data-waypoints: the count drawn.
+  setWaypoints(waypoints) {
+    disposeGroup(this.waypoints);
+    this.lastWaypoints = waypoints;
+    const list = waypoints || [];
+    const positions = list.map((w) => v3(w.position));
+    const size = Math.min(0.03, Math.max(0.012, extentOf(positions) * 0.03));
+    const ball = new THREE.SphereGeometry(size, 20, 14);
+    const dot = new THREE.SphereGeometry(size * 0.22, 12, 8);
+    list.forEach((w, i) => {
+      const p = positions[i];
+      const color = w.stop ? 0x555555 : 0x6a1b9a;
+      const shell = new THREE.Mesh(ball, new THREE.MeshStandardMaterial({ color, transparent: true, opacity: 0.25,
+        depthWrite: false }));
+      shell.position.copy(p);
+      const centre = new THREE.Mesh(dot, new THREE.MeshStandardMaterial({ color }));
+      centre.position.copy(p);
+      this.waypoints.add(shell, centre);
+      if (w.passed) {
+        const q = v3(w.passed);
+        if (q.distanceTo(p) > 1e-6) {
+          this.waypoints.add(new THREE.Line(new THREE.BufferGeometry().setFromPoints([p, q]),
+            new THREE.LineBasicMaterial({ color })));
+        }
+      }
+      if (this.showFrames) {
+        const tag = label(w.label ?? `${i}`, `waypoint${w.stop ? ' stop' : ''}`);
+        tag.position.copy(p);
+        tag.center.set(-0.3, 1.2);
+        this.waypoints.add(tag);
+      }
+    });
+    this.container.dataset.waypoints = String(list.length);
+    this.render();
+  }
+
   // points: joint axis origins (base first) then the tool position, in W [m].
   setRobot(points) {
     if (!points) {
@@ -527,9 +575,15 @@ export class View3D {
   }
 
   refit() {
-    if (this.lastCurve?.points?.length) this.fit(this.lastCurve.points.map((p) => v3(p.position)));
+    if (this.lastCurve?.points?.length) this.fit([...this.lastCurve.points.map((p) => v3(p.position)), ...this.fitExtra]);
     this.render();
   }
+}
+
+// The diagonal of the box about positions [m] (0.5 without any).
+function extentOf(positions) {
+  if (!positions.length) return 0.5;
+  return new THREE.Box3().setFromPoints(positions).getSize(new THREE.Vector3()).length();
 }
 
 // The profile point nearest global parameter u.

@@ -321,11 +321,21 @@ std::vector<GridPoint> portion_grid(const JointPath& path, double r0, double r1,
   sigmas.back() = r1;
   std::vector<GridPoint> grid;
   grid.reserve(sigmas.size());
-  JointPathPoint point;
-  std::size_t hint = 0;
+  JointPathPoint point, mid;
+  std::size_t hint = 0, mid_hint = 0;
   for (const double s : sigmas) {
     if (!grid.empty() && !(s - r0 > grid.back().s)) continue;
     evaluate(path, s, point, hint);
+    if (!grid.empty()) {
+      // The limits at the interval's middle too, where the path bends (a blend).
+      GridPoint& before = grid.back();
+      const double m = r0 + 0.5 * (before.s + (s - r0));
+      evaluate(path, m, mid, mid_hint);
+      if (path.segments[mid.segment].kind == JointPathSegment::Kind::kBlend) {
+        before.q_s_mid = mid.q_s;
+        before.q_ss_mid = mid.q_ss;
+      }
+    }
     GridPoint g;
     g.s = s - r0;
     g.q_s = point.q_s;
@@ -492,6 +502,13 @@ Expected<JointPathPlan> plan_joint_path(const ValidRobot& robot, JointPath path,
   for (std::size_t p = 0; p < P; ++p) {
     plan.grids[p] = portion_grid(plan.path, rests[p], rests[p + 1], options);
     plan.limit_scale[p].assign(plan.grids[p].size(), 1.0);
+    // Between the points of a blend's grid the joints' accelerations pass their values at
+    // the ends and the middle by up to a few 1e-4 of the limit: the blends' points start
+    // that much inside the limits, and the sample check rarely needs a refinement.
+    for (std::size_t i = 0; i < plan.grids[p].size(); ++i) {
+      const bool blend = plan.grids[p][i].q_s_mid.size() > 0 || (i > 0 && plan.grids[p][i - 1].q_s_mid.size() > 0);
+      if (blend) plan.limit_scale[p][i] = 1.0 - kBlendLimitMargin;
+    }
     plan.grid_points += plan.grids[p].size();
   }
   for (int round = 0;; ++round) {
@@ -528,8 +545,10 @@ Expected<JointPathPlan> plan_joint_path(const ValidRobot& robot, JointPath path,
   for (std::size_t p = 0; p < P; ++p) {
     std::vector<GridPoint> half;
     std::vector<double> half_sigma;
-    for (const std::size_t i : every_second_point(plan.grids[p].size()))
+    for (const std::size_t i : every_second_point(plan.grids[p].size())) {
       half.push_back(plan.grids[p][i]), half_sigma.push_back(plan.limit_scale[p][i]);
+      half.back().q_s_mid.resize(0), half.back().q_ss_mid.resize(0);  // the middles of the finer intervals
+    }
     if (auto sol = time_optimal_detail::sweep(half, limits, &half_sigma)) {
       half_duration += sol->duration;
     } else {

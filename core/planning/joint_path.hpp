@@ -60,6 +60,11 @@ inline constexpr double kJointWaypointMerge = 1e-9;
 /// intervals where it meets the lines, so the joint accelerations are nearly continuous
 /// there).
 inline constexpr std::size_t kBlendGridIntervals = 96;
+/// The limit scale (velocities by it, accelerations by its square) a blend's grid points
+/// start with in the sweep: between them (with the limits imposed at each interval's ends
+/// and middle) a joint acceleration passes them by up to a few 1e-4 of its limit, which
+/// the sample check would otherwise remove in refinement rounds of the whole grid.
+inline constexpr double kBlendLimitMargin = 2.5e-4;
 /// Grid intervals of each line at least (uniform in sigma).
 inline constexpr std::size_t kMinLineIntervals = 16;
 

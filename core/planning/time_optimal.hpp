@@ -55,6 +55,12 @@ struct GridPoint {
   /// its derivative along the path: alpha = omega_s s_ddot + omega_ss s_dot^2 [rad/m^2].
   Eigen::Vector3d omega_s = Eigen::Vector3d::Zero();
   Eigen::Vector3d omega_ss = Eigen::Vector3d::Zero();
+  /// Optional: q_s and q_ss at the middle of the interval that starts here (empty: none).
+  /// Where given, the joint velocity and acceleration limits hold there too (b linear and u
+  /// constant on the interval: b_mid = b_i + ds u), so that a joint path whose derivatives
+  /// turn within an interval keeps its limits between the grid points with fewer
+  /// refinements.
+  JointVector q_s_mid, q_ss_mid;
 };
 
 /// The limits of a time-optimal timing. A limit at +infinity is not imposed.

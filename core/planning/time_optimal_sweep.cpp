@@ -38,7 +38,7 @@ struct Line {
 
 /// Scratch of one interval's polygon (fixed capacity: no allocation in the sweep).
 struct Polygon {
-  static constexpr std::size_t kCap = 2 * kMaxJoints + 4 + 2 * kAngularRows;
+  static constexpr std::size_t kCap = 3 * kMaxJoints + 4 + 2 * kAngularRows;
   std::array<Line, kCap> lower, upper;
   std::size_t n_lower = 0, n_upper = 0;
   double x_max = kInf;  ///< bounds on x alone (joint acceleration with no u term)
@@ -123,6 +123,20 @@ void interval_polygon(const GridPoint& g0, const GridPoint& g1, double ds, const
     p.add_two_sided(g0.q_s(j), g0.q_ss(j), a0, src);  // q_ddot at s_i
     // q_ddot at s_{i+1} with b_{i+1} = b_i + 2 ds u: (q_s + 2 ds q_ss) u + q_ss b_i.
     p.add_two_sided(g1.q_s(j) + 2.0 * ds * g1.q_ss(j), g1.q_ss(j), a1, src);
+  }
+  if (g0.q_s_mid.size() == g0.q_s.size() && g0.q_ss_mid.size() == g0.q_s.size()) {
+    // At the middle, b = b_i + ds u: q_ddot = (q_s + ds q_ss) u + q_ss b_i, and the velocity
+    // limit b_i + ds u <= (v / |q_s|)^2, under the smaller of the ends' scales.
+    const double sig = std::min(sig0, sig1);
+    for (Eigen::Index j = 0; j < g0.q_s.size(); ++j) {
+      p.add_two_sided(g0.q_s_mid(j) + ds * g0.q_ss_mid(j), g0.q_ss_mid(j), lim.joint_acceleration(j) * sig * sig,
+                      {BindingKind::kJointAcceleration, static_cast<std::size_t>(j)});
+      const double qs = std::abs(g0.q_s_mid(j)), v = lim.joint_velocity(j) * sig;
+      if (qs > 0.0 && v < kInf && ds > 0.0) {
+        const double cap = (v / qs) * (v / qs);
+        p.add_upper(cap / ds, -1.0 / ds, {BindingKind::kJointVelocity, static_cast<std::size_t>(j)});
+      }
+    }
   }
   if (lim.tangential < kInf) {
     p.add_upper(lim.tangential, 0.0, {BindingKind::kTangentialAcceleration, 0});

@@ -380,12 +380,9 @@ Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationP
   // The grid error of the duration: the same limits on every second grid point.
   double half_duration = 0.0;
   for (std::size_t p = 0; p < P; ++p) {
-    std::vector<GridPoint> half;
-    std::vector<double> half_sigma;
-    for (const std::size_t i : every_second_point(out.grids[p].size()))
-      half.push_back(out.grids[p][i]), half_sigma.push_back(sigma[p][i]);
-    if (auto sol = sweep(half, out.limits, &half_sigma)) half_duration += sol->duration;
-    else half_duration = kInf;
+    const std::vector<std::size_t> half = every_second_point(out.grids[p].size());
+    auto sol = half.size() >= 3 ? sweep(out.grids[p], out.limits, &sigma[p], &half) : Expected<TimeOptimalSolution>();
+    half_duration = half.size() >= 3 && sol ? half_duration + sol->duration : kInf;
   }
   out.duration_grid_error = std::isfinite(half_duration)
                                 ? std::abs(half_duration - out.motion.duration_s)

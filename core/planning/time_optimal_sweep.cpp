@@ -96,9 +96,23 @@ PointCap point_cap(const GridPoint& g, const TimeOptimalLimits& lim, double sigm
   return c;
 }
 
+/// The smallest upper bound on u at x = b_i of an interval's rows: what the forward pass
+/// needs of the polygon, without building it.
+struct UpperAt {
+  double x = 0.0, u = kInf;
+  void add_upper(double c0, double c1, Source) { u = std::min(u, c0 + c1 * x); }
+  void add_lower(double, double, Source) {}
+  void add_x_max(double, Source) {}
+  void add_two_sided(double A, double C, double a, Source) {  // as Polygon's upper lines
+    if (!(a < kInf) || std::abs(A) <= 1e-13 * (std::abs(C) + 1.0)) return;
+    u = std::min(u, ((A > 0.0 ? a : -a) - C * x) / A);
+  }
+};
+
 // |A u + C x| <= a for vectors A, C: support rows d . (A u + C x) <= a cos(pi / 16) over
 // kAngularRows directions d of the plane of A and C (two-sided: both half turns).
-void add_norm_rows(const Eigen::Vector3d& A, const Eigen::Vector3d& C, double a, Source src, Polygon& p) {
+template <class Rows>
+void add_norm_rows(const Eigen::Vector3d& A, const Eigen::Vector3d& C, double a, Source src, Rows& p) {
   if (!(a < kInf)) return;
   const double nA = A.norm(), nC = C.norm();
   if (!(nA > 0.0 || nC > 0.0)) return;
@@ -112,11 +126,13 @@ void add_norm_rows(const Eigen::Vector3d& A, const Eigen::Vector3d& C, double a,
   }
 }
 
-/// The polygon of interval i (points g0 = s_i, g1 = s_{i+1}, ds = s_{i+1} - s_i): the joint
-/// accelerations at both ends and the tangential limit; the next set is added by the caller.
-void interval_polygon(const GridPoint& g0, const GridPoint& g1, double ds, const TimeOptimalLimits& lim, double sig0,
-                      double sig1, Polygon& p) {
-  p.clear();
+/// The rows of interval i's polygon (points g0 = s_i, g1 = s_{i+1}, ds = s_{i+1} - s_i),
+/// given to `p` (a Polygon, or UpperAt): the joint accelerations at both ends (and the middle
+/// where `middle` and the point carries it) and the tangential limit; the next set is added
+/// by the caller.
+template <class Rows>
+void interval_rows(const GridPoint& g0, const GridPoint& g1, double ds, const TimeOptimalLimits& lim, double sig0,
+                   double sig1, bool middle, Rows& p) {
   for (Eigen::Index j = 0; j < g0.q_s.size(); ++j) {
     const Source src{BindingKind::kJointAcceleration, static_cast<std::size_t>(j)};
     const double a0 = lim.joint_acceleration(j) * sig0 * sig0, a1 = lim.joint_acceleration(j) * sig1 * sig1;
@@ -124,7 +140,7 @@ void interval_polygon(const GridPoint& g0, const GridPoint& g1, double ds, const
     // q_ddot at s_{i+1} with b_{i+1} = b_i + 2 ds u: (q_s + 2 ds q_ss) u + q_ss b_i.
     p.add_two_sided(g1.q_s(j) + 2.0 * ds * g1.q_ss(j), g1.q_ss(j), a1, src);
   }
-  if (g0.q_s_mid.size() == g0.q_s.size() && g0.q_ss_mid.size() == g0.q_s.size()) {
+  if (middle && g0.q_s_mid.size() == g0.q_s.size() && g0.q_ss_mid.size() == g0.q_s.size()) {
     // At the middle, b = b_i + ds u: q_ddot = (q_s + ds q_ss) u + q_ss b_i, and the velocity
     // limit b_i + ds u <= (v / |q_s|)^2, under the smaller of the ends' scales.
     const double sig = std::min(sig0, sig1);
@@ -146,6 +162,102 @@ void interval_polygon(const GridPoint& g0, const GridPoint& g1, double ds, const
     const Source src{BindingKind::kAngularAcceleration, 0};
     add_norm_rows(g0.omega_s, g0.omega_ss, lim.angular_acceleration * sig0 * sig0, src, p);
     add_norm_rows(g1.omega_s + 2.0 * ds * g1.omega_ss, g1.omega_ss, lim.angular_acceleration * sig1 * sig1, src, p);
+  }
+}
+
+// The range [x_lo, x_hi] of x = b_i over which some u satisfies every lower and upper line
+// of `p` (max_l l(x) <= min_u u(x)), x_lo from 0 and x_hi from the point's own cap, as given.
+// F(x) = max_l l(x) - min_u u(x) is convex and piecewise linear: Newton's steps from the
+// cap leftwards (and from 0 rightwards) reach the range's ends from outside, each landing on
+// the intersection of the pair of lines active where it starts (a subgradient step never
+// passes the root), so that a few evaluations of the lines replace the pairwise
+// Fourier-Motzkin elimination of every (lower, upper) pair: one to three on the joint paths'
+// and Cartesian paths' grids, against some 600 pairs per interval. False: not settled in
+// kNewtonSteps (the caller falls back to the pairs).
+struct Active {
+  double F = 0.0, slope = 0.0, scale = 0.0;
+  const Line* lower = nullptr;
+  const Line* upper = nullptr;
+};
+
+/// F at x with the pair active there; `leftwards`: the pair that stays active just left of
+/// x (the left derivative), else just right of it.
+Active active_at(const Polygon& p, double x, bool leftwards) {
+  Active a;
+  double lv = -kInf, uv = kInf;
+  for (std::size_t i = 0; i < p.n_lower; ++i) {
+    const Line& l = p.lower[i];
+    const double v = l.c0 + l.c1 * x;
+    if (v > lv || (v == lv && (leftwards ? l.c1 < a.lower->c1 : l.c1 > a.lower->c1))) lv = v, a.lower = &l;
+  }
+  for (std::size_t i = 0; i < p.n_upper; ++i) {
+    const Line& u = p.upper[i];
+    const double v = u.c0 + u.c1 * x;
+    if (v < uv || (v == uv && (leftwards ? u.c1 > a.upper->c1 : u.c1 < a.upper->c1))) uv = v, a.upper = &u;
+  }
+  a.F = lv - uv;
+  a.slope = a.lower->c1 - a.upper->c1;
+  // The rounding of l(x) and u(x): of the order of their terms' magnitudes.
+  a.scale = std::abs(a.lower->c0) + std::abs(a.lower->c1 * x) + std::abs(a.upper->c0) + std::abs(a.upper->c1 * x);
+  return a;
+}
+
+constexpr int kNewtonSteps = 64;
+
+bool feasible_range(const Polygon& p, double& x_lo, double& x_hi, Source& hi_src, bool& empty) {
+  if (p.n_lower == 0 || p.n_upper == 0 || !std::isfinite(x_hi)) return false;
+  double x = x_hi;
+  for (int step = 0;; ++step) {
+    if (step == kNewtonSteps) return false;
+    const Active a = active_at(p, x, true);
+    if (!(std::isfinite(a.F) && std::isfinite(a.slope))) return false;
+    if (a.F <= 1e-12 * a.scale) break;
+    if (!(a.slope > 0.0)) {  // positive and not decreasing leftwards: no x at or below x_hi
+      empty = true;
+      return true;
+    }
+    const double next = x - a.F / a.slope;
+    if (!(next < x)) break;  // the root within rounding of x
+    x = next;
+    hi_src = a.upper->src.next ? a.lower->src : a.upper->src;
+  }
+  x_hi = x;
+  x = x_lo;
+  for (int step = 0;; ++step) {
+    if (step == kNewtonSteps) return false;
+    const Active a = active_at(p, x, false);
+    if (!(std::isfinite(a.F) && std::isfinite(a.slope))) return false;
+    if (a.F <= 1e-12 * a.scale) break;
+    if (!(a.slope < 0.0)) {  // positive and not decreasing rightwards: no x at or above x_lo
+      empty = true;
+      return true;
+    }
+    const double next = x - a.F / a.slope;
+    if (!(next > x)) break;
+    x = next;
+    if (x > x_hi) break;  // past the upper end: the caller finds the range empty
+  }
+  x_lo = x;
+  return true;
+}
+
+/// The same range by Fourier-Motzkin over every (lower, upper) pair: l(x) <= u(x).
+void pairwise_range(const Polygon& p, double& x_lo, double& x_hi, Source& hi_src, bool& empty) {
+  for (std::size_t a = 0; a < p.n_lower; ++a) {
+    const Line& l = p.lower[a];
+    for (std::size_t c = 0; c < p.n_upper; ++c) {
+      const Line& up = p.upper[c];
+      const double slope = l.c1 - up.c1, rhs = up.c0 - l.c0;  // slope x <= rhs
+      const double tol = 1e-14 * (std::abs(l.c1) + std::abs(up.c1));
+      if (slope > tol) {
+        const double x = rhs / slope;
+        if (x < x_hi) x_hi = x, hi_src = up.src.next ? l.src : up.src;
+      } else if (slope < -tol) {
+        x_lo = std::max(x_lo, rhs / slope);
+      } else if (rhs < -1e-12 * (std::abs(up.c0) + std::abs(l.c0))) {
+        empty = true;
+      }
+    }
   }
 }
 
@@ -202,26 +314,30 @@ namespace time_optimal_detail {
 
 /// The sweep with per-point limit scales sigma (joint limits and the centripetal limit at
 /// point i are multiplied by sigma_i, accelerations by sigma_i^2); sigma null: all 1.
-Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& grid, const TimeOptimalLimits& lim,
-                                    const std::vector<double>* sigma) {
-  const std::size_t n_pts = grid.size();
+Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& all, const TimeOptimalLimits& lim,
+                                    const std::vector<double>* sigma, const std::vector<std::size_t>* points) {
+  const std::size_t n_pts = points ? points->size() : all.size();
   GEOTRAJ_CHECK(n_pts >= 3);
   GEOTRAJ_CHECK(lim.joint_velocity.size() == lim.joint_acceleration.size());
   const std::size_t N = n_pts - 1;
-  auto sig = [&](std::size_t i) { return sigma ? (*sigma)[i] : 1.0; };
+  auto index = [&](std::size_t i) { return points ? (*points)[i] : i; };
+  auto point = [&](std::size_t i) -> const GridPoint& { return all[index(i)]; };
+  auto sig = [&](std::size_t i) { return sigma ? (*sigma)[index(i)] : 1.0; };
+  const bool middle = points == nullptr;  // a subset's intervals are not the grid's: no middles
   auto fail = [&](std::size_t i, const std::string& why) {
     return tl::make_unexpected(Violations{unattainable(
-        "motion", "no positive speed is admissible at s = " + number(grid[i].s, 6) + " m from the portion's start: " + why)});
+        "motion", "no positive speed is admissible at s = " + number(point(i).s, 6) + " m from the portion's start: " + why)});
   };
 
   std::vector<double> lo(n_pts, 0.0), hi(n_pts, 0.0);
   Polygon poly;
   // Backward: controllable sets. K_N = {0} (rest).
   for (std::size_t k = N; k-- > 0;) {
-    const GridPoint &g0 = grid[k], &g1 = grid[k + 1];
+    const GridPoint &g0 = point(k), &g1 = point(k + 1);
     const double ds = g1.s - g0.s;
     GEOTRAJ_CHECK(ds > 0.0);
-    interval_polygon(g0, g1, ds, lim, sig(k), sig(k + 1), poly);
+    poly.clear();
+    interval_rows(g0, g1, ds, lim, sig(k), sig(k + 1), middle, poly);
     // x + 2 ds u in [lo_{k+1}, hi_{k+1}].
     poly.add_lower(lo[k + 1] / (2.0 * ds), -1.0 / (2.0 * ds), {BindingKind::kCartesianSpeed, 0, true});
     poly.add_upper(hi[k + 1] / (2.0 * ds), -1.0 / (2.0 * ds), {BindingKind::kCartesianSpeed, 0, true});
@@ -229,23 +345,7 @@ Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& grid, const Ti
     double x_lo = 0.0, x_hi = std::min(cap.x, poly.x_max);
     Source hi_src = cap.x <= poly.x_max ? cap.src : poly.x_max_src;
     bool empty = false;
-    // Fourier-Motzkin: every (lower, upper) pair needs l(x) <= u(x).
-    for (std::size_t a = 0; a < poly.n_lower; ++a) {
-      const Line& l = poly.lower[a];
-      for (std::size_t c = 0; c < poly.n_upper; ++c) {
-        const Line& up = poly.upper[c];
-        const double slope = l.c1 - up.c1, rhs = up.c0 - l.c0;  // slope x <= rhs
-        const double tol = 1e-14 * (std::abs(l.c1) + std::abs(up.c1));
-        if (slope > tol) {
-          const double x = rhs / slope;
-          if (x < x_hi) x_hi = x, hi_src = up.src.next ? l.src : up.src;
-        } else if (slope < -tol) {
-          x_lo = std::max(x_lo, rhs / slope);
-        } else if (rhs < -1e-12 * (std::abs(up.c0) + std::abs(l.c0))) {
-          empty = true;
-        }
-      }
-    }
+    if (!feasible_range(poly, x_lo, x_hi, hi_src, empty)) pairwise_range(poly, x_lo, x_hi, hi_src, empty);
     if (empty || x_hi < x_lo - 1e-12 * std::max(1.0, std::abs(x_hi)))
       return fail(k, "the rest at the end of the portion cannot be reached within " + source_words(hi_src));
     if (x_hi < x_lo) x_lo = x_hi;
@@ -261,11 +361,11 @@ Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& grid, const Ti
   sol.b.assign(n_pts, 0.0);
   sol.u.assign(N, 0.0);
   for (std::size_t k = 0; k < N; ++k) {
-    const GridPoint &g0 = grid[k], &g1 = grid[k + 1];
+    const GridPoint &g0 = point(k), &g1 = point(k + 1);
     const double ds = g1.s - g0.s, x = sol.b[k];
-    interval_polygon(g0, g1, ds, lim, sig(k), sig(k + 1), poly);
-    double u = (hi[k + 1] - x) / (2.0 * ds);
-    for (std::size_t c = 0; c < poly.n_upper; ++c) u = std::min(u, poly.upper[c].c0 + poly.upper[c].c1 * x);
+    UpperAt upper{x, (hi[k + 1] - x) / (2.0 * ds)};
+    interval_rows(g0, g1, ds, lim, sig(k), sig(k + 1), middle, upper);
+    const double u = upper.u;
     const double x1 = std::clamp(x + 2.0 * ds * u, lo[k + 1], hi[k + 1]);
     sol.b[k + 1] = k + 1 == N ? 0.0 : x1;
     sol.u[k] = (sol.b[k + 1] - x) / (2.0 * ds);
@@ -273,19 +373,20 @@ Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& grid, const Ti
 
   // The profile: constant acceleration per interval, dt = 2 ds / (sqrt(b_i) + sqrt(b_{i+1})).
   double t = 0.0;
-  sol.profile.length = grid.back().s;
+  sol.profile.length = point(N).s;
+  sol.profile.pieces.reserve(N);
   for (std::size_t k = 0; k < N; ++k) {
-    const double ds = grid[k + 1].s - grid[k].s;
+    const double ds = point(k + 1).s - point(k).s;
     const double v0 = std::sqrt(sol.b[k]), v1 = std::sqrt(sol.b[k + 1]);
     if (!(v0 + v1 > 0.0)) return fail(k, "the speed stays zero over an interval (grid too coarse)");
     const double dt = 2.0 * ds / (v0 + v1);
-    sol.profile.pieces.push_back({t, grid[k].s, v0, sol.u[k], 0.0});
-    const Usage us = interval_usage(grid[k], grid[k + 1], sol.b[k], sol.b[k + 1], sol.u[k], lim);
+    sol.profile.pieces.push_back({t, point(k).s, v0, sol.u[k], 0.0});
+    const Usage us = interval_usage(point(k), point(k + 1), sol.b[k], sol.b[k + 1], sol.u[k], lim);
     BindingStretch st;
     st.kind = us.src.kind;
     st.joint = us.src.joint;
-    st.s_start = grid[k].s;
-    st.s_end = grid[k + 1].s;
+    st.s_start = point(k).s;
+    st.s_end = point(k + 1).s;
     st.t_start = t;
     st.t_end = t + dt;
     st.value = us.value;
@@ -309,7 +410,7 @@ Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& grid, const Ti
 }  // namespace time_optimal_detail
 
 Expected<TimeOptimalSolution> solve_time_optimal(const std::vector<GridPoint>& grid, const TimeOptimalLimits& limits) {
-  return time_optimal_detail::sweep(grid, limits, nullptr);
+  return time_optimal_detail::sweep(grid, limits, nullptr, nullptr);
 }
 
 }  // namespace geotraj::core

@@ -41,6 +41,14 @@ core::JointPathSpec waypoints(unsigned seed, std::size_t count, double tolerance
   return spec;
 }
 
+// The solver's time budget (1 s by default, a server call's) well above what these plans
+// take on a loaded machine or under the sanitizers: the results do not depend on the load.
+JerkTimingOptions unhurried() {
+  JerkTimingOptions o;
+  o.time_budget_s = 120.0;
+  return o;
+}
+
 TEST(JointPathJerk, EverySampleWithinVelocityAccelerationAndJerkAtOneAndFourKilohertz) {
   const core::JointPathSpec spec = waypoints(41, 7, 0.1);
   const core::RobotModel& m = jerky_pa10();
@@ -49,7 +57,7 @@ TEST(JointPathJerk, EverySampleWithinVelocityAccelerationAndJerkAtOneAndFourKilo
     motion.cycle_rate_hz = rate;
     auto path = core::build_joint_path(m, spec);
     ASSERT_TRUE(path);
-    auto timed = plan_joint_path_jerk(jerky_pa10(), *path, motion);
+    auto timed = plan_joint_path_jerk(jerky_pa10(), *path, motion, joint_path_jerk_exact_options(), unhurried());
     ASSERT_TRUE(timed) << timed.error().front().field << ": " << timed.error().front().description;
     const core::JointPathPlan& p = timed->plan;
     std::printf("%g Hz: T %.4f (exact %.4f), refinements %d, slowed %.4f, status %d, %s, iterations %d\n", rate,
@@ -88,10 +96,10 @@ TEST(JointPathJerk, AGivenDurationStretchesTheMotion) {
   ASSERT_TRUE(path);
   core::MotionSpec motion;
   motion.cycle_rate_hz = 500.0;
-  auto fastest = plan_joint_path_jerk(jerky_pa10(), *path, motion);
+  auto fastest = plan_joint_path_jerk(jerky_pa10(), *path, motion, joint_path_jerk_exact_options(), unhurried());
   ASSERT_TRUE(fastest);
   motion.duration_s = 3.0 * fastest->plan.duration_s;
-  auto slow = plan_joint_path_jerk(jerky_pa10(), *path, motion);
+  auto slow = plan_joint_path_jerk(jerky_pa10(), *path, motion, joint_path_jerk_exact_options(), unhurried());
   ASSERT_TRUE(slow);
   EXPECT_DOUBLE_EQ(slow->plan.duration_s, motion.duration_s);
   EXPECT_NEAR(slow->jerk_usage, fastest->jerk_usage / 27.0, 1e-9);

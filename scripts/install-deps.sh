@@ -6,6 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake make pkg-config
   ccache                              # compiler cache shared by the build, sanitizer, TSan and fuzz trees
+  lld                                 # the linker of every tree (CMakeLists.txt: GEOTRAJ_LLD)
   libeigen3-dev libexpected-dev
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   golang-github-gogo-googleapis-dev   # google/rpc/status.proto and error_details.proto

@@ -23,9 +23,9 @@
 //
 // Sweep (O(N x constraints), no solver): backward, the controllable sets K_N = {0} and
 // K_i = {b : some admissible u_i takes b into K_{i+1}}, each an interval computed exactly by
-// projecting the interval's 2-D polygon in (b, u) onto b (Fourier-Motzkin over pairs of one
-// lower and one upper bound on u); forward from b_0 = 0, the largest admissible u_i that
-// stays in K_{i+1}.
+// projecting the interval's 2-D polygon in (b, u) onto b (where max lower - min upper bound on
+// u, convex in b, crosses zero: Newton's steps, exact on the piecewise-linear function);
+// forward from b_0 = 0, the largest admissible u_i that stays in K_{i+1}.
 #pragma once
 
 #include <cstddef>

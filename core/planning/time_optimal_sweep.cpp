@@ -1,6 +1,6 @@
 // The sweep over one portion's grid (time_optimal.hpp, "Sweep"): each interval's polygon in
-// (b, u) from the limits at both of its ends, the controllable sets backward by
-// Fourier-Motzkin, the largest admissible u forward, the profile and what binds on each
+// (b, u) from the limits at both of its ends, the controllable sets backward (the polygon's
+// projection by Newton's steps), the largest admissible u forward, the profile and what binds on each
 // interval.
 #include "core/planning/time_optimal_detail.hpp"
 

@@ -9,9 +9,20 @@
 // samples as a fraction of its limit (acc_step), and the largest velocity and acceleration by
 // differences of the positions as a fraction of their limits (v_usage, a_usage: above 1 is a
 // limit exceeded).
+//
+// And against TOPP-RA (Pham and Pham's reachability analysis, its C++ version) when its
+// source folder is given (GEOTRAJ_TOPPRA_SOURCE_DIR): with the seidel solver, the joint
+// velocity and acceleration constraints (the latter by interpolation, their default) and the
+// constant-acceleration parametrizer, (1) on a cubic spline through the waypoints, as its
+// users give it a path (it passes every waypoint but not their polyline: q_excess and
+// off_polyline say how far it strays), and (2) on geotraj's own path, handed over as a
+// cubic Hermite spline through q(sigma) and q'(sigma) at the points of geotraj's grid, so
+// that both time the same path.
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
+#include <numbers>
 #include <random>
 #include <vector>
 
@@ -26,6 +37,20 @@
 
 #include "Path.h"
 #include "Trajectory.h"
+#endif
+
+#ifdef GEOTRAJ_BENCH_TOPPRA
+#include <cstdio>
+#include <exception>
+#include <memory>
+#include <string>
+
+#include <toppra/algorithm/toppra.hpp>
+#include <toppra/constraint/linear_joint_acceleration.hpp>
+#include <toppra/constraint/linear_joint_velocity.hpp>
+#include <toppra/geometric_path/piecewise_poly_path.hpp>
+#include <toppra/parametrizer/const_accel.hpp>
+#include <toppra/solver/seidel.hpp>
 #endif
 
 namespace {
@@ -170,15 +195,25 @@ BENCHMARK(BM_GeotrajJointPathJerk)
 
 #ifdef GEOTRAJ_BENCH_KUNZ
 // Kunz and Stilman's time-optimal trajectory generation at its default 1 ms step.
+// Their inputs for the benchmark's set: the waypoints and the Panda's limits.
+struct KunzInputs {
+  std::list<Eigen::VectorXd> points;
+  Eigen::VectorXd v{7}, a{7};
+};
+
+KunzInputs kunz_inputs(const benchmark::State& state) {
+  KunzInputs in;
+  for (const auto& w : waypoints(state.range(0))) in.points.push_back(Eigen::Map<const Eigen::VectorXd>(w.data(), 7));
+  for (std::size_t j = 0; j < 7; ++j) {
+    in.v(static_cast<Eigen::Index>(j)) = panda()->limits[j].max_velocity;
+    in.a(static_cast<Eigen::Index>(j)) = panda()->limits[j].max_acceleration;
+  }
+  return in;
+}
+
 void BM_KunzStilman(benchmark::State& state) {
   const double deviation = static_cast<double>(state.range(1)) / 100.0;
-  std::list<Eigen::VectorXd> points;
-  for (const auto& w : waypoints(state.range(0))) points.push_back(Eigen::Map<const Eigen::VectorXd>(w.data(), 7));
-  Eigen::VectorXd v(7), a(7);
-  for (std::size_t j = 0; j < 7; ++j) {
-    v(static_cast<Eigen::Index>(j)) = panda()->limits[j].max_velocity;
-    a(static_cast<Eigen::Index>(j)) = panda()->limits[j].max_acceleration;
-  }
+  const auto [points, v, a] = kunz_inputs(state);
   std::optional<Trajectory> trajectory;
   for (auto _ : state) {
     trajectory.emplace(Path(points, deviation), v, a, 1e-3);
@@ -191,6 +226,264 @@ void BM_KunzStilman(benchmark::State& state) {
   count(state, trajectory->getDuration(), [&](double t) { return trajectory->getPosition(t); });
 }
 BENCHMARK(BM_KunzStilman)->Apply(every_set);
+
+// The same with its limits scaled down until its samples at 1 kHz stay within the Panda's
+// (by second differences): its duration when it keeps the limits, as geotraj's sweep does.
+// The time is of the last, scaled run; `limit_scale` is the acceleration limits' factor.
+void BM_KunzStilmanWithinLimits(benchmark::State& state) {
+  const double deviation = static_cast<double>(state.range(1)) / 100.0;
+  auto [points, v, a] = kunz_inputs(state);
+  const Eigen::VectorXd a_full = a;
+  // The largest factor of the acceleration limits (to 0.1 %) whose result stays within the
+  // limits (to 0.1 %; its velocities are within theirs), by bisection. Its overshoots do not
+  // shrink in proportion (they come from its integration step and its blends' ends): the
+  // factor found is where the bisection ends, not the largest that would do.
+  std::optional<Trajectory> trajectory;
+  auto within = [&](double scale) {
+    a = scale * a_full;
+    trajectory.emplace(Path(points, deviation), v, a, 1e-3);
+    if (!trajectory->isValid()) return false;
+    count(state, trajectory->getDuration(), [&](double t) { return trajectory->getPosition(t); });
+    return state.counters["v_usage"] <= 1.001 && state.counters["a_usage"] <= 1.001;  // the figures' 0.1 %
+  };
+  double lo = 0.5, hi = 1.0;
+  if (within(hi)) {
+    lo = hi;
+  } else if (!within(lo)) {
+    state.SkipWithError("not within the limits at half of them");
+    return;
+  }
+  while (hi - lo > 1e-3) {
+    const double mid = 0.5 * (lo + hi);
+    (within(mid) ? lo : hi) = mid;
+  }
+  within(lo);
+  for (auto _ : state) {
+    trajectory.emplace(Path(points, deviation), v, a, 1e-3);
+    benchmark::DoNotOptimize(trajectory->getDuration());
+  }
+  count(state, trajectory->getDuration(), [&](double t) { return trajectory->getPosition(t); });
+  state.counters["limit_scale"] = lo;
+}
+BENCHMARK(BM_KunzStilmanWithinLimits)->Apply(every_set);
+#endif
+
+#ifdef GEOTRAJ_BENCH_TOPPRA
+using ToppraTrajectory = std::shared_ptr<toppra::parametrizer::ConstAccel>;
+
+// TOPP-RA on `path` with `gridpoints` as its users call it: the joint velocity and
+// acceleration constraints at the Panda's limits (accelerations by interpolation, their
+// default), the seidel solver, at rest at both ends, then the constant-acceleration
+// parametrizer (the classical one, which their documentation says meets the constraints and
+// the boundary conditions). Empty with `error` set if it fails.
+ToppraTrajectory toppra_timing(const toppra::GeometricPathPtr& path, const toppra::Vector& gridpoints,
+                               std::string& error) {
+  toppra::Vector v(7), a(7);
+  for (std::size_t j = 0; j < 7; ++j) {
+    v(static_cast<Eigen::Index>(j)) = panda()->limits[j].max_velocity;
+    a(static_cast<Eigen::Index>(j)) = panda()->limits[j].max_acceleration;
+  }
+  auto velocity = std::make_shared<toppra::constraint::LinearJointVelocity>(-v, v);
+  auto acceleration = std::make_shared<toppra::constraint::LinearJointAcceleration>(-a, a);
+  acceleration->discretizationType(toppra::DiscretizationType::Interpolation);
+  toppra::algorithm::TOPPRA algorithm({velocity, acceleration}, path);
+  algorithm.solver(std::make_shared<toppra::solver::Seidel>());
+  algorithm.setGridpoints(gridpoints);
+  if (algorithm.computePathParametrization(0.0, 0.0) != toppra::ReturnCode::OK) {
+    error = "TOPP-RA failed: " + algorithm.getErrorMessage();
+    return nullptr;
+  }
+  const auto& data = algorithm.getParameterizationData();
+  auto trajectory = std::make_shared<toppra::parametrizer::ConstAccel>(path, data.gridpoints, data.parametrization);
+  if (!trajectory->validate()) {
+    const toppra::Vector sd = data.parametrization.cwiseSqrt();
+    char range[64];
+    std::snprintf(range, sizeof range, "%.3g to %.3g", sd.segment(1, sd.size() - 2).minCoeff(), sd.maxCoeff());
+    error = std::string("TOPP-RA's parametrizer refuses its result (path velocity ") + range + " between the ends)";
+    return nullptr;
+  }
+  return trajectory;
+}
+
+double toppra_duration(const ToppraTrajectory& trajectory) { return trajectory->pathInterval()[1]; }
+
+// The figures of count() for a TOPP-RA trajectory.
+void count_toppra(benchmark::State& state, const ToppraTrajectory& trajectory) {
+  count(state, toppra_duration(trajectory), [&](double t) { return Eigen::VectorXd(trajectory->eval_single(t)); });
+}
+
+// 1. TOPP-RA on a cubic spline through the waypoints (zero velocity at both ends: clamped;
+// their C++ spline has no not-a-knot end), its knots at the waypoints' cumulative joint-space
+// distance (knots = 1) or evenly spaced in [0, 1] as in their quickstart (knots = 0), on a
+// uniform grid of N intervals (100: the C++ default). Timed: the spline, the constraints,
+// the reachability analysis and the parametrizer. Also reported from the samples at 1 kHz:
+// the largest excursion of a joint beyond its position limits (q_excess [rad]) and the
+// largest distance of the motion from the polyline of the waypoints (off_polyline,
+// Euclidean over the joints [rad]).
+void BM_ToppraSpline(benchmark::State& state) {
+  const Waypoints& w = waypoints(state.range(0));
+  const auto intervals = static_cast<Eigen::Index>(state.range(1));
+  const bool chord = state.range(2) != 0;
+  toppra::Vectors positions;
+  toppra::Vector knots(static_cast<Eigen::Index>(w.size()));
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    positions.push_back(Eigen::Map<const Eigen::VectorXd>(w[i].data(), 7));
+    const double step = i == 0 ? 0.0 : chord ? (positions[i] - positions[i - 1]).norm() : 1.0;
+    knots(static_cast<Eigen::Index>(i)) = i == 0 ? 0.0 : knots(static_cast<Eigen::Index>(i) - 1) + step;
+  }
+  if (!chord) knots /= knots(knots.size() - 1);
+  ToppraTrajectory trajectory;
+  std::string error;
+  for (auto _ : state) {
+    trajectory.reset();
+    try {
+      auto spline = std::make_shared<toppra::PiecewisePolyPath>(toppra::PiecewisePolyPath::CubicSpline(
+          positions, knots, {toppra::BoundaryCond("clamped"), toppra::BoundaryCond("clamped")}));
+      const toppra::Bound interval = spline->pathInterval();
+      trajectory = toppra_timing(spline, toppra::Vector::LinSpaced(intervals + 1, interval[0], interval[1]), error);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    if (!trajectory) {
+      state.SkipWithError(error.c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(toppra_duration(trajectory));
+  }
+  count_toppra(state, trajectory);
+  state.counters["grid_points"] = static_cast<double>(intervals + 1);
+  // Beyond the position limits, and away from the polyline.
+  const auto& limits = panda()->limits;
+  double excess = 0.0, off = 0.0;
+  for (double t = 0.0; t <= toppra_duration(trajectory); t += 1e-3) {
+    const Eigen::VectorXd q = trajectory->eval_single(t);
+    for (Eigen::Index j = 0; j < 7; ++j) {
+      const auto& l = limits[static_cast<std::size_t>(j)];
+      excess = std::max({excess, q(j) - l.max_position, l.min_position - q(j)});
+    }
+    double nearest = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i + 1 < positions.size(); ++i) {
+      const Eigen::VectorXd d = positions[i + 1] - positions[i];
+      const double f = std::clamp(d.dot(q - positions[i]) / std::max(d.squaredNorm(), 1e-300), 0.0, 1.0);
+      nearest = std::min(nearest, (positions[i] + f * d - q).norm());
+    }
+    off = std::max(off, nearest);
+  }
+  state.counters["q_excess"] = excess;
+  state.counters["off_polyline"] = off;
+}
+BENCHMARK(BM_ToppraSpline)
+    ->ArgNames({"set", "N", "knots"})
+    ->Args({0, 100, 1})
+    ->Args({0, 1000, 1})
+    ->Args({0, 100, 0})
+    ->Args({1, 100, 1})
+    ->Args({1, 1000, 1})
+    ->Args({1, 100, 0})
+    ->Args({2, 100, 1})
+    ->Args({2, 1000, 1})
+    ->Args({2, 4000, 1})
+    ->Unit(benchmark::kMillisecond);
+
+// The sigmas of geotraj's grid of a path without interior rests (plan_joint_path's default
+// JointPathOptions: each blend kBlendGridIntervals intervals crowded towards its ends, the
+// lines 400 by their share of the length, at least kMinLineIntervals each).
+std::vector<double> geotraj_grid(const core::JointPath& path) {
+  const core::JointPathOptions options;
+  double lines = 0.0;
+  for (const auto& seg : path.segments)
+    if (seg.kind == core::JointPathSegment::Kind::kLine) lines += seg.sigma1 - seg.sigma0;
+  std::vector<double> sigmas{0.0};
+  for (const auto& seg : path.segments) {
+    const double span = seg.sigma1 - seg.sigma0;
+    const bool blend = seg.kind == core::JointPathSegment::Kind::kBlend;
+    const std::size_t k =
+        blend ? options.blend_intervals
+              : std::max<std::size_t>(core::kMinLineIntervals,
+                                      static_cast<std::size_t>(std::ceil(static_cast<double>(options.line_intervals) *
+                                                                         span / std::max(lines, 1e-300))));
+    for (std::size_t i = 1; i <= k; ++i) {
+      const double x = static_cast<double>(i) / static_cast<double>(k);
+      const double f = blend ? 0.5 * (1.0 - std::cos(std::numbers::pi * x)) : x;
+      const double sigma = i == k ? seg.sigma1 : seg.sigma0 + span * f;
+      if (sigma > sigmas.back()) sigmas.push_back(sigma);
+    }
+  }
+  sigmas.back() = path.length;
+  return sigmas;
+}
+
+// 2. TOPP-RA timing geotraj's path (built as BM_GeotrajJointPath builds it, outside the
+// timing): a cubic Hermite spline through q(sigma) and q'(sigma) at the points of geotraj's
+// grid (exact on the lines; hermite_err: its largest distance from a blend [rad]), timed on that
+// grid (grid = 0) or on a uniform grid of as many points (grid = 1). Timed: the Hermite
+// spline from those points, the constraints, the reachability analysis and the parametrizer.
+// geotraj_s: plan_joint_path's duration on the same path (BM_GeotrajJointPath's).
+void BM_ToppraGeotrajPath(benchmark::State& state) {
+  const core::JointPathSpec spec = spec_of(state.range(0), static_cast<double>(state.range(1)) / 100.0);
+  const core::JointPath path = *core::build_joint_path(panda(), spec);
+  if (path.rests.size() != 2) {
+    state.SkipWithError("the path rests between its ends");
+    return;
+  }
+  const std::vector<double> sigmas = geotraj_grid(path);
+  toppra::Vectors positions, tangents;
+  core::JointPathPoint point;
+  std::size_t hint = 0;
+  for (const double sigma : sigmas) {
+    core::evaluate(path, sigma, point, hint);
+    positions.push_back(Eigen::VectorXd(point.q));
+    tangents.push_back(Eigen::VectorXd(point.q_s));
+  }
+  const bool uniform = state.range(2) != 0;
+  const auto n = static_cast<Eigen::Index>(sigmas.size());
+  const toppra::Vector gridpoints = uniform ? toppra::Vector(toppra::Vector::LinSpaced(n, 0.0, path.length))
+                                            : toppra::Vector(Eigen::Map<const Eigen::VectorXd>(sigmas.data(), n));
+  ToppraTrajectory trajectory;
+  std::string error;
+  for (auto _ : state) {
+    trajectory.reset();
+    try {
+      auto hermite = std::make_shared<toppra::PiecewisePolyPath>(
+          toppra::PiecewisePolyPath::CubicHermiteSpline(positions, tangents, sigmas));
+      trajectory = toppra_timing(hermite, gridpoints, error);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    if (!trajectory) {
+      state.SkipWithError(error.c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(toppra_duration(trajectory));
+  }
+  count_toppra(state, trajectory);
+  state.counters["grid_points"] = static_cast<double>(n);
+  // How closely the Hermite spline follows the path: the largest difference of q at the
+  // middles of its pieces [rad].
+  const toppra::PiecewisePolyPath hermite = toppra::PiecewisePolyPath::CubicHermiteSpline(positions, tangents, sigmas);
+  double hermite_error = 0.0;
+  hint = 0;
+  for (std::size_t i = 0; i + 1 < sigmas.size(); ++i) {
+    const double mid = 0.5 * (sigmas[i] + sigmas[i + 1]);
+    core::evaluate(path, mid, point, hint);
+    const Eigen::VectorXd difference = hermite.eval_single(mid) - Eigen::VectorXd(point.q);
+    hermite_error = std::max(hermite_error, difference.cwiseAbs().maxCoeff());
+  }
+  state.counters["hermite_err"] = hermite_error;
+  const auto plan = core::plan_joint_path(panda(), path, fastest());
+  if (plan) state.counters["geotraj_s"] = plan->duration_s;
+}
+BENCHMARK(BM_ToppraGeotrajPath)
+    ->ArgNames({"set", "dev_cm", "grid"})
+    ->Args({0, 5, 0})
+    ->Args({0, 10, 0})
+    ->Args({1, 5, 0})
+    ->Args({1, 10, 0})
+    ->Args({2, 5, 0})
+    ->Args({0, 5, 1})
+    ->Args({1, 5, 1})
+    ->Args({2, 5, 1})
+    ->Unit(benchmark::kMillisecond);
 #endif
 
 }  // namespace

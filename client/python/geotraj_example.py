@@ -103,7 +103,7 @@ def print_plan(plan, out=sys.stdout):
                 print(f"    corner after step {c.after_step}: blend within {c.deviation:.4g} m "
                       f"(tolerance {c.tolerance:.4g} m)", file=out)
     elif not plan.segments:
-        print("plan: no path segments (a joint move)", file=out)
+        print("plan: no path segments (a joint move or a joint path)", file=out)
     else:
         print(f"plan: {len(plan.segments)} segments, arc length {plan.arc_length:.6f} m, "
               f"closed-loop error {plan.closed_loop.max_error:.3g}"

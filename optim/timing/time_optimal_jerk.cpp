@@ -97,8 +97,8 @@ JerkTiming optimise_jerk_timing(const std::vector<core::GridPoint>& grid, const 
     out.report.message = "banded interior point: " + r.message + " after " + std::to_string(r.iterations) +
                          " iterations";
     nlp->x_ = r.x;
-    if (options.solver == JerkSolver::kAuto && (out.report.status == OptimizerStatus::kFailed ||
-                                                out.report.status == OptimizerStatus::kIterationLimit)) {
+    if (options.solver == JerkSolver::kAuto && n_pts <= kIpoptFallbackMaxPoints &&
+        (out.report.status == OptimizerStatus::kFailed || out.report.status == OptimizerStatus::kIterationLimit)) {
       run_ipopt = true;
       prefix = out.report.message + "; then ";
     }

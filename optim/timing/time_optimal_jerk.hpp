@@ -56,10 +56,17 @@ namespace geotraj::optim {
 /// the ramp's.
 inline constexpr double kJerkWindowSmoothing = 0.0025;
 
+/// The largest grid on which kAuto falls back to Ipopt: MUMPS factors the whole KKT system,
+/// and one of its factorisations cannot be interrupted (858 ms for the whole solve at 1,000
+/// points; a 200-waypoint joint path's portion of 6,900 points held a call 70 s past its
+/// deadline). Above it, the banded method's result or failure stands.
+inline constexpr std::size_t kIpoptFallbackMaxPoints = 1500;
+
 /// Which solver runs the NLP.
 enum class JerkSolver {
   /// The banded interior point method, then Ipopt from the same start with the budget left
-  /// when it does not converge (neither converged nor out of time).
+  /// when it does not converge (neither converged nor out of time) on a grid of at most
+  /// kIpoptFallbackMaxPoints.
   kAuto,
   kBanded,  ///< the banded interior point method only
   kIpopt,   ///< Ipopt (MUMPS) only

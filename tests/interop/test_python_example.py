@@ -107,6 +107,29 @@ class PythonExample(unittest.TestCase):
             self.assertAlmostEqual(float(q), g, places=9)
         self.assertIn("robot: feasible True", res.stderr)  # the summary goes to stderr with '-'
 
+    def test_joint_path_through_waypoints(self):
+        """plan_joint_path_panda.json: nine Panda waypoints passed within their blend tolerance,
+        the first and the last met exactly, from the joints of the CSV."""
+        with open(os.path.join(ARGS.requests, "plan_joint_path_panda.json")) as f:
+            request = json.load(f)
+        waypoints = [w["positions"] for w in request["jointPath"]["waypoints"]]
+        tolerance = request["jointPath"]["blendTolerance"]
+        res = self.run_example("--request", os.path.join(ARGS.requests, "plan_joint_path_panda.json"), "--csv", "-")
+        self.assertEqual(res.returncode, 0, res.stderr)
+        self.assertIn("plan: no path segments (a joint move or a joint path)", res.stderr)
+        rows = list(csv.reader(res.stdout.splitlines()))
+        self.assertEqual(rows[0][-7:], [f"q{j}" for j in range(7)])
+        q = [[float(x) for x in r[-7:]] for r in rows[1:]]
+        for got, want in ((q[0], waypoints[0]), (q[-1], waypoints[-1])):
+            for a, b in zip(got, want):
+                self.assertAlmostEqual(a, b, places=9)
+        # Samples 1 ms apart move at most |v| 1 ms (under 3 mrad on the Panda): the nearest
+        # sample is within the tolerance and that much of the path's nearest point.
+        for i, w in enumerate(waypoints[1:-1], start=1):
+            nearest = min(math.dist(s, w) for s in q)
+            self.assertLessEqual(nearest, tolerance + 3e-3, f"waypoint {i}")
+            self.assertGreater(nearest, 1e-3, f"waypoint {i} is blended, not met")
+
     def test_blended_sequence(self):
         res = self.run_example("--request", os.path.join(ARGS.requests, "sequence_blended_ur5.json"), "--csv", "-")
         self.assertEqual(res.returncode, 0, res.stderr)

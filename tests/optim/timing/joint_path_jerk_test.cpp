@@ -7,14 +7,19 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
 #include <random>
 #include <vector>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "core/planning/joint_path.hpp"
 #include "core/robot/robot.hpp"
 #include "optim/timing/joint_path_jerk.hpp"
+#include "tests/support/build_paths.hpp"
 
 namespace geotraj::optim {
 namespace {
@@ -103,6 +108,41 @@ TEST(JointPathJerk, AGivenDurationStretchesTheMotion) {
   ASSERT_TRUE(slow);
   EXPECT_DOUBLE_EQ(slow->plan.duration_s, motion.duration_s);
   EXPECT_NEAR(slow->jerk_usage, fastest->jerk_usage / 27.0, 1e-9);
+}
+
+// A dense planner output on the UR5 under the default jerk, where the NLP finds no solution:
+// the path is refused naming optimize.timing and the sweep that times it instead, or (should
+// the NLP find one) planned within a few times the sweep's duration; never the sweep slowed
+// until its jerk is within the limits (87 times longer: 1391 s for a 16 s path).
+TEST(JointPathJerk, WhereTheNlpFindsNoSolutionThePathIsRefusedNotSlowedManyTimes) {
+  std::ifstream file(std::string(testing::build_paths::source_dir()) + "/tests/optim/timing/data/ur5_walk200.txt");
+  ASSERT_TRUE(file) << "the fixture ur5_walk200.txt";
+  core::JointPathSpec spec;
+  spec.blend_tolerance = 0.05;
+  for (std::string line; std::getline(file, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream in(line);
+    core::JointWaypoint w;
+    for (double x; in >> x;) w.positions.push_back(x);
+    spec.waypoints.push_back(std::move(w));
+  }
+  ASSERT_EQ(spec.waypoints.size(), 200u);
+  const core::ValidRobot ur5 = core::with_default_jerk(*core::ValidRobot::check(*core::find_builtin_robot("ur5")));
+  core::MotionSpec motion;
+  motion.cycle_rate_hz = 1000.0;
+  auto path = core::build_joint_path(ur5, spec);
+  ASSERT_TRUE(path);
+  auto sweep = core::plan_joint_path(ur5, *path, motion);
+  ASSERT_TRUE(sweep);
+  auto timed = plan_joint_path_jerk(ur5, *path, motion, joint_path_jerk_exact_options(), unhurried());
+  if (timed) {
+    std::printf("planned: %.4f s against the sweep's %.4f s\n", timed->plan.duration_s, sweep->duration_s);
+    EXPECT_LE(timed->plan.duration_s, 3.0 * sweep->duration_s);
+  } else {
+    std::printf("refused: %s: %s\n", timed.error().front().field.c_str(), timed.error().front().description.c_str());
+    EXPECT_EQ(timed.error().front().field, "optimize.timing");
+    EXPECT_THAT(timed.error().front().description, ::testing::HasSubstr("optimize.timing.timeOptimal"));
+  }
 }
 
 }  // namespace

@@ -1,13 +1,44 @@
 // Jerk-limited timing of a joint path. See joint_path_jerk.hpp.
 #include "optim/timing/joint_path_jerk.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
+#include <string>
 #include <utility>
 #include <vector>
 
 #include "core/format.hpp"
+#include "core/motion/speed_profile.hpp"
 
 namespace geotraj::optim {
+
+namespace {
+
+// A given duration stretches the timed motion uniformly; the sample count.
+core::Expected<JerkLimitedJointPath> finish(JerkLimitedJointPath& out, const core::MotionSpec& motion) {
+  core::JointPathPlan& plan = out.plan;
+  double duration = plan.duration_s;
+  if (motion.duration_s > 0.0) {
+    // The given duration: the same motion stretched (or compressed) uniformly in time.
+    const double T = motion.duration_s / motion.speed_scale, c = T / duration;
+    plan.profile = core::time_scaled(std::move(plan.profile), c);
+    plan.profile.duration = T;
+    plan.velocity_usage /= c;
+    plan.acceleration_usage /= c * c;
+    out.jerk_usage /= c * c * c;
+    duration = T;
+  }
+  if (!(duration * motion.cycle_rate_hz < core::kMaxMotionSamples))
+    return tl::make_unexpected(core::Violations{core::unattainable(
+        "motion.durationS", "the joint path lasts " + core::number(duration, 6) +
+                                " s, more samples than a motion may hold")});
+  plan.duration_s = duration;
+  plan.sample_count = core::grid_sample_count(duration, motion.cycle_rate_hz);
+  return std::move(out);
+}
+
+}  // namespace
 
 core::Expected<JerkLimitedJointPath> plan_joint_path_jerk(const core::ValidRobot& robot, core::JointPath path,
                                                           const core::MotionSpec& motion,
@@ -33,6 +64,61 @@ core::Expected<JerkLimitedJointPath> plan_joint_path_jerk(const core::ValidRobot
       if (const auto& mj = model.limits[static_cast<std::size_t>(j)].max_jerk) options.joint_jerk(j) = *mj * sc3;
   }
   options.max_jerk.reset();  // a joint path has no Cartesian limits
+
+  // Every portion one line (two waypoints; collinear ones; back and forth, which rests at
+  // each reversal): the jerk-limited optimum is the joint move's, a double S in sigma under
+  // the line's own limits (each joint's limit over |d_j|, the slowest joint's sets each),
+  // in closed form instead of the programme on a grid (up to 10 % slower there).
+  bool lines_only = plan.path.segments.size() + 1 == plan.path.rests.size();  // one segment per portion
+  std::vector<core::SpeedProfile> line_profiles;
+  for (const auto& seg : plan.path.segments) {
+    if (!lines_only || seg.kind != core::JointPathSegment::Kind::kLine) {
+      lines_only = false;
+      break;
+    }
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    double v = kInf, a = kInf, j = kInf;
+    for (Eigen::Index k = 0; k < seg.d.size(); ++k) {
+      const double dk = std::abs(seg.d(k));
+      if (!(dk > 0.0)) continue;
+      v = std::min(v, plan.limits.joint_velocity(k) / dk);
+      a = std::min(a, plan.limits.joint_acceleration(k) / dk);
+      j = std::min(j, options.joint_jerk(k) / dk);
+    }
+    auto profile = std::isfinite(j) ? core::min_time_double_s(seg.sigma1 - seg.sigma0, v, a, j)
+                                    : core::Expected<core::SpeedProfile>();
+    if (!std::isfinite(j) || !profile) {
+      lines_only = false;
+      break;
+    }
+    line_profiles.push_back(std::move(*profile));
+  }
+  if (lines_only) {
+    core::SpeedProfile exact_profile = std::move(plan.profile);
+    plan.profile = core::joined_profile(line_profiles, plan.path.rests);
+    plan.duration_s = plan.profile.duration;
+    core::TimeOptimalLimits checked = plan.limits;
+    checked.joint_jerk = options.joint_jerk;
+    auto check = core::check_joint_path_samples(plan, checked, exact_stoppable);
+    if (!check) return tl::make_unexpected(check.error());
+    if (!check->check.broken) {
+      plan.velocity_usage = check->velocity_usage;
+      plan.acceleration_usage = check->acceleration_usage;
+      plan.check_rate_hz = check->check.check_rate_hz;
+      out.jerk_usage = check->jerk_usage;
+      out.rounds.report.status = OptimizerStatus::kConverged;
+      out.rounds.report.message =
+          "closed form: a double S along each of the " + std::to_string(line_profiles.size()) + " lines";
+      out.rounds.worst_sample_usage = check->check.worst_usage;
+      out.rounds.check_rate_hz = check->check.check_rate_hz;
+      plan.binding.clear();
+      plan.refinements = 0;
+      plan.duration_grid_error = 0.0;
+      return finish(out, motion);
+    }
+    plan.profile = std::move(exact_profile);  // not expected of the closed form: the programme decides
+    plan.duration_s = exact_duration;
+  }
 
   JerkRoundHooks hooks;
   hooks.assemble = [&](const std::vector<core::SpeedProfile>& profiles) -> core::Expected<void> {
@@ -66,24 +152,7 @@ core::Expected<JerkLimitedJointPath> plan_joint_path_jerk(const core::ValidRobot
   plan.binding.clear();
   plan.refinements = out.rounds.refinements;
   plan.duration_grid_error = out.rounds.duration_grid_error;
-  double duration = plan.duration_s;
-  if (motion.duration_s > 0.0) {
-    // The given duration: the same motion stretched (or compressed) uniformly in time.
-    const double T = motion.duration_s / motion.speed_scale, c = T / duration;
-    plan.profile = core::time_scaled(std::move(plan.profile), c);
-    plan.profile.duration = T;
-    plan.velocity_usage /= c;
-    plan.acceleration_usage /= c * c;
-    out.jerk_usage /= c * c * c;
-    duration = T;
-  }
-  if (!(duration * motion.cycle_rate_hz < core::kMaxMotionSamples))
-    return tl::make_unexpected(core::Violations{core::unattainable(
-        "motion.durationS", "the joint path lasts " + core::number(duration, 6) +
-                                " s, more samples than a motion may hold")});
-  plan.duration_s = duration;
-  plan.sample_count = core::grid_sample_count(duration, motion.cycle_rate_hz);
-  return out;
+  return finish(out, motion);
 }
 
 }  // namespace geotraj::optim

@@ -17,6 +17,7 @@
 #include <gtest/gtest.h>
 
 #include "core/planning/joint_path.hpp"
+#include "core/planning/moves.hpp"
 #include "core/robot/robot.hpp"
 #include "optim/timing/joint_path_jerk.hpp"
 #include "tests/support/build_paths.hpp"
@@ -108,6 +109,37 @@ TEST(JointPathJerk, AGivenDurationStretchesTheMotion) {
   ASSERT_TRUE(slow);
   EXPECT_DOUBLE_EQ(slow->plan.duration_s, motion.duration_s);
   EXPECT_NEAR(slow->jerk_usage, fastest->jerk_usage / 27.0, 1e-9);
+}
+
+// Two waypoints, and waypoints that reverse (a rest at each reversal): every portion is one
+// line, timed in closed form by the double S under the line's own limits, which is the
+// jerk-limited optimum there: as fast as the joint move between the same joints (whose
+// synchronised profile meets the same limits) or faster, within every limit.
+TEST(JointPathJerk, LinesTakeTheJointMovesTimeInClosedForm) {
+  const std::vector<double> a{0.1, -0.4, 0.2, 0.9, -0.3, 0.5, 0.0}, b{1.2, 0.3, -0.6, 1.5, 0.4, -0.2, 1.0};
+  core::MotionSpec motion;
+  motion.cycle_rate_hz = 1000.0;
+  core::MotionSpec s_curve = motion;  // the joint move's profile under the jerk limits
+  s_curve.profile = core::ProfileShape::kSCurve;
+  const auto move = core::plan_joint_move(jerky_pa10(), core::JointMoveSpec{a, b}, s_curve);
+  ASSERT_TRUE(move);
+  for (const int legs : {1, 3}) {
+    core::JointPathSpec spec;
+    spec.blend_tolerance = 0.1;
+    for (int k = 0; k <= legs; ++k) spec.waypoints.push_back({k % 2 == 0 ? a : b, false});
+    auto path = core::build_joint_path(jerky_pa10(), spec);
+    ASSERT_TRUE(path);
+    auto timed = plan_joint_path_jerk(jerky_pa10(), *path, motion, joint_path_jerk_exact_options(), unhurried());
+    ASSERT_TRUE(timed) << timed.error().front().description;
+    std::printf("%d legs: %.6f s, the joint move %.6f s each; %s\n", legs, timed->plan.duration_s, move->duration_s,
+                timed->rounds.report.message.c_str());
+    EXPECT_THAT(timed->rounds.report.message, ::testing::HasSubstr("closed form"));
+    EXPECT_LE(timed->plan.duration_s, legs * move->duration_s * (1.0 + 1e-9));
+    EXPECT_GE(timed->plan.duration_s, legs * move->duration_s * 0.9);
+    EXPECT_LE(timed->plan.velocity_usage, 1.0 + 1e-9);
+    EXPECT_LE(timed->plan.acceleration_usage, 1.0 + 1e-9);
+    EXPECT_LE(timed->jerk_usage, 1.0 + 1e-9);
+  }
 }
 
 // A dense planner output on the UR5 under the default jerk, where the NLP finds no solution:

@@ -69,13 +69,26 @@ core::Expected<JerkLimitedJointPath> plan_joint_path_jerk(const core::ValidRobot
   // each reversal): the jerk-limited optimum is the joint move's, a double S in sigma under
   // the line's own limits (each joint's limit over |d_j|, the slowest joint's sets each),
   // in closed form instead of the programme on a grid (up to 10 % slower there).
-  bool lines_only = plan.path.segments.size() + 1 == plan.path.rests.size();  // one segment per portion
+  // Each portion between rests one line: its segments all lines of one direction (collinear
+  // waypoints pass on the line without a rest).
+  bool lines_only = true;
   std::vector<core::SpeedProfile> line_profiles;
-  for (const auto& seg : plan.path.segments) {
-    if (!lines_only || seg.kind != core::JointPathSegment::Kind::kLine) {
+  const auto& rests = plan.path.rests;
+  for (std::size_t p = 0, first = 0; p + 1 < rests.size() && lines_only; ++p) {
+    if (first >= plan.path.segments.size()) {
       lines_only = false;
       break;
     }
+    const core::JointPathSegment& seg = plan.path.segments[first];
+    std::size_t last = first;
+    while (last < plan.path.segments.size() && plan.path.segments[last].sigma1 <= rests[p + 1]) {
+      const auto& s = plan.path.segments[last];
+      lines_only = lines_only && s.kind == core::JointPathSegment::Kind::kLine && (s.d - seg.d).norm() <= 1e-12;
+      ++last;
+    }
+    lines_only = lines_only && last > first;
+    first = last;
+    if (!lines_only) break;
     constexpr double kInf = std::numeric_limits<double>::infinity();
     double v = kInf, a = kInf, j = kInf;
     for (Eigen::Index k = 0; k < seg.d.size(); ++k) {
@@ -85,7 +98,7 @@ core::Expected<JerkLimitedJointPath> plan_joint_path_jerk(const core::ValidRobot
       a = std::min(a, plan.limits.joint_acceleration(k) / dk);
       j = std::min(j, options.joint_jerk(k) / dk);
     }
-    auto profile = std::isfinite(j) ? core::min_time_double_s(seg.sigma1 - seg.sigma0, v, a, j)
+    auto profile = std::isfinite(j) ? core::min_time_double_s(rests[p + 1] - rests[p], v, a, j)
                                     : core::Expected<core::SpeedProfile>();
     if (!std::isfinite(j) || !profile) {
       lines_only = false;

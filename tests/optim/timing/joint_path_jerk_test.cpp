@@ -111,8 +111,8 @@ TEST(JointPathJerk, AGivenDurationStretchesTheMotion) {
   EXPECT_NEAR(slow->jerk_usage, fastest->jerk_usage / 27.0, 1e-9);
 }
 
-// Two waypoints, and waypoints that reverse (a rest at each reversal): every portion is one
-// line, timed in closed form by the double S under the line's own limits, which is the
+// Two waypoints with a collinear one between, and waypoints that reverse (a rest at each
+// reversal): every portion is one line, timed in closed form by the double S under the line's own limits, which is the
 // jerk-limited optimum there: as fast as the joint move between the same joints (whose
 // synchronised profile meets the same limits) or faster, within every limit.
 TEST(JointPathJerk, LinesTakeTheJointMovesTimeInClosedForm) {
@@ -123,10 +123,15 @@ TEST(JointPathJerk, LinesTakeTheJointMovesTimeInClosedForm) {
   s_curve.profile = core::ProfileShape::kSCurve;
   const auto move = core::plan_joint_move(jerky_pa10(), core::JointMoveSpec{a, b}, s_curve);
   ASSERT_TRUE(move);
+  std::vector<double> middle(a.size());
+  for (std::size_t k = 0; k < a.size(); ++k) middle[k] = 0.3 * a[k] + 0.7 * b[k];
   for (const int legs : {1, 3}) {
     core::JointPathSpec spec;
     spec.blend_tolerance = 0.1;
-    for (int k = 0; k <= legs; ++k) spec.waypoints.push_back({k % 2 == 0 ? a : b, false});
+    for (int k = 0; k <= legs; ++k) {
+      if (k == 1) spec.waypoints.push_back({middle, false});  // collinear: passed on the line
+      spec.waypoints.push_back({k % 2 == 0 ? a : b, false});
+    }
     auto path = core::build_joint_path(jerky_pa10(), spec);
     ASSERT_TRUE(path);
     auto timed = plan_joint_path_jerk(jerky_pa10(), *path, motion, joint_path_jerk_exact_options(), unhurried());

@@ -83,8 +83,10 @@ void BM_EvaluateJet(benchmark::State& state) {
 BENCHMARK(BM_EvaluateJet);
 
 // Curves from their natural equations (natural.hpp): Arg 0 a 100-turn helix (radius 0.05 m,
-// pitch 0.02 m: the closed form), 1 a clothoid (kappa 0 -> 20 1/m over 1 m), 2 a profile
-// (kappa = 5 + 3 s - 2 s^2, tau = 1 - 4 s over 1.2 m), each to 1e-9 m.
+// pitch 0.02 m: the closed form), 1 a clothoid (kappa 0 -> 20 1/m over 1 m: the Fresnel
+// integrals' closed form), 2 a profile (kappa = 5 + 3 s - 2 s^2, tau = 1 - 4 s over 1.2 m),
+// 3 the clothoid of 1 integrated by the Magnus method instead (a torsion of 1e-300 1/m, which
+// moves nothing, takes that path), each to 1e-9 m.
 core::Expected<core::NaturalCurve> natural_curve(int which) {
   switch (which) {
     case 0: {
@@ -94,8 +96,10 @@ core::Expected<core::NaturalCurve> natural_curve(int which) {
     }
     case 1:
       return core::NaturalCurve::build(core::FrenetFrame{}, 1.0, {0.0, 20.0}, {});
-    default:
+    case 2:
       return core::NaturalCurve::build(core::FrenetFrame{}, 1.2, {5.0, 3.0, -2.0}, {1.0, -4.0});
+    default:
+      return core::NaturalCurve::build(core::FrenetFrame{}, 1.0, {0.0, 20.0}, {1e-300});
   }
 }
 
@@ -106,7 +110,7 @@ void BM_NaturalCurveBuild(benchmark::State& state) {
   }
   state.SetLabel(std::to_string(natural_curve(static_cast<int>(state.range(0)))->steps()) + " steps");
 }
-BENCHMARK(BM_NaturalCurveBuild)->DenseRange(0, 2)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_NaturalCurveBuild)->DenseRange(0, 3)->Unit(benchmark::kMicrosecond);
 
 void BM_NaturalCurveJet(benchmark::State& state) {
   const auto curve = *natural_curve(static_cast<int>(state.range(0)));
@@ -119,7 +123,7 @@ void BM_NaturalCurveJet(benchmark::State& state) {
     if (s > curve.length()) s = 0.0;
   }
 }
-BENCHMARK(BM_NaturalCurveJet)->DenseRange(0, 2);
+BENCHMARK(BM_NaturalCurveJet)->DenseRange(0, 3);
 
 // Paths of pieces (core/geometry/pieces.hpp). Argument: 0 = the weld seam (line, quarter
 // arc of 0.04 m, line) resting at its joins, 1 = the same with transitions within 0.1 mm,

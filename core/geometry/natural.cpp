@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "core/format.hpp"
+#include "core/geometry/fresnel.hpp"
 
 namespace geotraj::core {
 
@@ -85,6 +86,25 @@ FrenetFrame magnus_step(const FrenetFrame& g, const std::vector<double>& kappa, 
   return compose_exp(g, omega);
 }
 
+// The planar clothoid (kappa = kappa0 + kappa1 s, tau = 0) at s from `start`: the frame
+// turned about B by theta = kappa0 s + kappa1 s^2 / 2, the point s (Re F T0 + Im F N0) on
+// from p0 with F the clothoid integral (fresnel.hpp).
+FrenetFrame advance_clothoid(const FrenetFrame& start, double kappa0, double kappa1, double s) {
+  const std::complex<double> chord = clothoid_integral(kappa1 * s * s, kappa0 * s) * s;
+  const double theta = kappa0 * s + 0.5 * kappa1 * s * s;
+  const double c = std::cos(theta), sn = std::sin(theta);
+  Matrix3d turn;
+  turn << c, -sn, 0.0, sn, c, 0.0, 0.0, 0.0, 1.0;
+  return FrenetFrame{start.p + start.R.col(0) * chord.real() + start.R.col(1) * chord.imag(), start.R * turn};
+}
+
+// The index of the last coefficient that is not 0 (-1 for none): the polynomial's degree.
+int degree(const std::vector<double>& c) {
+  for (std::size_t i = c.size(); i-- > 0;)
+    if (c[i] != 0.0) return static_cast<int>(i);
+  return -1;
+}
+
 // R back onto SO(3) (rounding accumulates over many steps): through the unit quaternion.
 void orthonormalize(FrenetFrame& f) { f.R = Eigen::Quaterniond(f.R).normalized().toRotationMatrix(); }
 
@@ -150,12 +170,15 @@ Expected<NaturalCurve> NaturalCurve::build(const FrenetFrame& start, double leng
   curve.length_ = length;
   curve.kappa_ = std::move(kappa);
   curve.tau_ = std::move(tau);
-  curve.constant_ = curve.kappa_.size() <= 1 && curve.tau_.size() <= 1;
+  const int kappa_degree = degree(curve.kappa_), tau_degree = degree(curve.tau_);
+  curve.form_ = kappa_degree <= 0 && tau_degree <= 0   ? Form::kConstant
+                : kappa_degree == 1 && tau_degree < 0 ? Form::kClothoid
+                                                      : Form::kIntegrated;
   curve.nodes_ = {0.0};
   curve.frames_ = {start};
-  if (curve.constant_) {  // the closed form: the end frame only
+  if (curve.form_ != Form::kIntegrated) {  // a closed form: the end frame only
     curve.nodes_.push_back(length);
-    curve.frames_.push_back(advance_constant(start, curve.kappa_at(0.0), curve.tau_at(0.0), length));
+    curve.frames_.push_back(curve.frame_at(length));
     return curve;
   }
   // Step doubling: one step of h against two of h / 2; the difference (the position's plus
@@ -193,7 +216,8 @@ Expected<NaturalCurve> NaturalCurve::build(const FrenetFrame& start, double leng
 
 FrenetFrame NaturalCurve::frame_at(double s) const {
   s = std::clamp(s, 0.0, length_);
-  if (constant_) return advance_constant(frames_.front(), kappa_at(0.0), tau_at(0.0), s);
+  if (form_ == Form::kConstant) return advance_constant(frames_.front(), kappa_at(0.0), tau_at(0.0), s);
+  if (form_ == Form::kClothoid) return advance_clothoid(frames_.front(), kappa_at(0.0), kappa_at(0.0, 1), s);
   // The step whose start is the last node at or below s.
   const auto it = std::upper_bound(nodes_.begin(), nodes_.end(), s);
   const std::size_t k = static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, (it - nodes_.begin()) - 1));

@@ -11,6 +11,9 @@
 //  - where kappa and tau are constant (a line, an arc, a helix) the solution is the
 //    exponential of SE(3), in closed form: g(s) = g(0) exp(s xi), exact to rounding for any
 //    length (a 100-turn helix in one step);
+//  - where kappa is linear in s and tau is 0 (the planar clothoid) the frame turns about
+//    B by theta(s) = kappa0 s + kappa1 s^2 / 2 and the point is a Fresnel integral, in
+//    closed form (fresnel.hpp), to rounding for any length;
 //  - elsewhere (kappa, tau polynomials in s: a clothoid, any profile) the sixth-order Magnus
 //    integrator on SE(3) (three Gauss-Legendre nodes per step, Blanes, Casas and Ros 2000),
 //    whose steps stay on SE(3) (R orthonormal, |dp/ds| = 1: the parameter is the arc length
@@ -98,14 +101,16 @@ class NaturalCurve {
   /// kappa tau B, p'''' = -3 kappa kappa' T + (kappa'' - kappa^3 - kappa tau^2) N +
   /// (2 kappa' tau + kappa tau') B.
   Jet jet_at(double s) const;
-  /// Integration steps taken (0 where kappa and tau are constant: the closed form).
-  std::size_t steps() const { return constant_ ? 0 : nodes_.size() - 1; }
+  /// Integration steps taken (0 for a closed form: constant kappa and tau, or the planar
+  /// clothoid).
+  std::size_t steps() const { return form_ == Form::kIntegrated ? nodes_.size() - 1 : 0; }
 
  private:
+  enum class Form { kConstant, kClothoid, kIntegrated };
   NaturalCurve() = default;
   double length_ = 0.0;
   std::vector<double> kappa_, tau_;
-  bool constant_ = false;
+  Form form_ = Form::kIntegrated;
   std::vector<double> nodes_;         // arc length of each step's start, then the end
   std::vector<FrenetFrame> frames_;   // the frame at each node
 };

@@ -30,7 +30,9 @@ double ellipse_curvature(double a, double b, double x, double y);
 /// The cusp a y^2 - x^3 = 0 at (x, y) on it (4.13): unbounded towards the origin (Table 4.2).
 double cusp_curvature(double a, double x, double y);
 
-/// What a key frame gives of its local shape (kappa' and tau' per metre of arc).
+/// What a key frame gives of its local shape (kappa' and tau' per metre of arc). A spatial
+/// saddle (4.4.3) is tau = 0 with tau' != 0: both branches leave the osculating plane on
+/// the side of kappa tau'.
 struct LocalConstraints {
   double kappa = 0.0;    ///< [1/m], >= 0 along N
   double tau = 0.0;      ///< [1/m]

@@ -15,7 +15,8 @@
 // weld seam built as a path of pieces in the editor (start frame, line, arc, line, transition
 // tolerance) plans to 5 segments, drawn as 3 exact pieces and 2 transitions, as the API
 // plans the same request, and a negative arc radius shows the server's message at that
-// piece's radius; the helix and the seam files fill the pieces editor (start page, load…);
+// piece's radius; the helix and the seam files fill the pieces editor (start page, load…),
+// and the family view sweeps the seam's arc radius (each member bent as 1/r);
 // the family's local mode at path C's frame 1 draws 6 members x 2 branches on the circles of
 // radius 1/κ tangent to T at the frame, the backward branch leaving along -T, both branches
 // along -T at the cusp (frame 2), the forward one towards -N at an inflection, and lists a
@@ -954,6 +955,39 @@ describe('a path of pieces built in the editor', () => {
     assert.equal(await page.$eval(sel('piece-1-input-radius'), (e) => Number(e.value)), asked.path.pieces[1].arc.radius);
     assert.equal(await page.$eval(sel('path-transitionTolerance'), (e) => Number(e.value)), asked.path.transitionTolerance);
     assert.equal((await viewData()).drawnTransitions, '2');
+    assert.deepEqual(problems, []);
+  });
+
+  // The family of a path of pieces: the seam's arc radius swept (the arc keeps its quarter
+  // turn), each member re-planned by POST /v1/analyze; each member's peak curvature is its
+  // arc's 1/r, or up to 10 % more where a transition overshoots it, and its length the
+  // two lines' and the arc's less what the transitions cut short (under 1 mm).
+  it("sweeps a piece's parameter in the family view: the seam's arc radius", async () => {
+    assert.equal(await page.$eval(sel('family-target'), (e) => e.textContent), 'piece');
+    assert.equal(await page.$eval(`${sel('family-mode')} option[value=local]`, (e) => e.disabled), true,
+      'the local mode needs key frames');
+    await page.select(sel('family-frame'), '1');
+    assert.deepEqual(await page.$$eval(`${sel('family-constraint')} option`, (o) => o.map((e) => e.value)),
+      ['arc.radius', 'lengthM', 'transitionTolerance']);
+    await page.select(sel('family-constraint'), 'arc.radius');
+    await typeInto('family-from', '0.02');
+    await typeInto('family-to', '0.06');
+    await typeInto('family-count-input', '3');
+    const runs = await page.$eval(sel('family'), (e) => Number(e.dataset.runs || 0));
+    await page.click(sel('family-run'));
+    await waitFor('the pieces family', (previous) =>
+      Number(document.querySelector('[data-testid="family"]').dataset.runs || 0) > previous, runs);
+    assert.match(await page.$eval(sel('family-status'), (e) => e.textContent), /3 of 3 curves drawn \(piece 1, radius/);
+    const drawn = JSON.parse(await page.$eval(sel('family'), (e) => e.dataset.drawn));
+    assert.deepEqual(drawn.map((d) => Number(d.value.toPrecision(12))), [0.02, 0.04, 0.06]);
+    for (const d of drawn) {
+      assert.ok(d.peakCurvature >= (1 - 1e-9) / d.value && d.peakCurvature <= 1.1 / d.value,
+        `radius ${d.value}: peak curvature ${d.peakCurvature}, not within [1, 1.1] x ${1 / d.value}`);
+      const programmed = 0.2 + (Math.PI / 2) * d.value;
+      assert.ok(d.arcLength <= programmed && d.arcLength > programmed - 1e-3,
+        `radius ${d.value}: length ${d.arcLength} m against ${programmed} m programmed`);
+    }
+    assert.equal(await page.$eval(sel('view3d'), (e) => e.dataset.familyCurves), '3');
     assert.deepEqual(problems, []);
   });
 });

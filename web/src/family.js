@@ -1,5 +1,7 @@
 // The family view (thesis Ch. 4), in two modes:
-// - whole path: one constraint of one key frame swept over a range, N curves planned
+// - whole path: one constraint of one key frame (or, on a path of pieces, one parameter of
+//   one piece: its length, an arc's radius, a helix's radius or pitch, a clothoid's end
+//   curvature, or the path's transition tolerance) swept over a range, N curves planned
 //   (POST /v1/analyze, one call each) and overlaid in the 3-D view, with a legend of each
 //   value, its arc length and its peak curvature;
 // - local shape at the frame (Figs. 4.10-4.27): one of the frame's κ, τ, κ', τ' swept, and
@@ -9,7 +11,7 @@
 //   T, N, B.
 
 import * as api from './api.js';
-import { analysisRequest, withConstraint } from './request.js';
+import { analysisRequest, getField, pieceParameters, withConstraint, withPieceParameter } from './request.js';
 import { fmt } from './plots.js';
 
 export const FAMILY_CONSTRAINTS = [
@@ -31,6 +33,10 @@ export const LOCAL_QUANTITIES = [
 // Points of each branch of a local curve (POST /v1/analyze's analysisPoints).
 export const LOCAL_POINTS = 101;
 export const DEFAULT_HALF_LENGTH = 0.1;
+
+// A piece's kind: the shape it holds (line, arc, helix, clothoid, profile, to).
+const PIECE_KINDS = ['line', 'arc', 'helix', 'clothoid', 'profile', 'to'];
+export const pieceKind = (piece) => PIECE_KINDS.find((k) => piece?.[k] !== undefined) || 'piece';
 
 // Blue to red over the family.
 function familyColor(k, n) {
@@ -140,13 +146,8 @@ export class Family {
     this.note = root.querySelector('.family-note');
     this.legend = root.querySelector('.family-legend');
     this.status = root.querySelector('.family-status');
-    for (const [value, text] of FAMILY_CONSTRAINTS) {
-      const option = document.createElement('option');
-      option.value = value;
-      option.textContent = text;
-      option.dataset.pathLabel = text;
-      this.constraint.append(option);
-    }
+    this.target = root.querySelector('.family-target');
+    this.fillConstraints(FAMILY_CONSTRAINTS);
     this.halfLength.value ||= String(DEFAULT_HALF_LENGTH);
     this.form.addEventListener('submit', (e) => {
       e.preventDefault();
@@ -159,6 +160,7 @@ export class Family {
       this.suggestRange();
     });
     this.frame.addEventListener('change', () => {
+      if (this.isPieces()) this.fillConstraints(pieceParameters(this.pickedPiece()));
       this.updateHeld();
       this.suggestRange();
     });
@@ -172,6 +174,30 @@ export class Family {
 
   isLocal() {
     return this.mode.value === 'local';
+  }
+
+  // A path of pieces: the path mode sweeps a piece's parameters; the local mode, which needs
+  // a key frame's constraints, is off.
+  isPieces() {
+    return Boolean(this.getRequest()?.path?.pieces?.length);
+  }
+
+  pickedPiece() {
+    return this.getRequest()?.path?.pieces?.[Number(this.frame.value)];
+  }
+
+  // The constraint choices: [value, label] pairs, the current one kept where it remains.
+  fillConstraints(list) {
+    const current = this.constraint.value;
+    this.constraint.replaceChildren();
+    for (const [value, text] of list) {
+      const option = document.createElement('option');
+      option.value = value;
+      option.textContent = text;
+      option.dataset.pathLabel = text;
+      this.constraint.append(option);
+    }
+    if (list.some(([value]) => value === current)) this.constraint.value = current;
   }
 
   // The local mode sweeps κ, τ, κ', τ' only (per metre), and shows what it holds.
@@ -213,23 +239,42 @@ export class Family {
     }
   }
 
-  // A change of the request that keeps its frames: the frame's own values may have changed.
+  // A change of the request that keeps its frames: the frame's own values may have changed;
+  // on a path of pieces a piece's kind, and with it its parameters, may have.
   requestChanged() {
-    if (this.isLocal()) this.updateHeld();
+    if (this.isPieces() || this.root.dataset.targets === 'pieces') this.updateTargets(this.getRequest()?.path);
+    else if (this.isLocal()) this.updateHeld();
   }
 
-  // The frame choices follow the request's frames.
-  updateFrames(frames) {
+  // The frame choices follow the request's frames, or its pieces on a path of pieces.
+  updateTargets(path) {
     const current = this.frame.value;
+    const pieces = Boolean(path?.pieces?.length);
+    const targets = (pieces ? path.pieces : path?.frames) || [];
+    const wasPieces = this.target.textContent === 'piece';
+    this.target.textContent = pieces ? 'piece' : 'frame';
+    this.root.dataset.targets = pieces ? 'pieces' : 'frames';
+    const localOption = this.mode.querySelector('option[value=local]');
+    localOption.disabled = pieces;
+    if (pieces && this.isLocal()) {
+      this.mode.value = 'path';
+      this.updateMode();
+    }
     this.frame.replaceChildren();
-    frames.forEach((_, i) => {
+    targets.forEach((target, i) => {
       const option = document.createElement('option');
       option.value = String(i);
-      option.textContent = `frame ${i}`;
+      option.textContent = pieces ? `piece ${i} (${pieceKind(target)})` : `frame ${i}`;
       this.frame.append(option);
     });
-    if (current && Number(current) < frames.length) this.frame.value = current;
-    else if (frames.length > 1) this.frame.value = String(Math.min(1, frames.length - 1));
+    if (current && Number(current) < targets.length && wasPieces === pieces) this.frame.value = current;
+    else if (targets.length > 1) this.frame.value = String(Math.min(1, targets.length - 1));
+    if (pieces) this.fillConstraints(pieceParameters(this.pickedPiece()));
+    else if (wasPieces) this.fillConstraints(FAMILY_CONSTRAINTS);
+    if (wasPieces !== pieces) {
+      this.from.value = '';
+      this.to.value = '';
+    }
     this.updateHeld();
     if (!this.from.value && !this.to.value) this.suggestRange();
   }
@@ -243,6 +288,13 @@ export class Family {
       const picked = this.pickedFrame();
       if (!picked) return;
       v = picked.values[key];
+    } else if (this.isPieces()) {
+      v = key === 'transitionTolerance' ? this.getRequest().path.transitionTolerance : getField(this.pickedPiece(), key);
+      if (typeof v !== 'number' || v === 0) {
+        const fallback = { transitionTolerance: [0.00005, 0.0005], 'clothoid.endCurvature': [0, 20] }[key] || [0.01, 0.1];
+        [this.from.value, this.to.value] = fallback.map(String);
+        return;
+      }
     } else {
       const frames = this.getRequest()?.path?.frames || [];
       const f = frames[Number(this.frame.value)];
@@ -270,6 +322,7 @@ export class Family {
     this.root.dataset.curves = '0';
     this.root.dataset.branches = '0';
     delete this.root.dataset.local;
+    delete this.root.dataset.drawn;
   }
 
   // The N values of the range, or null (with the status saying why).
@@ -292,17 +345,21 @@ export class Family {
     const frame = Number(this.frame.value);
     const key = this.constraint.value;
     const sweep = this.sweepValues();
-    if (!request?.path?.frames?.[frame] || !sweep) {
-      this.status.textContent = 'pick a frame and a numeric range';
+    const pieces = this.isPieces();
+    const target = pieces ? 'piece' : 'frame';
+    if (!(pieces ? request.path.pieces[frame] : request?.path?.frames?.[frame]) || !sweep) {
+      this.status.textContent = `pick a ${target} and a numeric range`;
       return;
     }
+    const member = (value) => (pieces ? withPieceParameter(request, frame, key, value) : withConstraint(request, frame, key, value));
+    const label = pieces ? this.constraint.selectedOptions[0]?.textContent.replace(/ \[.*$/, '') ?? key : key;
     const { a, b, n, values } = sweep;
     const generation = ++this.generation;
     this.status.textContent = `planning ${n} curves…`;
     this.root.dataset.curves = '0';
     const results = await api.mapLimited(values, 2, async (value) => {
       try {
-        const profile = await api.analyze(analysisRequest(withConstraint(request, frame, key, value), 201));
+        const profile = await api.analyze(analysisRequest(member(value), 201));
         return { value, profile };
       } catch (error) {
         return { value, error };
@@ -313,14 +370,17 @@ export class Family {
     const curves = ok.map((r, k) => ({ points: r.profile.points || [], color: familyColor(k, ok.length), r }));
     this.view.setFamily(curves);
     this.legend.replaceChildren();
+    const drawn = [];
     for (const c of curves) {
       const peak = Math.max(0, ...c.points.map((p) => p.curvature ?? 0));
-      this.legendItem(c.color, `${key} = ${fmt(c.r.value)}: length ${fmt(c.r.profile.arcLength ?? 0)} m, peak κ ${fmt(peak)} 1/m`);
+      drawn.push({ value: c.r.value, arcLength: c.r.profile.arcLength ?? 0, peakCurvature: peak });
+      this.legendItem(c.color, `${label} = ${fmt(c.r.value)}: length ${fmt(c.r.profile.arcLength ?? 0)} m, peak κ ${fmt(peak)} 1/m`);
     }
-    for (const r of results.filter((x) => x.error)) this.refusedItem(`${key} = ${fmt(r.value)}: refused (${refusal(r.error)})`);
+    for (const r of results.filter((x) => x.error)) this.refusedItem(`${label} = ${fmt(r.value)}: refused (${refusal(r.error)})`);
+    this.root.dataset.drawn = JSON.stringify(drawn);
     this.root.dataset.curves = String(curves.length);
     this.root.dataset.branches = String(curves.length);
-    this.status.textContent = `${curves.length} of ${n} curves drawn (frame ${frame}, ${key} from ${fmt(a)} to ${fmt(b)})`;
+    this.status.textContent = `${curves.length} of ${n} curves drawn (${target} ${frame}, ${label} from ${fmt(a)} to ${fmt(b)})`;
     this.status.setAttribute('data-value', String(curves.length));
     this.finished();
   }

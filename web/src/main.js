@@ -131,7 +131,7 @@ function saveLocally() {
 function onEdit(kind) {
   state.editTime = performance.now();
   saveLocally();
-  if (kind === 'structure') family.updateFrames(state.request.path?.frames || []);
+  if (kind === 'structure') family.updateTargets(state.request.path);
   else family.requestChanged();
   schedule();
 }
@@ -453,7 +453,7 @@ function setRequest(request) {
   state.speedAtS = null;
   family.clear();
   editor.render(request);
-  family.updateFrames(request.path?.frames || []);
+  family.updateTargets(request.path);
   family.suggestRange();
   saveLocally();
   state.editTime = performance.now();

@@ -111,6 +111,43 @@ export function withConstraint(request, frame, constraint, value) {
   return copy;
 }
 
+// The parameters of a path of pieces the family view sweeps: the piece's length, its shape's
+// numbers (an arc's radius keeping its angle, a helix's radius or pitch keeping its turns, a
+// clothoid's end curvature) and the path's transition tolerance. [key, label] pairs; keys
+// are field paths inside the piece, or 'transitionTolerance' for the path's.
+export function pieceParameters(piece) {
+  const list = [['lengthM', 'length [m]']];
+  if (piece?.arc) list.unshift(['arc.radius', 'radius [m], same angle']);
+  if (piece?.helix) list.unshift(['helix.radius', 'radius [m], same turns'], ['helix.pitch', 'pitch [m], same turns']);
+  if (piece?.clothoid) list.unshift(['clothoid.endCurvature', 'end curvature [1/m]']);
+  list.push(['transitionTolerance', 'transition tolerance [m] (the path\'s)']);
+  return list;
+}
+
+// The request with one of pieceParameters' values replaced (the family view). An arc keeps
+// its angle (its length scales with the radius), a helix its turns (its length is
+// turns 2 pi sqrt(r^2 + (pitch / 2 pi)^2)); a value the server would refuse is set as given,
+// so the refusal names it.
+export function withPieceParameter(request, index, key, value) {
+  const copy = clone(request);
+  if (key === 'transitionTolerance') {
+    copy.path.transitionTolerance = value;
+    return copy;
+  }
+  const piece = copy.path.pieces[index];
+  const before = { ...piece.arc, ...piece.helix };
+  setField(piece, key, value);
+  const valid = Number.isFinite(value) && (key === 'helix.pitch' || value > 0);
+  if (key === 'arc.radius' && valid && before.radius > 0 && piece.lengthM > 0) {
+    piece.lengthM *= value / before.radius;
+  } else if (key.startsWith('helix.') && valid && piece.lengthM > 0) {
+    const round = (h) => 2 * Math.PI * Math.hypot(h.radius ?? 0, (h.pitch ?? 0) / (2 * Math.PI));
+    const old = round(before);
+    if (old > 0) piece.lengthM *= round(piece.helix) / old;
+  }
+  return copy;
+}
+
 // The CLI and grpcurl lines that send the same request.
 export function commandLines(grpcAddress, withToken) {
   const plaintext = '-plaintext ';

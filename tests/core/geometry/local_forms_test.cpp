@@ -2,7 +2,8 @@
 // curvature (4.4) and, independently, from the parametric forms' jets through the engine's
 // differential geometry; a frame's local curve: a helix where kappa and tau are constant
 // (4.20-4.21), continued smoothly through the frame by its backward branch, the same shape
-// wherever the frame is, and the cusp's and the inflection's branches.
+// wherever the frame is, the cusp's and the inflection's branches, and the spatial saddle
+// (4.4.3, Figs. 4.22-4.25, 7.26).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -157,6 +158,42 @@ TEST(LocalForms, ACuspsBranchesLeaveOnOneSideAndAnInflectionsBendApart) {
   EXPECT_LT((inflection->forward.frame_at(0.05).p - f.p).dot(f.N()), 0.0);
   EXPECT_GT((inflection->backward.frame_at(0.05).p - f.p).dot(f.N()), 0.0);
   EXPECT_GT((inflection->forward.frame_at(0.05).p - f.p).dot(f.T()), 0.0);
+}
+
+// The spatial saddle (4.4.3): torsion 0 at the frame with a derivative tau'. The torsion
+// changes sign through the frame (Fig. 4.23: negative approaching, positive leaving, for
+// tau' > 0), so the curve leaves its osculating plane on the same side ahead and behind, the
+// side of kappa tau' (both branches' height along B grows as kappa tau' s^4 / 24: 16 times
+// from s to 2s; Figs. 4.22 and 4.24, one per sign of tau'). At a point with torsion the
+// branches leave on opposite sides instead (kappa tau s^3 / 6, 8 times from s to 2s).
+TEST(LocalForms, ASaddlesBranchesLeaveTheOsculatingPlaneOnOneSide) {
+  const FrenetFrame f = some_frame();
+  const auto height = [&](const NaturalCurve& branch, double s) { return (branch.frame_at(s).p - f.p).dot(f.B()); };
+  for (const double tau_d : {200.0, -200.0}) {
+    LocalConstraints c;
+    c.kappa = 10.0;
+    c.tau_d = tau_d;
+    auto saddle = local_curve(f, c, 0.05);
+    ASSERT_TRUE(saddle);
+    // Approaching (the backward branch, traced away: tau(sigma) = -tau' sigma) the torsion
+    // has the sign of -tau', leaving that of tau'.
+    EXPECT_LT(saddle->backward.tau_at(0.02) * tau_d, 0.0);
+    EXPECT_GT(saddle->forward.tau_at(0.02) * tau_d, 0.0);
+    for (const NaturalCurve* branch : {&saddle->forward, &saddle->backward}) {
+      const double h1 = height(*branch, 0.01), h2 = height(*branch, 0.02);
+      EXPECT_GT(h1 * tau_d, 0.0) << "on the side of kappa tau'";
+      EXPECT_NEAR(h1, c.kappa * tau_d * std::pow(0.01, 4) / 24.0, 0.05 * std::abs(h1));
+      EXPECT_NEAR(h2 / h1, 16.0, 0.5);
+    }
+  }
+  LocalConstraints twisted;
+  twisted.kappa = 10.0;
+  twisted.tau = 5.0;
+  auto regular = local_curve(f, twisted, 0.05);
+  ASSERT_TRUE(regular);
+  EXPECT_GT(height(regular->forward, 0.01), 0.0);
+  EXPECT_LT(height(regular->backward, 0.01), 0.0);
+  EXPECT_NEAR(height(regular->forward, 0.02) / height(regular->forward, 0.01), 8.0, 0.3);
 }
 
 }  // namespace

@@ -1,6 +1,5 @@
-// Chapter 4's local shapes (core/geometry/local_forms.hpp): Tables 4.1-4.3 from the implicit
-// curvature (4.4) and, independently, from the parametric forms' jets through the engine's
-// differential geometry; a frame's local curve: a helix where kappa and tau are constant
+// Chapter 4's local shapes (core/geometry/local_forms.hpp; Tables 4.1-4.3 are golden tests,
+// tests/core/golden/chapter4_test.cpp): the ellipse's curvature; a frame's local curve: a helix where kappa and tau are constant
 // (4.20-4.21), continued smoothly through the frame by its backward branch, the same shape
 // wherever the frame is, the cusp's and the inflection's branches, and the spatial saddle
 // (4.4.3, Figs. 4.22-4.25, 7.26).
@@ -9,77 +8,12 @@
 #include <cmath>
 #include <numbers>
 
-#include "core/geometry/differential_geometry.hpp"
 #include "core/geometry/local_forms.hpp"
 
 namespace geotraj::core {
 namespace {
 
 using Eigen::Vector3d;
-
-// The jet of the planar parametric curve (x(u), y(u), 0) given its derivatives.
-Jet planar_jet(double x, double y, double xu, double yu, double xuu, double yuu, double xuuu, double yuuu) {
-  Jet jet{};
-  jet[0] = Vector3d(x, y, 0.0);
-  jet[1] = Vector3d(xu, yu, 0.0);
-  jet[2] = Vector3d(xuu, yuu, 0.0);
-  jet[3] = Vector3d(xuuu, yuuu, 0.0);
-  jet[4] = Vector3d::Zero();
-  return jet;
-}
-
-TEST(LocalForms, Table41ParabolasAreMostCurvedAtTheOrigin) {
-  const double a_values[] = {0.05, 1.0, 5.0, 25.0};
-  const double kappa_max[] = {0.1, 2.0, 10.0, 50.0};  // Table 4.1
-  for (int i = 0; i < 4; ++i) {
-    const double a = a_values[i];
-    EXPECT_NEAR(std::abs(parabola_curvature(a, 0.0)), kappa_max[i], 1e-15 * kappa_max[i]);
-    for (const double x : {-1.0, -0.3, 0.2, 0.7}) {
-      // x(u) = u, y(u) = a u^2 (Table 4.1's parametric form) through the engine.
-      const LocalGeometry g = local_geometry(planar_jet(x, a * x * x, 1.0, 2.0 * a * x, 0.0, 2.0 * a, 0.0, 0.0));
-      EXPECT_NEAR(g.kappa, std::abs(parabola_curvature(a, x)), 1e-12 * g.kappa);
-      EXPECT_LT(g.kappa, kappa_max[i]);
-    }
-  }
-}
-
-TEST(LocalForms, Table42CuspsAreUnboundedlyCurvedAndTheirTangentInverts) {
-  for (const double a : {0.05, 1.0, 5.0, 25.0}) {  // Table 4.2: |kappa_max| infinite
-    double previous = 0.0;
-    for (const double u : {0.5, 0.1, 0.01, 0.001}) {
-      // x(u) = a u^2, y(u) = a u^3 (4.14).
-      const LocalGeometry g =
-          local_geometry(planar_jet(a * u * u, a * u * u * u, 2 * a * u, 3 * a * u * u, 2 * a, 6 * a * u, 0.0, 6 * a));
-      EXPECT_NEAR(g.kappa, std::abs(cusp_curvature(a, a * u * u, a * u * u * u)), 1e-9 * g.kappa) << a << " " << u;
-      EXPECT_GT(g.kappa, 5.0 * previous) << "grows without bound towards the cusp";
-      previous = g.kappa;
-      // The two branches, u > 0 and u < 0, leave the cusp along the same tangent line in
-      // opposite directions of travel: dx/du = 2 a u changes sign.
-      const LocalGeometry other = local_geometry(
-          planar_jet(a * u * u, -a * u * u * u, -2 * a * u, 3 * a * u * u, 2 * a, -6 * a * u, 0.0, 6 * a));
-      EXPECT_LT(g.T.x() * other.T.x(), 0.0);
-    }
-  }
-}
-
-TEST(LocalForms, Table43TheNormalInvertsThroughAnInflection) {
-  struct Row {
-    double u, T[2], N[2];
-  };
-  const Row table[] = {{-0.5, {0.8, 0.6}, {0.6, -0.8}},
-                       {-0.1, {0.9996, 0.03}, {0.03, -0.9996}},
-                       {0.1, {0.9996, 0.03}, {-0.03, 0.9996}},
-                       {0.5, {0.8, 0.6}, {-0.6, 0.8}}};  // Table 4.3, y = x^3
-  for (const Row& r : table) {
-    const double u = r.u;
-    const LocalGeometry g = local_geometry(planar_jet(u, u * u * u, 1.0, 3 * u * u, 0.0, 6 * u, 0.0, 6.0));
-    ASSERT_TRUE(g.has_normal);
-    for (int k = 0; k < 2; ++k) {
-      EXPECT_NEAR(g.T[k], r.T[k], 5e-4) << u;  // printed to 4 decimals (0.03 to 2)
-      EXPECT_NEAR(g.N[k], r.N[k], 5e-4) << u;
-    }
-  }
-}
 
 TEST(LocalForms, TheEllipsesCurvatureIsTheCirclesWhereItIsOne) {
   EXPECT_NEAR(ellipse_curvature(0.2, 0.2, 0.2, 0.0), 5.0, 1e-12);

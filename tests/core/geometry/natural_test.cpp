@@ -1,5 +1,5 @@
-// Curves from their natural equations (natural.hpp; thesis 2.4, 4.4.1): the helix's
-// relations against Tables 4.4 and 4.5, the closed form against the helix's parametric form
+// Curves from their natural equations (natural.hpp; thesis 2.4, 4.4.1; the helix's relations
+// against Tables 4.4 and 4.5 are golden tests, tests/core/golden/chapter4_test.cpp): the closed form against the helix's parametric form
 // (4.17), the planar clothoid's closed form against its Fresnel integrals' power series
 // (fresnel_test.cpp checks it against the Magnus integration), the Magnus integration
 // against itself at a tighter tolerance, and the curvature and torsion measured on the curve (finite
@@ -18,23 +18,6 @@ namespace {
 using core::FrenetFrame;
 using core::NaturalCurve;
 using Eigen::Vector3d;
-
-// Tables 4.4 and 4.5: kappa, tau -> r, l (l = pitch / 2 pi), to the tables' four decimals.
-TEST(NaturalEquations, HelixRadiusAndPitchMatchTables4_4And4_5) {
-  struct Row {
-    double kappa, tau, r, l;
-  };
-  const Row rows[] = {{1, 1, 0.5, 0.5},       {2, 1, 0.4, 0.2},       {5, 1, 0.1923, 0.0385},
-                      {1, 2, 0.2, 0.4},       {1, 5, 0.0385, 0.1923}};
-  for (const Row& row : rows) {
-    const core::RadiusPitch rp = core::helix_radius_pitch(row.kappa, row.tau);
-    EXPECT_NEAR(rp.radius, row.r, 5e-5) << row.kappa << " " << row.tau;
-    EXPECT_NEAR(rp.pitch / (2.0 * std::numbers::pi), row.l, 5e-5) << row.kappa << " " << row.tau;
-    const core::CurvatureTorsion back = core::helix_curvature_torsion(rp.radius, rp.pitch);  // (4.18-4.19)
-    EXPECT_NEAR(back.kappa, row.kappa, 1e-12);
-    EXPECT_NEAR(back.tau, row.tau, 1e-12);
-  }
-}
 
 // The helix x = r cos u, y = r sin u, z = l u (4.17) and its Frenet frame at u.
 struct Helix {

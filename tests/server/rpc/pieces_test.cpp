@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <numbers>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -319,6 +320,50 @@ TEST_F(PiecesTest, AnalyzePathRecoversTheCurvatureAndTorsionAsked) {
     EXPECT_NEAR(p.curvature_derivative(), 20, 1e-5) << s;
   }
   EXPECT_NEAR(profile.points(300).s(), 0.3, 1e-12);
+}
+
+// An S-bend of two clothoids from a client: 0 -> 20 1/m over 0.5 m, then 20 -> -20 1/m
+// over 0.5 m through an inflection. AnalyzePath measures the curvature linear in s (its
+// magnitude: 40 s, then |20 - 80 (s - 0.5)|), no torsion, the curve in the start's plane,
+// and the first clothoid's points are its Fresnel integrals x = int cos(20 t^2),
+// y = int sin(20 t^2) (power series in long double, here) to 1e-12 m.
+TEST_F(PiecesTest, ClothoidsAreLinearInCurvatureAndTheirPointsTheirFresnelIntegrals) {
+  const auto request = from_json<v1::PlanRequest>(R"({"path": {
+      "start": {"position": {}, "tangent": {"x": 1}, "normal": {"y": 1}},
+      "pieces": [{"lengthM": 0.5, "clothoid": {"endCurvature": 20}},
+                 {"lengthM": 0.5, "clothoid": {"endCurvature": -20}}]},
+      "analysisPoints": 501})");
+  v1::PathProfile profile;
+  const auto status = analyze(request, profile);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_EQ(profile.points_size(), 501);
+  const auto fresnel = [](double s) {  // int_0^s exp(i 20 t^2) dt by its power series
+    long double c = 0.0L, sn = 0.0L, term = s;  // 20^n s^(2n+1) / n!
+    for (int n = 0; n < 120; ++n) {
+      const long double part = term / (2 * n + 1);
+      if (n % 4 == 0) c += part;
+      if (n % 4 == 1) sn += part;
+      if (n % 4 == 2) c -= part;
+      if (n % 4 == 3) sn -= part;
+      term *= 20.0L * s * s / (n + 1);
+    }
+    return std::pair<double, double>{static_cast<double>(c), static_cast<double>(sn)};
+  };
+  for (const auto& p : profile.points()) {
+    const double s = p.s();
+    const double want = s <= 0.5 ? 40.0 * s : std::abs(20.0 - 80.0 * (s - 0.5));
+    if (std::abs(s - 0.75) > 1e-9) {  // the inflection has no normal
+      EXPECT_NEAR(p.curvature(), want, 1e-8) << s;
+      EXPECT_NEAR(p.torsion(), 0.0, 1e-8) << s;
+    }
+    EXPECT_NEAR(p.position().z(), 0.0, 1e-15) << s;
+    if (s <= 0.5) {
+      const auto [x, y] = fresnel(s);
+      EXPECT_NEAR(p.position().x(), x, 1e-12) << s;
+      EXPECT_NEAR(p.position().y(), y, 1e-12) << s;
+    }
+  }
+  EXPECT_NEAR(profile.points(500).s(), 1.0, 1e-12);
 }
 
 TEST_F(PiecesTest, BadPiecesAreNamedByTheirField) {

@@ -1,0 +1,450 @@
+// Whole-path redundancy resolution on Ceres Solver. See redundancy.hpp.
+#include "optim/redundancy/redundancy.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <numbers>
+#include <string>
+#include <utility>
+
+#include <ceres/ceres.h>
+
+#include "core/format.hpp"
+#include "core/robot/ik.hpp"
+#include "core/robot/kinematics.hpp"
+
+namespace geotraj::optim {
+
+namespace {
+
+using core::JointVector;
+using Eigen::Isometry3d;
+using Eigen::Vector3d;
+
+// The pose error [p(q) - p_t; r(R(q) R_t^T)] [m; rad] of joints with tool pose X.
+core::Vector6d pose_error(const Isometry3d& X, const Isometry3d& target) {
+  core::Vector6d e;
+  e.head<3>() = X.translation() - target.translation();
+  const Eigen::AngleAxisd turn(X.linear() * target.linear().transpose());
+  e.tail<3>() = turn.angle() * turn.axis();
+  return e;
+}
+
+// The per-joint scales of each criterion (0 where it does not apply).
+struct Scales {
+  JointVector velocity, acceleration, jerk, range, mid, goal;
+  double manipulability = 0.0;  // w_m m_0
+};
+
+Scales scales_of(const core::RobotModel& model, double dt, const RedundancyOptions& o, const JointVector& q0) {
+  const std::size_t n = model.dof();
+  Scales s;
+  s.velocity = s.acceleration = s.jerk = s.range = s.mid = s.goal = JointVector::Zero(static_cast<Eigen::Index>(n));
+  const RedundancyWeights& w = o.weights;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto j = static_cast<Eigen::Index>(i);
+    const core::JointLimits& l = model.limits[i];
+    s.velocity(j) = w.velocity / (dt * l.max_velocity);
+    s.acceleration(j) = w.acceleration / (dt * dt * l.max_acceleration);
+    s.jerk(j) = l.max_jerk ? w.jerk / (dt * dt * dt * *l.max_jerk) : 0.0;
+    const bool bounded = model.joints[i].type != core::JointType::kContinuous;
+    const double range = bounded ? l.max_position - l.min_position : 2.0 * std::numbers::pi;
+    s.mid(j) = bounded ? 0.5 * (l.min_position + l.max_position) : 0.0;
+    s.range(j) = bounded && range > 0.0 ? w.joint_range / range : 0.0;
+    s.goal(j) = o.goal && range > 0.0 ? o.goal_weight / range : 0.0;
+  }
+  if (w.manipulability > 0.0) {
+    Isometry3d X;
+    core::JointJacobian J;
+    core::forward_kinematics(model, q0, X, J);
+    s.manipulability = w.manipulability * std::max(core::manipulability(J), 1e-12);
+  }
+  return s;
+}
+
+// A finite-difference stencil of the joint trajectory with rests beyond its ends: the
+// coefficients of the samples it touches (indices clamped to [0, K], repeats merged).
+struct Stencil {
+  std::vector<std::size_t> samples;
+  std::vector<double> coefficients;
+};
+
+std::vector<Stencil> stencils(std::size_t K, std::initializer_list<double> c, long first, long last) {
+  std::vector<Stencil> out;
+  for (long k = first; k <= last; ++k) {
+    Stencil st;
+    long index = k;
+    for (const double coefficient : c) {
+      const auto at = static_cast<std::size_t>(std::clamp<long>(index++, 0, static_cast<long>(K)));
+      const auto it = std::find(st.samples.begin(), st.samples.end(), at);
+      if (it == st.samples.end()) {
+        st.samples.push_back(at);
+        st.coefficients.push_back(coefficient);
+      } else {
+        st.coefficients[static_cast<std::size_t>(it - st.samples.begin())] += coefficient;
+      }
+    }
+    // Drop merged zeros; a stencil of rests alone measures nothing.
+    for (std::size_t i = st.samples.size(); i-- > 0;) {
+      if (st.coefficients[i] == 0.0) {
+        st.samples.erase(st.samples.begin() + static_cast<long>(i));
+        st.coefficients.erase(st.coefficients.begin() + static_cast<long>(i));
+      }
+    }
+    if (!st.samples.empty() && !(st.samples.size() == 1 && st.samples[0] == 0)) out.push_back(std::move(st));
+  }
+  return out;
+}
+
+// The stencils of the three derivative criteria over samples 0 .. K.
+struct Differences {
+  std::vector<Stencil> velocity, acceleration, jerk;
+};
+Differences differences(std::size_t K) {
+  return {stencils(K, {-1.0, 1.0}, 0, static_cast<long>(K) - 1), stencils(K, {1.0, -2.0, 1.0}, -1, static_cast<long>(K) - 1),
+          stencils(K, {-1.0, 3.0, -3.0, 1.0}, -2, static_cast<long>(K) - 1)};
+}
+
+// r = scale .* sum_j c_j q_{samples[j]} (n residuals, one block per sample).
+class DifferenceCost final : public ceres::CostFunction {
+ public:
+  DifferenceCost(const Stencil& stencil, const JointVector& scale) : c_(stencil.coefficients), scale_(scale) {
+    set_num_residuals(static_cast<int>(scale.size()));
+    for (std::size_t j = 0; j < c_.size(); ++j) mutable_parameter_block_sizes()->push_back(static_cast<int>(scale.size()));
+  }
+  bool Evaluate(double const* const* q, double* r, double** jac) const override {
+    const auto n = static_cast<std::size_t>(scale_.size());
+    for (std::size_t i = 0; i < n; ++i) {
+      double sum = 0.0;
+      for (std::size_t j = 0; j < c_.size(); ++j) sum += c_[j] * q[j][i];
+      r[i] = scale_(static_cast<Eigen::Index>(i)) * sum;
+    }
+    if (jac) {
+      for (std::size_t j = 0; j < c_.size(); ++j) {
+        if (!jac[j]) continue;
+        std::fill(jac[j], jac[j] + n * n, 0.0);
+        for (std::size_t i = 0; i < n; ++i) jac[j][i * n + i] = scale_(static_cast<Eigen::Index>(i)) * c_[j];
+      }
+    }
+    return true;
+  }
+
+ private:
+  std::vector<double> c_;
+  JointVector scale_;
+};
+
+// r = scale .* (q - centre) (the range, or the goal).
+class OffsetCost final : public ceres::CostFunction {
+ public:
+  OffsetCost(const JointVector& centre, const JointVector& scale) : centre_(centre), scale_(scale) {
+    set_num_residuals(static_cast<int>(scale.size()));
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(scale.size()));
+  }
+  bool Evaluate(double const* const* q, double* r, double** jac) const override {
+    const auto n = static_cast<std::size_t>(scale_.size());
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto j = static_cast<Eigen::Index>(i);
+      r[i] = scale_(j) * (q[0][i] - centre_(j));
+    }
+    if (jac && jac[0]) {
+      std::fill(jac[0], jac[0] + n * n, 0.0);
+      for (std::size_t i = 0; i < n; ++i) jac[0][i * n + i] = scale_(static_cast<Eigen::Index>(i));
+    }
+    return true;
+  }
+
+ private:
+  JointVector centre_, scale_;
+};
+
+// The joints that hold a pose: a manifold of dimension n - 6 in joint space (the arm's
+// self-motion through the pose). Its tangent at q is J(q)'s null space, with the basis N(q)
+// (n x (n - 6), orthonormal: the last columns of J^T's QR factor); a step delta moves to
+// q + N delta and back onto the pose by the IK's Newton projection (minimum-norm
+// corrections, within the position limits). So the pose is held at every iterate, not penalised.
+class SelfMotion final : public ceres::Manifold {
+ public:
+  SelfMotion(const core::RobotModel& model, const Isometry3d& target) : model_(model), target_(target) {
+    ik_.position_tolerance = ik_.orientation_tolerance = 1e-11;
+    ik_.max_iterations = 12;
+  }
+  int AmbientSize() const override { return static_cast<int>(model_.dof()); }
+  int TangentSize() const override { return static_cast<int>(model_.dof()) - 6; }
+  bool Plus(const double* x, const double* delta, double* out) const override {
+    const auto n = static_cast<Eigen::Index>(model_.dof());
+    const JointVector q = Eigen::Map<const Eigen::VectorXd>(x, n);
+    const Eigen::MatrixXd N = basis(q);
+    const JointVector step = N * Eigen::Map<const Eigen::VectorXd>(delta, N.cols());
+    // A step too long for the projection (Ceres tries the whole gradient once, to measure
+    // it) is halved until the IK brings it back: the retraction saturates far from x, and
+    // the trust region judges such steps by what they achieve.
+    double scale = 1.0;
+    for (int attempt = 0; attempt < 12; ++attempt, scale *= 0.5) {
+      const core::IkResult ik = core::solve_ik(model_, target_, q + scale * step, ik_);
+      if (!ik.converged) continue;
+      std::copy(ik.q.data(), ik.q.data() + n, out);
+      return true;
+    }
+    return false;
+  }
+  bool PlusJacobian(const double* x, double* jacobian) const override {
+    const auto n = static_cast<Eigen::Index>(model_.dof());
+    const Eigen::MatrixXd N = basis(Eigen::Map<const Eigen::VectorXd>(x, n));
+    Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(jacobian, n, N.cols()) = N;
+    return true;
+  }
+  bool Minus(const double* y, const double* x, double* delta) const override {
+    const auto n = static_cast<Eigen::Index>(model_.dof());
+    const Eigen::MatrixXd N = basis(Eigen::Map<const Eigen::VectorXd>(x, n));
+    Eigen::Map<Eigen::VectorXd>(delta, N.cols()) =
+        N.transpose() * (Eigen::Map<const Eigen::VectorXd>(y, n) - Eigen::Map<const Eigen::VectorXd>(x, n));
+    return true;
+  }
+  bool MinusJacobian(const double* x, double* jacobian) const override {
+    const auto n = static_cast<Eigen::Index>(model_.dof());
+    const Eigen::MatrixXd N = basis(Eigen::Map<const Eigen::VectorXd>(x, n));
+    Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(jacobian, N.cols(), n) =
+        N.transpose();
+    return true;
+  }
+
+ private:
+  Eigen::MatrixXd basis(const JointVector& q) const {
+    Isometry3d X;
+    core::JointJacobian J;
+    core::forward_kinematics(model_, q, X, J);
+    const Eigen::MatrixXd Jt = J.transpose();
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(Jt);
+    const Eigen::MatrixXd Q = qr.householderQ();
+    return Q.rightCols(Jt.rows() - 6);
+  }
+
+  const core::RobotModel& model_;
+  Isometry3d target_;
+  core::IkOptions ik_;
+};
+
+double manipulability_at(const core::RobotModel& model, const JointVector& q) {
+  Isometry3d X;
+  core::JointJacobian J;
+  core::forward_kinematics(model, q, X, J);
+  return core::manipulability(J);
+}
+
+// r = w_m m_0 / m(q), its gradient by central differences of m (h = 1e-6 rad).
+class ManipulabilityCost final : public ceres::CostFunction {
+ public:
+  ManipulabilityCost(const core::RobotModel& model, double scale) : model_(model), scale_(scale) {
+    set_num_residuals(1);
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(model.dof()));
+  }
+  bool Evaluate(double const* const* q, double* r, double** jac) const override {
+    const auto n = static_cast<Eigen::Index>(model_.dof());
+    JointVector joints = Eigen::Map<const Eigen::VectorXd>(q[0], n);
+    const double m = std::max(manipulability_at(model_, joints), 1e-12);
+    r[0] = scale_ / m;
+    if (jac && jac[0]) {
+      constexpr double h = 1e-6;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const double keep = joints(i);
+        joints(i) = keep + h;
+        const double up = manipulability_at(model_, joints);
+        joints(i) = keep - h;
+        const double down = manipulability_at(model_, joints);
+        joints(i) = keep;
+        jac[0][i] = -scale_ / (m * m) * (up - down) / (2.0 * h);
+      }
+    }
+    return true;
+  }
+
+ private:
+  const core::RobotModel& model_;
+  double scale_;
+};
+
+// Ends the solve when the caller's stop says so.
+class StopCallback final : public ceres::IterationCallback {
+ public:
+  explicit StopCallback(const std::function<bool()>& stopped) : stopped_(stopped) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+    return stopped_ && stopped_() ? ceres::SOLVER_TERMINATE_SUCCESSFULLY : ceres::SOLVER_CONTINUE;
+  }
+  bool fired() const { return stopped_ && stopped_(); }
+
+ private:
+  const std::function<bool()>& stopped_;
+};
+
+double difference_objective(const std::vector<Stencil>& all, const std::vector<JointVector>& q, const JointVector& scale) {
+  double sum = 0.0;
+  if (scale.isZero()) return 0.0;
+  for (const Stencil& st : all) {
+    JointVector d = JointVector::Zero(scale.size());
+    for (std::size_t j = 0; j < st.samples.size(); ++j) d += st.coefficients[j] * q[st.samples[j]];
+    sum += d.cwiseProduct(scale).squaredNorm();
+  }
+  return sum;
+}
+
+bool solver_available(ceres::SparseLinearAlgebraLibraryType type) {
+  return ceres::IsSparseLinearAlgebraLibraryTypeAvailable(type);
+}
+
+}  // namespace
+
+double redundancy_objective(const core::RobotModel& model, const std::vector<JointVector>& q, double dt,
+                            const RedundancyOptions& options) {
+  if (q.size() < 2) return 0.0;
+  const std::size_t K = q.size() - 1;
+  const Scales s = scales_of(model, dt, options, q[0]);
+  const Differences d = differences(K);
+  double sum = difference_objective(d.velocity, q, s.velocity) + difference_objective(d.acceleration, q, s.acceleration) +
+               difference_objective(d.jerk, q, s.jerk);
+  for (std::size_t k = 1; k <= K; ++k) {
+    sum += (q[k] - s.mid).cwiseProduct(s.range).squaredNorm();
+    if (s.manipulability > 0.0) sum += std::pow(s.manipulability / std::max(manipulability_at(model, q[k]), 1e-12), 2);
+  }
+  if (options.goal) sum += (q[K] - *options.goal).cwiseProduct(s.goal).squaredNorm();
+  return 0.5 * sum;
+}
+
+core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& robot, const std::vector<Isometry3d>& poses,
+                                                     double dt, const std::vector<JointVector>& initial,
+                                                     const RedundancyOptions& options) {
+  const core::RobotModel& model = robot;
+  const std::size_t n = model.dof();
+  core::Violations v;
+  const RedundancyWeights& w = options.weights;
+  const double weights[] = {w.joint_range, w.velocity, w.acceleration, w.jerk, w.manipulability};
+  if (std::any_of(std::begin(weights), std::end(weights), [](double x) { return !std::isfinite(x) || x < 0.0; }))
+    v.push_back({"weights", "must be finite and >= 0"});
+  else if (std::all_of(std::begin(weights), std::end(weights), [](double x) { return x == 0.0; }))
+    v.push_back({"weights", "at least one weight must be > 0"});
+  if (!std::isfinite(dt) || !(dt > 0.0)) v.push_back({"dt", "must be a finite time > 0 s, got " + core::number(dt)});
+  if (poses.size() < 2 || initial.size() != poses.size())
+    v.push_back({"initial", "needs one joint vector per pose, at least 2 (got " + std::to_string(initial.size()) +
+                                " for " + std::to_string(poses.size()) + " poses)"});
+  if (options.goal && static_cast<std::size_t>(options.goal->size()) != n)
+    v.push_back({"goal", "needs " + std::to_string(n) + " joint values"});
+  if (n <= 6)
+    v.push_back({"robot", "has " + std::to_string(n) + " joints: a pose leaves it no self-motion to choose"});
+  if (!v.empty()) return tl::make_unexpected(std::move(v));
+  for (std::size_t k = 0; k < initial.size(); ++k) {
+    const std::string field = "initial[" + std::to_string(k) + "]";
+    if (static_cast<std::size_t>(initial[k].size()) != n || !initial[k].allFinite()) {
+      v.push_back({field, "needs " + std::to_string(n) + " finite joint values"});
+      break;
+    }
+    const core::Vector6d e = pose_error(core::forward_kinematics(model, initial[k]), poses[k]);
+    if (e.head<3>().norm() > 1e-6 || e.tail<3>().norm() > 1e-6) {
+      v.push_back({field, "does not reach its pose (" + core::number(e.head<3>().norm()) + " m, " +
+                              core::number(e.tail<3>().norm()) + " rad off)"});
+      break;
+    }
+  }
+  if (!v.empty()) return tl::make_unexpected(std::move(v));
+
+  const auto started = std::chrono::steady_clock::now();
+  const std::size_t K = poses.size() - 1;
+  const Scales s = scales_of(model, dt, options, initial[0]);
+  RedundancyResult result;
+  result.q = initial;
+  result.report.objective_before = redundancy_objective(model, initial, dt, options);
+
+  std::vector<double> x(poses.size() * n);
+  for (std::size_t k = 0; k <= K; ++k) std::copy(initial[k].data(), initial[k].data() + n, x.data() + k * n);
+  const auto block = [&](std::size_t k) { return x.data() + k * n; };
+
+  ceres::Problem problem;
+  for (std::size_t k = 0; k <= K; ++k) problem.AddParameterBlock(block(k), static_cast<int>(n));
+  problem.SetParameterBlockConstant(block(0));
+  for (std::size_t k = 1; k <= K; ++k) {
+    problem.SetManifold(block(k), new SelfMotion(model, poses[k]));
+    if (!s.range.isZero()) problem.AddResidualBlock(new OffsetCost(s.mid, s.range), nullptr, block(k));
+    if (s.manipulability > 0.0) problem.AddResidualBlock(new ManipulabilityCost(model, s.manipulability), nullptr, block(k));
+  }
+  const Differences d = differences(K);
+  for (const auto& [all, scale] : {std::pair{&d.velocity, &s.velocity}, std::pair{&d.acceleration, &s.acceleration},
+                                   std::pair{&d.jerk, &s.jerk}}) {
+    if (scale->isZero()) continue;
+    for (const Stencil& st : *all) {
+      std::vector<double*> blocks;
+      for (const std::size_t k : st.samples) blocks.push_back(block(k));
+      problem.AddResidualBlock(new DifferenceCost(st, *scale), nullptr, blocks);
+    }
+  }
+  if (options.goal) problem.AddResidualBlock(new OffsetCost(*options.goal, s.goal), nullptr, block(K));
+
+  ceres::Solver::Options so;
+  so.minimizer_type = ceres::TRUST_REGION;
+  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  // Gauss-Newton from the start: the differences make J^T J span some ten decades (the
+  // smooth modes of a second difference over 1,000 samples), and the default radius damps
+  // exactly the modes the self-motion needs, growing 3x per iteration.
+  so.initial_trust_region_radius = 1e12;
+  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  so.sparse_linear_algebra_library_type = solver_available(ceres::SUITE_SPARSE) ? ceres::SUITE_SPARSE : ceres::EIGEN_SPARSE;
+  so.num_threads = 1;
+  so.max_num_iterations = std::max(1, options.max_iterations);
+  so.max_solver_time_in_seconds = std::max(1e-3, options.time_budget_s);
+  so.function_tolerance = 1e-8;
+  so.gradient_tolerance = 1e-12;
+  so.parameter_tolerance = 1e-12;
+  so.logging_type = ceres::SILENT;
+  so.minimizer_progress_to_stdout = false;
+
+  StopCallback stop(options.stopped);
+  so.callbacks.push_back(&stop);
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+
+  // Every sample polished by the IK from the optimum (minimum-norm corrections, ~1e-8).
+  std::vector<JointVector> q(poses.size());
+  q[0] = initial[0];
+  core::IkOptions polish;
+  polish.position_tolerance = 1e-12;
+  polish.orientation_tolerance = 1e-12;
+  polish.max_iterations = 20;
+  bool reached = true;
+  for (std::size_t k = 1; k <= K; ++k) {
+    const core::IkResult ik = core::solve_ik(model, poses[k], Eigen::Map<const Eigen::VectorXd>(block(k), static_cast<Eigen::Index>(n)), polish);
+    q[k] = ik.q;
+    result.worst_position_error = std::max(result.worst_position_error, ik.position_error);
+    result.worst_orientation_error = std::max(result.worst_orientation_error, ik.orientation_error);
+    reached = reached && ik.position_error <= 1e-9 && ik.orientation_error <= 1e-9 && ik.within_limits;
+  }
+
+  OptimizerReport& report = result.report;
+  report.iterations = static_cast<int>(summary.iterations.size());
+  report.message = summary.message;
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  if (!reached || summary.termination_type == ceres::FAILURE) {
+    report.status = OptimizerStatus::kFailed;
+    if (!reached) report.message = "the optimum's joints do not all reach their poses after the IK's polish";
+    report.objective_after = report.objective_before;
+    return result;
+  }
+  const double after = redundancy_objective(model, q, dt, options);
+  if (!(after < report.objective_before)) {
+    report.status = OptimizerStatus::kNoImprovement;
+    report.objective_after = report.objective_before;
+    return result;
+  }
+  report.objective_after = after;
+  result.q = std::move(q);
+  if (stop.fired() || summary.termination_type == ceres::USER_SUCCESS) {
+    report.status = OptimizerStatus::kTimeLimit;
+  } else if (summary.termination_type == ceres::CONVERGENCE) {
+    report.status = OptimizerStatus::kConverged;
+  } else {
+    report.status = summary.total_time_in_seconds >= so.max_solver_time_in_seconds ? OptimizerStatus::kTimeLimit
+                                                                                  : OptimizerStatus::kIterationLimit;
+  }
+  return result;
+}
+
+}  // namespace geotraj::optim

@@ -1,0 +1,80 @@
+// Whole-path redundancy resolution: the joint trajectory of an arm along a timed tool
+// motion chosen as one sparse nonlinear least-squares problem (Ceres Solver), instead of
+// sample by sample. Where the arm has more joints than the pose needs (the PA-10's seventh),
+// the self-motion is a free choice at every sample; chosen per sample (joint_motion.hpp's
+// null-space term) it is blind to what the next samples need, chosen over the whole motion
+// it can spread what the joints must do.
+//
+// Problem. Unknowns: the joints q_k [rad or m] at the samples t_k = k dt, k = 1 .. K (q_0,
+// where the robot stands, is held), each on the manifold of the joints that hold its pose:
+// a step moves along J(q_k)'s null space (n - 6 coordinates per sample) and the IK's Newton
+// projection brings it back onto the pose, within the position limits; so every iterate
+// holds every pose, and the optimum is polished by the IK to 1e-12. Residuals, each scaled to
+// be dimensionless (rests beyond both ends: the motion starts and ends at rest):
+//   velocity   w_v (q_{k+1} - q_k) / (dt v_max)                (per joint)
+//   accel.     w_a (q_{k+1} - 2 q_k + q_{k-1}) / (dt^2 a_max)
+//   jerk       w_j (q_{k+2} - 3 q_{k+1} + 3 q_k - q_{k-1}) / (dt^3 j_max)
+//   range      w_r (q_k - mid) / range                         (the distance to the limits)
+//   manip.     w_m m_0 / m(q_k)                                (Yoshikawa's m = sqrt(det J J^T),
+//              m_0 the first sample's: larger is better)
+//   goal       w_g (q_K - q_goal) / range                      (closeness to given joints)
+// Weights are the user's (RedundancyWeights); the
+// objective reported is 1/2 the sum of the squared criteria residuals (pose excluded).
+// Solved by Levenberg-Marquardt with a sparse normal-equations Cholesky: the Jacobian is
+// banded (a sample couples with its three neighbours at most).
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "core/error.hpp"
+#include "core/robot/robot.hpp"
+#include "optim/common/report.hpp"
+
+namespace geotraj::optim {
+
+/// What the free choices serve (each >= 0, at least one > 0).
+struct RedundancyWeights {
+  double joint_range = 0.0;     ///< away from the position limits
+  double velocity = 0.0;        ///< joint velocity per its limit
+  double acceleration = 0.0;    ///< joint acceleration per its limit
+  double jerk = 0.0;            ///< joint jerk per its limit (joints with one)
+  double manipulability = 0.0;  ///< away from singularities
+};
+
+struct RedundancyOptions {
+  RedundancyWeights weights;
+  /// Joints the motion should end near (closeness weighted by goal_weight), or none.
+  std::optional<core::JointVector> goal;
+  double goal_weight = 1.0;
+  int max_iterations = 100;
+  double time_budget_s = 10.0;
+  /// Asked between iterations: true ends the solve there (deadline, cancellation).
+  std::function<bool()> stopped;
+};
+
+struct RedundancyResult {
+  std::vector<core::JointVector> q;  ///< one per pose, q[0] the start's
+  OptimizerReport report;            ///< objective: 1/2 sum of squared criteria residuals
+  double worst_position_error = 0.0;     ///< after the IK's polish [m]
+  double worst_orientation_error = 0.0;  ///< [rad]
+};
+
+/// The joints along `poses` (X_WT at t_k = k dt [s], at least 2) from `initial` (one per
+/// pose, within the limits, each reaching its pose: the sample-by-sample solution), q_0 held.
+/// Errors name the field: `weights` (negative, or all 0), `dt`, `initial` (size, joints
+/// not reaching their pose), `goal`, `robot` (6 joints or fewer: no self-motion).
+core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& robot,
+                                                     const std::vector<Eigen::Isometry3d>& poses, double dt,
+                                                     const std::vector<core::JointVector>& initial,
+                                                     const RedundancyOptions& options);
+
+/// The criteria objective of a joint trajectory (what RedundancyResult::report compares):
+/// 1/2 the sum of the squared criteria residuals above, without the pose's.
+double redundancy_objective(const core::RobotModel& model, const std::vector<core::JointVector>& q, double dt,
+                            const RedundancyOptions& options);
+
+}  // namespace geotraj::optim

@@ -24,11 +24,11 @@
 
 set(_core_shared "core/(error|format)\\.hpp")
 set(_core_all "(${_core_shared}|core/(geometry|robot|motion|planning|live)/)")
-set(_optim_all "optim/(common|tangent_scales|breakpoints|timing)/")
+set(_optim_all "optim/(common|tangent_scales|breakpoints|timing|redundancy)/")
 # folder (relative to the project root) -> the project include prefixes it may use
 set(_layer_folders
   core/geometry core/robot core/motion core/planning core/live
-  optim/common optim/tangent_scales optim/breakpoints optim/timing
+  optim/common optim/tangent_scales optim/breakpoints optim/timing optim/redundancy
   planner server/wire server/ops server/web server/rpc client)
 set(_allowed_core/geometry "^(${_core_shared}|core/geometry/)")
 set(_allowed_core/robot "^(${_core_shared}|core/robot/)")
@@ -39,6 +39,7 @@ set(_allowed_optim/common "^(${_core_shared}|optim/common/)")
 set(_allowed_optim/tangent_scales "^(${_core_all}|optim/(common|tangent_scales)/)")
 set(_allowed_optim/breakpoints "^(${_core_all}|optim/(common|breakpoints)/)")
 set(_allowed_optim/timing "^(${_core_all}|optim/(common|timing)/)")
+set(_allowed_optim/redundancy "^(${_core_all}|optim/(common|redundancy)/)")
 set(_allowed_planner "^(${_core_all}|${_optim_all}|planner/)")
 set(_allowed_server/wire "^(${_core_all}|${_optim_all}|planner/|server/(wire/|status_codes\\.hpp|options\\.hpp))")
 set(_allowed_server/ops "^(server/(wire/|ops/|status_codes\\.hpp|options\\.hpp))")

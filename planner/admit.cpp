@@ -193,6 +193,36 @@ core::Expected<std::shared_ptr<const Robot>> resolved(const RobotSpec& spec, con
   return std::make_shared<const Robot>(std::move(*robot));
 }
 
+// optimize.redundancy: weights each finite and >= 0, one at least > 0, on a path (a line and a
+// joint path have no self-motion to choose here) followed by a robot with more than 6 joints.
+Violations redundancy_violations(const optim::RedundancyWeights& w, const GeometryInput& geometry, const Robot* robot) {
+  Violations v;
+  const std::pair<const char*, double> weights[] = {{"jointRangeWeight", w.joint_range},
+                                                    {"velocityWeight", w.velocity},
+                                                    {"accelerationWeight", w.acceleration},
+                                                    {"jerkWeight", w.jerk},
+                                                    {"manipulabilityWeight", w.manipulability}};
+  bool any = false;
+  for (const auto& [name, value] : weights) {
+    if (!std::isfinite(value) || value < 0.0)
+      v.push_back({std::string("optimize.redundancy.") + name, "must be a finite weight >= 0, got " + core::number(value)});
+    any = any || value > 0.0;
+  }
+  if (v.empty() && !any)
+    v.push_back({"optimize.redundancy", "weighs nothing: give at least one weight > 0 (accelerationWeight, velocityWeight, "
+                                        "jerkWeight, jointRangeWeight, manipulabilityWeight)"});
+  if (geometry.linear_move || geometry.joint_path)
+    v.push_back({"optimize.redundancy", geometry.linear_move ? "chooses a redundant arm's joints along a path; not yet for a linearMove"
+                                                             : "chooses a redundant arm's joints along a Cartesian path; a jointPath gives every joint"});
+  if (robot == nullptr) {
+    v.push_back({"optimize.redundancy", "needs a robot: it chooses the joints of a redundant arm"});
+  } else if (robot->model->dof() <= 6) {
+    v.push_back({"optimize.redundancy", "needs a robot with more than 6 joints: " + robot->model->name + " has " +
+                                            std::to_string(robot->model->dof()) + ", so a tool pose leaves it no self-motion to choose"});
+  }
+  return v;
+}
+
 // What one path, move or line needs, given with a motion (the request's, or a step's over
 // the request's). `robot`: resolved already (a sequence resolves it once for its steps).
 core::Expected<Request> admit_motion(const GeometryInput& geometry, const MotionInput& motion,
@@ -230,6 +260,7 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
                           "applies to it)"});
   }
   if (optimize && geometry.path) out.optimize = optimize->values;
+  if (optimize && optimize->values.redundancy) append(violations, redundancy_violations(*optimize->values.redundancy, geometry, robot.get()));
   if (optimize && geometry.joint_path) {
     timing_only("shapes a Cartesian path: a jointPath's blends are set by its blendTolerance (optimize.timing "
                 "applies to it)");
@@ -438,6 +469,7 @@ core::Expected<Request> admit_sequence(const RequestInput& input, const RobotCat
     std::optional<OptimizeInput> optimize = step.geometry.joint_move ? std::nullopt : input.optimize;
     if (optimize && (step.geometry.linear_move || step.geometry.joint_path))
       optimize->tangent_scales = optimize->breakpoints = false;
+    if (optimize) optimize->values.redundancy.reset();  // refused for the whole sequence below
     auto admitted = admit_motion(step.geometry, motion, input.robot ? &*input.robot : nullptr, robot, optimize,
                                  /*placeholder_start=*/i > 0 && !start_given, /*first=*/i == 0);
     const std::vector<std::string> own_fields = step.motion ? given_fields(*step.motion) : std::vector<std::string>{};
@@ -457,6 +489,8 @@ core::Expected<Request> admit_sequence(const RequestInput& input, const RobotCat
     out.sequence.push_back(Step{std::move(admitted->geometry), *admitted->motion, step.motion.has_value(), own_fields,
                                 start_given, step.blend_tolerance.value_or(0.0), {}});
   }
+  if (input.optimize && input.optimize->values.redundancy)
+    violations.push_back({"optimize.redundancy", "chooses the joints along a single path; not yet in a sequence"});
   // optimize.timing times the paths, lines and joint paths (a blended chain of lines
   // included); the shape optimisers need a path.
   if (input.optimize && !any_path && !any_line && !any_joint_path) {

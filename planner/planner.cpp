@@ -447,6 +447,60 @@ std::optional<Error> ends_at_goal(const Geometry& geometry, const core::JointVec
                                    " from its goal value; reach these joints with a jointMove")});
 }
 
+// The largest step of the joints the redundancy optimiser chooses [s]: 100 Hz, the thesis's
+// rate, or the motion's samples where they are further apart; between them the samples
+// follow the reference's spline (JointTracker::set_reference).
+constexpr double kRedundancyStepS = 0.01;
+
+// optimize.redundancy on a path motion with a redundant arm: the tool's poses and the
+// tracker's joints at uniform times (the sample-by-sample choice, the start), the joints
+// chosen by the optimiser for the whole motion, attached to the motion as the reference its
+// samples follow. A report whatever happens; the motion is left as it was when the
+// optimiser finds nothing better or fails.
+std::optional<Error> optimize_joints(core::Trajectory& trajectory, const Robot& robot,
+                                     const optim::RedundancyWeights& weights, const Budget& budget,
+                                     Clock::time_point deadline, OptimizerReports& reports) {
+  auto* motion = std::get_if<core::PathMotion>(&trajectory);
+  if (motion == nullptr) return std::nullopt;
+  const double duration = core::duration(trajectory);
+  const std::size_t steps = std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(duration / kRedundancyStepS - 1e-9)));
+  const double dt = duration / static_cast<double>(steps);
+  std::vector<Eigen::Isometry3d> poses;
+  std::vector<core::JointVector> joints;
+  poses.reserve(steps + 1);
+  joints.reserve(steps + 1);
+  {
+    core::TrajectorySampler sampler(trajectory, &robot.model.model(), robot.seed);
+    core::TrajectorySample sample;
+    for (std::size_t k = 0; k <= steps; ++k) {
+      sampler.at(static_cast<double>(k) * dt, sample);
+      if (!sample.joints.converged) {
+        optim::OptimizerReport report;
+        report.status = optim::OptimizerStatus::kFailed;
+        report.message = "the arm does not follow the path at t = " + core::number(sample.t, 6) +
+                         " s: there is no motion to improve";
+        reports.redundancy = report;
+        return std::nullopt;
+      }
+      poses.push_back(sample.tool.X_WT);
+      joints.push_back(sample.joints.q);
+    }
+  }
+  optim::RedundancyOptions options;
+  options.weights = weights;
+  options.time_budget_s = std::max(1e-3, std::chrono::duration<double>(deadline - Clock::now()).count());
+  options.stopped = [&] { return budget.stop_requested() || Clock::now() >= deadline; };
+  const auto started = Clock::now();
+  auto result = optim::optimize_redundancy(robot.model, poses, dt, joints, options);
+  observe(budget, "redundancy", started);
+  if (!result) return invalid(core::prefixed(std::move(result.error()), "optimize.redundancy."));
+  reports.redundancy = result->report;
+  const optim::OptimizerStatus status = result->report.status;
+  if (status == optim::OptimizerStatus::kFailed || status == optim::OptimizerStatus::kNoImprovement) return std::nullopt;
+  motion->joints = std::make_shared<const core::JointReference>(std::move(result->q), dt);
+  return std::nullopt;
+}
+
 MotionSummary summary_of(const core::Trajectory& trajectory, const ToolPeaks& peaks) {
   return {core::duration(trajectory), core::sample_count(trajectory), peaks, tangential_peak(trajectory), {}};
 }
@@ -586,6 +640,12 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
   if (auto refused = sample_limit(*result.trajectory, limits)) return tl::unexpected(std::move(*refused));
   if (request.robot) {
     if (auto refused = starts_at_robot(*result.trajectory, *request.robot)) return tl::unexpected(std::move(*refused));
+    if (request.optimize && request.optimize->redundancy) {
+      if (auto refused = optimize_joints(*result.trajectory, *request.robot, *request.optimize->redundancy, budget,
+                                         deadline, result.optimizers))
+        return tl::unexpected(std::move(*refused));
+      if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+    }
     auto pass = robot_pass(*result.trajectory, *request.robot,
                            cartesian_limits(*request.motion, !joint_geometry(request.geometry)), budget);
     if (!pass) return tl::unexpected(std::move(pass.error()));

@@ -37,6 +37,7 @@
 #include "core/robot/robot.hpp"
 #include "optim/breakpoints/breakpoints.hpp"
 #include "optim/common/report.hpp"
+#include "optim/redundancy/redundancy.hpp"
 #include "optim/tangent_scales/tangent_scales.hpp"
 
 namespace geotraj::planner {
@@ -81,6 +82,9 @@ struct Optimize {
   std::optional<optim::BreakpointOptions> breakpoints;
   bool time_optimal = false;  ///< optimize.timing.timeOptimal
   bool jerk_limited = false;  ///< optimize.timing.jerkLimited
+  /// optimize.redundancy: a redundant arm's joints along a path chosen for the whole motion
+  /// (optim/redundancy), which every sample then follows.
+  std::optional<optim::RedundancyWeights> redundancy;
   double budget_s = 10.0;     ///< all optimisers of the request together [s]
 };
 
@@ -269,6 +273,8 @@ struct OptimizerReports {
   std::optional<optim::TangentScaleResult> tangent_scales;
   std::optional<optim::BreakpointResult> breakpoints;
   std::optional<TimingReport> timing;
+  /// optimize.redundancy's: the criteria objective before and after (redundancy.hpp).
+  std::optional<optim::OptimizerReport> redundancy;
 };
 
 /// The path's geometry as planned: the achieved frames, the closed loop and the geometry

@@ -103,6 +103,47 @@ bool read_plan_request(const CallOptions& options, v1::PlanRequest& request) {
   return apply_flags(flags, request);
 }
 
+
+// --optimize-redundancy "acceleration=1,range=0.1": each criterion's weight (the server checks
+// the values); an unknown key or a value that is not a number is refused here.
+bool set_redundancy(const std::string& text, v1::RedundancyOptimization& out) {
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t end = std::min(text.find(',', start), text.size());
+    const std::string item = text.substr(start, end - start);
+    const std::size_t eq = item.find('=');
+    const std::string key = item.substr(0, eq);
+    double value = 0.0;
+    bool number = false;
+    if (eq != std::string::npos) {
+      try {
+        std::size_t used = 0;
+        value = std::stod(item.substr(eq + 1), &used);
+        number = used == item.size() - eq - 1;
+      } catch (const std::exception&) {
+        number = false;
+      }
+    }
+    if (!number) {
+      std::cerr << "geotraj: --optimize-redundancy: \"" << item
+                << "\" is not criterion=weight (range, velocity, acceleration, jerk, manipulability)\n";
+      return false;
+    }
+    if (key == "range") out.set_joint_range_weight(value);
+    else if (key == "velocity") out.set_velocity_weight(value);
+    else if (key == "acceleration") out.set_acceleration_weight(value);
+    else if (key == "jerk") out.set_jerk_weight(value);
+    else if (key == "manipulability") out.set_manipulability_weight(value);
+    else {
+      std::cerr << "geotraj: --optimize-redundancy: unknown criterion \"" << key
+                << "\" (range, velocity, acceleration, jerk, manipulability)\n";
+      return false;
+    }
+    start = end + 1;
+  }
+  return true;
+}
+
 bool apply_flags(const OptimizeFlags& flags, v1::PlanRequest& request) {
   auto enum_value = [](const std::string& name, const std::string& prefix,
                        const google::protobuf::EnumDescriptor* descriptor, int& out) {
@@ -143,7 +184,7 @@ bool apply_flags(const OptimizeFlags& flags, v1::PlanRequest& request) {
     request.mutable_robot()->set_approach(flags.approach == "joint" ? v1::APPROACH_MOVE_JOINT : v1::APPROACH_MOVE_LINEAR);
   }
   const bool any = !flags.tangent_scales.empty() || !flags.breakpoints.empty() || flags.time_optimal ||
-                   flags.jerk_limited || flags.budget_s > 0.0 || flags.length_weight;
+                   flags.jerk_limited || flags.budget_s > 0.0 || flags.length_weight || !flags.redundancy.empty();
   if (!any) return true;  // the request's own `optimize`, if any, stays as it is
   auto* optimize = request.mutable_optimize();
   int value = 0;
@@ -170,6 +211,7 @@ bool apply_flags(const OptimizeFlags& flags, v1::PlanRequest& request) {
   if (flags.time_optimal) optimize->mutable_timing()->set_time_optimal(true);
   if (flags.jerk_limited) optimize->mutable_timing()->set_jerk_limited(true);
   if (flags.budget_s > 0.0) optimize->set_time_budget_s(flags.budget_s);
+  if (!flags.redundancy.empty() && !set_redundancy(flags.redundancy, *optimize->mutable_redundancy())) return false;
   return true;
 }
 

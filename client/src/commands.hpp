@@ -23,6 +23,9 @@ struct OptimizeFlags {
   bool time_optimal = false;   ///< optimize.timing.timeOptimal
   bool jerk_limited = false;   ///< optimize.timing.jerkLimited
   double budget_s = 0.0;       ///< optimize.timeBudgetS when > 0
+  /// --optimize-redundancy: criteria and weights, "acceleration=1,range=0.1" (keys range,
+  /// velocity, acceleration, jerk, manipulability); empty: none.
+  std::string redundancy;
   std::optional<double> velocity_scale;      ///< robot.velocityScale; absent: the request's
   std::optional<double> acceleration_scale;  ///< robot.accelerationScale; absent: the request's
   std::string approach;  ///< robot.approach (joint, linear); empty: the request's

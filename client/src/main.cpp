@@ -73,6 +73,10 @@ int main(int argc, char** argv) {
     sub->add_flag("--time-optimal", options.optimize.time_optimal,
                   "the fastest timing within the robot's joint limits and the Cartesian limits given");
     sub->add_flag("--jerk-limited", options.optimize.jerk_limited, "time-optimal with jerk limits as well (Ipopt)");
+    sub->add_option("--optimize-redundancy", options.optimize.redundancy,
+                    "choose a redundant arm's self-motion over the whole path: criterion=weight pairs, e.g. "
+                    "acceleration=1,range=0.1 (range, velocity, acceleration, jerk, manipulability; "
+                    "optimize.redundancy)");
     sub->add_option("--optimize-budget", options.optimize.budget_s, "wall-clock budget of the optimisers [s]")
         ->check(kFinite)->check(CLI::PositiveNumber);
     sub->add_option("--velocity-scale", options.optimize.velocity_scale,

@@ -71,6 +71,9 @@ struct JointTracker::State {
   double t_walk = 0.0;
   JointVector q_walk, qd_walk, qdd_walk;
   Vector3d p_walk = Vector3d::Zero();
+  // Joints chosen ahead (set_reference), and their state at the attempt's time.
+  const JointReference* reference = nullptr;
+  JointVector ref_q, ref_qd, ref_qdd;
   // Scratch.
   JointVector q_guess, z, xi;
   JointJacobian J_dot;
@@ -84,6 +87,11 @@ JointTracker::JointTracker(const RobotModel& model, const JointVector& q_seed, c
 JointTracker::~JointTracker() = default;
 JointTracker::JointTracker(JointTracker&&) noexcept = default;
 JointTracker& JointTracker::operator=(JointTracker&&) noexcept = default;
+
+void JointTracker::set_reference(const JointReference* reference) {
+  GEOTRAJ_CHECK(reference == nullptr || reference->samples().front().size() == state_->chain.dof());
+  state_->reference = reference;
+}
 
 void JointTracker::reset(const JointVector& q_seed) {
   GEOTRAJ_CHECK(q_seed.size() == state_->chain.dof());
@@ -196,7 +204,12 @@ bool JointTracker::attempt(const CartesianState& x, JointSample& out) {
     ik = detail::solve_cold(st.chain, st.bounds, R_target, p_target, st.seed_q, st.options, out.q, ws);
   } else {
     const double dt = x.t - st.t_prev;  // [s]
-    st.q_guess = st.q_prev + st.q_dot_prev * dt + st.q_ddot_prev * (0.5 * dt * dt);
+    if (st.reference) {
+      st.reference->at(x.t, st.ref_q, st.ref_qd, st.ref_qdd);
+      st.q_guess = st.ref_q;
+    } else {
+      st.q_guess = st.q_prev + st.q_dot_prev * dt + st.q_ddot_prev * (0.5 * dt * dt);
+    }
     for (Eigen::Index i = 0; i < n; ++i) {
       const auto k = static_cast<std::size_t>(i);
       st.q_guess(i) = std::clamp(st.q_guess(i), st.bounds.lo[k], st.bounds.hi[k]);
@@ -247,6 +260,9 @@ bool JointTracker::attempt(const CartesianState& x, JointSample& out) {
   const double speed = x.v_WT.norm();                                                // |v| [m/s]
   const double speed_dot = speed > 0.0 ? x.v_WT.dot(x.a_WT) / speed : x.a_WT.norm();  // d|v|/dt [m/s^2]
   const double k = n > 6 ? st.options.limit_avoidance_gain : 0.0;                     // [rad^2/m]
+  // The reference's velocity and acceleration as the null-space term (from the second
+  // sample on: the first is the cold solve the reference starts from).
+  const bool referenced = st.reference != nullptr && !st.first && n > 6;
   std::array<bool, kMaxJoints> active{};
   active.fill(true);
   auto rates = [&] {  // ws.llt holds J W J^T
@@ -254,7 +270,7 @@ bool JointTracker::attempt(const CartesianState& x, JointSample& out) {
       const auto j = static_cast<std::size_t>(i);
       const double r = st.bounds.range[j];
       const double grad = r > 0.0 ? 2.0 * (out.q(i) - st.bounds.mid[j]) / (r * r) : 0.0;  // grad H_i [1/rad]
-      st.z(i) = active[j] ? -k * speed * grad : 0.0;                                       // [rad/s]
+      st.z(i) = !active[j] ? 0.0 : referenced ? st.ref_qd(i) : -k * speed * grad;          // [rad/s]
     }
     const Vector6d w = ws.llt.solve(twist - J * st.z);  // (J W J^T)^-1 ([v; omega] - J z)
     out.q_dot.noalias() = J.transpose() * w;
@@ -270,7 +286,9 @@ bool JointTracker::attempt(const CartesianState& x, JointSample& out) {
         st.xi(i) = 0.0;
         continue;
       }
-      if (r > 0.0) {
+      if (referenced) {
+        st.xi(i) += st.ref_qdd(i);  // + z_dot_i [rad/s^2]
+      } else if (r > 0.0) {
         const double grad = 2.0 * (out.q(i) - st.bounds.mid[j]) / (r * r);
         st.xi(i) -= k * (speed_dot * grad + speed * 2.0 * out.q_dot(i) / (r * r));  // + z_dot_i [rad/s^2]
       }

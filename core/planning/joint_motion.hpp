@@ -46,6 +46,7 @@
 #include "core/motion/motion.hpp"
 #include "core/motion/orientation.hpp"
 #include "core/planning/binding.hpp"
+#include "core/planning/joint_reference.hpp"
 #include "core/robot/ik.hpp"
 #include "core/robot/robot.hpp"
 
@@ -222,6 +223,13 @@ class JointTracker {
                       const ContinuationRule& rule);
   /// Starts again from a new seed (the next track() is a first call).
   void reset(const JointVector& q_seed);
+  /// Joints chosen ahead for the whole motion (optim/redundancy), or none (null): each
+  /// sample after the first is then the Newton projection of the reference's joints at its
+  /// time (x.t, from the motion's start) instead of the predictor, and the null-space term
+  /// is the reference's velocity, z = q_ref_dot(t), z_dot = q_ref_ddot(t), instead of the
+  /// joint-limit avoidance: the self-motion follows the reference, which at its own samples
+  /// holds the pose already (no correction). The reference must outlive its use.
+  void set_reference(const JointReference* reference);
 
  private:
   bool attempt(const CartesianState& x, JointSample& out);

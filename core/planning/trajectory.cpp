@@ -96,6 +96,8 @@ StepSampler::StepSampler(StepRef step, const RobotModel* robot, const JointVecto
   if (tracker_ && path_sampler_) {
     const PathMotion& m = *std::get<const PathMotion*>(step_);
     path_between_.emplace(m.path, m.orientation, *path_sampler_);
+    if (m.joints && m.joints->samples().front().size() == static_cast<Eigen::Index>(robot->dof()))
+      tracker_->set_reference(m.joints.get());
   }
 }
 

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <optional>
 #include <variant>
 
@@ -26,6 +27,9 @@ struct PathMotion {
   Path path;
   MotionPlan timing;
   OrientationPlan orientation;
+  /// With a robot: the joints chosen ahead for the whole motion (optim/redundancy), which
+  /// the samplers' tracker follows (JointTracker::set_reference); null: sample by sample.
+  std::shared_ptr<const JointReference> joints = nullptr;
 };
 
 /// One rest-to-rest motion: along a path, a joint move, a straight-line move or a joint path

@@ -165,6 +165,8 @@ class OffsetCost final : public ceres::CostFunction {
 // (n x (n - 6), orthonormal: the last columns of J^T's QR factor); a step delta moves to
 // q + N delta and back onto the pose by the IK's Newton projection (minimum-norm
 // corrections, within the position limits). So the pose is held at every iterate, not penalised.
+constexpr double kLongestSelfMotionStep = 0.5;  // [rad], of one sample's joints
+
 class SelfMotion final : public ceres::Manifold {
  public:
   SelfMotion(const core::RobotModel& model, const Isometry3d& target) : model_(model), target_(target) {
@@ -179,9 +181,10 @@ class SelfMotion final : public ceres::Manifold {
     const Eigen::MatrixXd N = basis(q);
     const JointVector step = N * Eigen::Map<const Eigen::VectorXd>(delta, N.cols());
     // A step too long for the projection (Ceres tries the whole gradient once, to measure
-    // it) is halved until the IK brings it back: the retraction saturates far from x, and
-    // the trust region judges such steps by what they achieve.
-    double scale = 1.0;
+    // it) is cut to kLongestSelfMotionStep and halved until the IK brings it back: the
+    // retraction saturates far from x, and the trust region judges such steps by what they
+    // achieve.
+    double scale = std::min(1.0, kLongestSelfMotionStep / std::max(step.norm(), 1e-300));
     for (int attempt = 0; attempt < 12; ++attempt, scale *= 0.5) {
       const core::IkResult ik = core::solve_ik(model_, target_, q + scale * step, ik_);
       if (!ik.converged) continue;

@@ -19,7 +19,7 @@
 //              m_0 the first sample's: larger is better)
 //   goal       w_g (q_K - q_goal) / range                      (closeness to given joints)
 // Weights are the user's (RedundancyWeights); the
-// objective reported is 1/2 the sum of the squared criteria residuals (pose excluded).
+// objective reported is 1/2 the sum of the squared criteria residuals.
 // Solved by Levenberg-Marquardt with a sparse normal-equations Cholesky: the Jacobian is
 // banded (a sample couples with its three neighbours at most).
 #pragma once

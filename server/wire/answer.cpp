@@ -47,6 +47,7 @@ void to_proto(const planner::OptimizerReports& reports, v1::OptimizationReport& 
   if (reports.tangent_scales) to_proto(*reports.tangent_scales, *out.mutable_tangent_scales());
   if (reports.breakpoints) to_proto(*reports.breakpoints, *out.mutable_breakpoints());
   if (reports.timing) to_proto(*reports.timing, *out.mutable_timing());
+  if (reports.redundancy) to_proto(*reports.redundancy, *out.mutable_redundancy());
 }
 
 void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanResponse& response) {

@@ -143,6 +143,7 @@ planner::RequestInput request_input_from_proto(const v1::PlanRequest& request, c
 
 /// The optimisers' reports.
 void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out);
+void to_proto(const optim::OptimizerReport& report, v1::RedundancyReport& out);
 void to_proto(const optim::BreakpointResult& result, v1::BreakpointReport& out);
 /// The reports of the optimisers that ran (PlanResponse.optimization).
 void to_proto(const planner::OptimizerReports& reports, v1::OptimizationReport& out);

@@ -111,8 +111,16 @@ planner::OptimizeInput wire_detail::optimize_input(const v1::PlanRequest& reques
   }
   in.values.time_optimal = o.timing().time_optimal();
   in.values.jerk_limited = o.timing().jerk_limited();
+  if (o.has_redundancy()) {  // checked by the planner (admit)
+    const auto& r = o.redundancy();
+    in.values.redundancy = optim::RedundancyWeights{r.joint_range_weight(), r.velocity_weight(),
+                                                    r.acceleration_weight(), r.jerk_weight(),
+                                                    r.manipulability_weight()};
+  }
   return in;
 }
+
+void to_proto(const optim::OptimizerReport& report, v1::RedundancyReport& out) { set_report(report, out); }
 
 void to_proto(const optim::TangentScaleResult& result, v1::TangentScaleReport& out) {
   set_report(result.report, out);

@@ -48,6 +48,21 @@ TEST(Cli, PlanJsonIsAPlanResponse) {
   EXPECT_LT(response.closed_loop().max_error(), 1e-9);
 }
 
+// --optimize-redundancy: the PA-10's self-motion chosen over path C's 10 s, reported in the
+// PlanResponse's optimization block; a criterion the flag does not know is refused by the CLI.
+TEST(Cli, OptimizeRedundancyChoosesThePa10sSelfMotion) {
+  const CliRun run = run_cli("plan --json --optimize-redundancy acceleration=1,range=0.01 " +
+                             example_path("plan_pa10_path_c.json"));
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto response = from_json<v1::PlanResponse>(run.out);
+  const auto& report = response.optimization().redundancy();
+  EXPECT_NE(report.status(), v1::OPTIMIZER_STATUS_UNSPECIFIED);
+  EXPECT_LE(report.objective_after(), report.objective_before());
+  const CliRun bad = run_cli("plan --optimize-redundancy speed=1 " + example_path("plan_pa10_path_c.json"), true);
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.out.find("unknown criterion \"speed\""), std::string::npos) << bad.out;
+}
+
 TEST(Cli, ConvertReadsStdin) {
   const CliRun run = run_cli("convert - < " + example_path("convert_table_5_10.json"));
   ASSERT_EQ(run.exit_code, 0) << run.out;

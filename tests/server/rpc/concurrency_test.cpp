@@ -1,7 +1,8 @@
 // Every RPC at once, many at a time, from many clients, some cancelled midway: the server
 // stays up and answers every call with the code it should. Optimisations of every kind run
-// concurrently (Ipopt's MUMPS is not thread-safe: optim serialises it). Run under ASan and
-// UBSan (make sanitize) and ThreadSanitizer (make tsan) in CI.
+// concurrently, the redundancy optimiser on Ceres among them (Ipopt's MUMPS is not
+// thread-safe: optim serialises it). Run under ASan and UBSan (make sanitize) and
+// ThreadSanitizer (make tsan) in CI.
 #include <atomic>
 #include <future>
 #include <map>
@@ -186,6 +187,15 @@ class Concurrency : public ::testing::Test {
         });
         break;
       }
+      case 20: {  // the PA-10's self-motion chosen for the whole of path A (Ceres), 3 s at 100 Hz
+        auto request = demo_request('a');
+        request.mutable_robot()->set_name("pa10");
+        request.mutable_robot()->set_report_only(true);
+        request.mutable_motion()->set_duration_s(3.0);
+        request.mutable_optimize()->mutable_redundancy()->set_acceleration_weight(1.0);
+        status = stub.PlanTrajectory(ctx.get(), request, &plan);
+        break;
+      }
       default: {  // a health watch, read until cancelled or its deadline
         auto health_stub = grpc::health::v1::Health::NewStub(channel_for(stub));
         grpc::health::v1::HealthCheckRequest request;
@@ -231,7 +241,7 @@ class Concurrency : public ::testing::Test {
   server::RunningServer running_;
 };
 
-constexpr int kKinds = 21;
+constexpr int kKinds = 22;
 
 TEST_F(Concurrency, EveryRpcManyAtOnceSomeCancelledMidway) {
   constexpr int kClients = 6;

@@ -178,7 +178,7 @@ class SelfMotion final : public ceres::Manifold {
   bool Plus(const double* x, const double* delta, double* out) const override {
     const auto n = static_cast<Eigen::Index>(model_.dof());
     const JointVector q = Eigen::Map<const Eigen::VectorXd>(x, n);
-    const Eigen::MatrixXd N = basis(q);
+    const Eigen::MatrixXd& N = basis(q);
     const JointVector step = N * Eigen::Map<const Eigen::VectorXd>(delta, N.cols());
     // A step too long for the projection (Ceres tries the whole gradient once, to measure
     // it) is cut to kLongestSelfMotionStep and halved until the IK brings it back: the
@@ -195,39 +195,71 @@ class SelfMotion final : public ceres::Manifold {
   }
   bool PlusJacobian(const double* x, double* jacobian) const override {
     const auto n = static_cast<Eigen::Index>(model_.dof());
-    const Eigen::MatrixXd N = basis(Eigen::Map<const Eigen::VectorXd>(x, n));
+    const Eigen::MatrixXd& N = basis(Eigen::Map<const Eigen::VectorXd>(x, n));
     Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(jacobian, n, N.cols()) = N;
     return true;
   }
   bool Minus(const double* y, const double* x, double* delta) const override {
     const auto n = static_cast<Eigen::Index>(model_.dof());
-    const Eigen::MatrixXd N = basis(Eigen::Map<const Eigen::VectorXd>(x, n));
+    const Eigen::MatrixXd& N = basis(Eigen::Map<const Eigen::VectorXd>(x, n));
     Eigen::Map<Eigen::VectorXd>(delta, N.cols()) =
         N.transpose() * (Eigen::Map<const Eigen::VectorXd>(y, n) - Eigen::Map<const Eigen::VectorXd>(x, n));
     return true;
   }
   bool MinusJacobian(const double* x, double* jacobian) const override {
     const auto n = static_cast<Eigen::Index>(model_.dof());
-    const Eigen::MatrixXd N = basis(Eigen::Map<const Eigen::VectorXd>(x, n));
+    const Eigen::MatrixXd& N = basis(Eigen::Map<const Eigen::VectorXd>(x, n));
     Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(jacobian, N.cols(), n) =
         N.transpose();
     return true;
   }
 
  private:
-  Eigen::MatrixXd basis(const JointVector& q) const {
+  // N(q): from the projector P = I - J^T (J J^T)^-1 J onto J's null space (J J^T 6 x 6,
+  // Cholesky), Gram-Schmidt over P's columns, largest diagonal first (P e_i is in the null
+  // space; n - 6 of them span it). Near a singularity (J J^T not positive definite, or the
+  // columns too short) from J^T's QR factor instead. The last basis is kept: Ceres asks for
+  // it at the same q in PlusJacobian, Plus and Minus.
+  const Eigen::MatrixXd& basis(const JointVector& q) const {
+    if (have_basis_ && q == basis_q_) return basis_;
     Isometry3d X;
     core::JointJacobian J;
     core::forward_kinematics(model_, q, X, J);
-    const Eigen::MatrixXd Jt = J.transpose();
-    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(Jt);
-    const Eigen::MatrixXd Q = qr.householderQ();
-    return Q.rightCols(Jt.rows() - 6);
+    const Eigen::Index n = q.size(), r = n - 6;
+    basis_.resize(n, r);
+    Eigen::Index found = 0;
+    const Eigen::LLT<Eigen::Matrix<double, 6, 6>> llt(J * J.transpose());
+    if (llt.info() == Eigen::Success) {
+      const Eigen::MatrixXd P = Eigen::MatrixXd::Identity(n, n) - J.transpose() * llt.solve(J);
+      std::vector<Eigen::Index> order(static_cast<std::size_t>(n));
+      for (Eigen::Index i = 0; i < n; ++i) order[static_cast<std::size_t>(i)] = i;
+      std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return P(a, a) > P(b, b); });
+      for (const Eigen::Index i : order) {
+        if (found == r) break;
+        Eigen::VectorXd v = P.col(i);
+        for (Eigen::Index k = 0; k < found; ++k) v -= basis_.col(k).dot(v) * basis_.col(k);
+        const double norm = v.norm();
+        if (norm < 1e-3) continue;
+        basis_.col(found++) = v / norm;
+      }
+    }
+    if (found < r) {
+      const Eigen::MatrixXd Jt = J.transpose();
+      const Eigen::HouseholderQR<Eigen::MatrixXd> qr(Jt);
+      const Eigen::MatrixXd Q = qr.householderQ();
+      basis_ = Q.rightCols(r);
+    }
+    basis_q_ = q;
+    have_basis_ = true;
+    return basis_;
   }
 
   const core::RobotModel& model_;
   Isometry3d target_;
   core::IkOptions ik_;
+  mutable bool have_basis_ = false;
+  mutable JointVector basis_q_;
+  mutable Eigen::MatrixXd basis_;
 };
 
 double manipulability_at(const core::RobotModel& model, const JointVector& q) {
@@ -394,7 +426,7 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   so.num_threads = 1;
   so.max_num_iterations = std::max(1, options.max_iterations);
   so.max_solver_time_in_seconds = std::max(1e-3, options.time_budget_s);
-  so.function_tolerance = 1e-8;
+  so.function_tolerance = 1e-6;
   so.gradient_tolerance = 1e-12;
   so.parameter_tolerance = 1e-12;
   so.logging_type = ceres::SILENT;

@@ -120,6 +120,12 @@ def print_plan(plan, out=sys.stdout):
               f"peak acceleration {m.peak_acceleration:.6g} m/s^2, {m.sample_count} samples", file=out)
     if plan.HasField("robot"):
         print(f"robot: feasible {plan.robot.feasible}, {len(plan.robot.violations)} violations", file=out)
+    # The optimisers that ran (optimize: tangentScales, breakpoints, timing, redundancy).
+    for field, report in plan.optimization.ListFields():
+        status = report.DESCRIPTOR.fields_by_name["status"].enum_type.values_by_number[report.status].name
+        print(f"optimizer {field.name}: objective {report.objective_before:.6g} -> {report.objective_after:.6g}, "
+              f"{report.iterations} iterations, {report.seconds:.3g} s, {status.replace('OPTIMIZER_STATUS_', '').lower()}",
+              file=out)
 
 
 def write_samples(batches, out, sequence=False):

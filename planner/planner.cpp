@@ -448,9 +448,11 @@ std::optional<Error> ends_at_goal(const Geometry& geometry, const core::JointVec
 }
 
 // The largest step of the joints the redundancy optimiser chooses [s]: 100 Hz, the thesis's
-// rate, or the motion's samples where they are further apart; between them the samples
-// follow the reference's spline (JointTracker::set_reference).
+// rate, whatever the cycle rate (between them the samples follow the reference's spline,
+// JointTracker::set_reference), and at most kMaxRedundancySteps steps (a longer motion gets
+// longer steps: the problem's size, some 4 residual blocks a step, stays bounded).
 constexpr double kRedundancyStepS = 0.01;
+constexpr std::size_t kMaxRedundancySteps = 20'000;
 
 // optimize.redundancy on a path motion with a redundant arm: the tool's poses and the
 // tracker's joints at uniform times (the sample-by-sample choice, the start), the joints
@@ -463,7 +465,8 @@ std::optional<Error> optimize_joints(core::Trajectory& trajectory, const Robot& 
   auto* motion = std::get_if<core::PathMotion>(&trajectory);
   if (motion == nullptr) return std::nullopt;
   const double duration = core::duration(trajectory);
-  const std::size_t steps = std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(duration / kRedundancyStepS - 1e-9)));
+  const std::size_t steps = std::clamp<std::size_t>(
+      static_cast<std::size_t>(std::ceil(duration / kRedundancyStepS - 1e-9)), 1, kMaxRedundancySteps);
   const double dt = duration / static_cast<double>(steps);
   std::vector<Eigen::Isometry3d> poses;
   std::vector<core::JointVector> joints;

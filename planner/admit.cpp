@@ -204,8 +204,10 @@ Violations redundancy_violations(const optim::RedundancyWeights& w, const Geomet
                                                     {"manipulabilityWeight", w.manipulability}};
   bool any = false;
   for (const auto& [name, value] : weights) {
-    if (!std::isfinite(value) || value < 0.0)
-      v.push_back({std::string("optimize.redundancy.") + name, "must be a finite weight >= 0, got " + core::number(value)});
+    if (!std::isfinite(value) || value < 0.0 || value > optim::kMaxRedundancyWeight)
+      v.push_back({std::string("optimize.redundancy.") + name, "must be a weight in [0, " +
+                                                               core::number(optim::kMaxRedundancyWeight) + "], got " +
+                                                               core::number(value)});
     any = any || value > 0.0;
   }
   if (v.empty() && !any)

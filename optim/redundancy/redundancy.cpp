@@ -355,8 +355,9 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   core::Violations v;
   const RedundancyWeights& w = options.weights;
   const double weights[] = {w.joint_range, w.velocity, w.acceleration, w.jerk, w.manipulability};
-  if (std::any_of(std::begin(weights), std::end(weights), [](double x) { return !std::isfinite(x) || x < 0.0; }))
-    v.push_back({"weights", "must be finite and >= 0"});
+  if (std::any_of(std::begin(weights), std::end(weights),
+                  [](double x) { return !std::isfinite(x) || x < 0.0 || x > kMaxRedundancyWeight; }))
+    v.push_back({"weights", "must be in [0, " + core::number(kMaxRedundancyWeight) + "]"});
   else if (std::all_of(std::begin(weights), std::end(weights), [](double x) { return x == 0.0; }))
     v.push_back({"weights", "at least one weight must be > 0"});
   if (!std::isfinite(dt) || !(dt > 0.0)) v.push_back({"dt", "must be a finite time > 0 s, got " + core::number(dt)});
@@ -389,6 +390,12 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   RedundancyResult result;
   result.q = initial;
   result.report.objective_before = redundancy_objective(model, initial, dt, options);
+  if (!std::isfinite(result.report.objective_before)) {  // a degenerate model or step: nothing to compare
+    result.report.objective_before = result.report.objective_after = 0.0;
+    result.report.status = OptimizerStatus::kFailed;
+    result.report.message = "the criteria overflow on the given joints (dt " + core::number(dt) + " s)";
+    return result;
+  }
 
   std::vector<double> x(poses.size() * n);
   for (std::size_t k = 0; k <= K; ++k) std::copy(initial[k].data(), initial[k].data() + n, x.data() + k * n);

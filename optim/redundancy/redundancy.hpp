@@ -36,7 +36,11 @@
 
 namespace geotraj::optim {
 
-/// What the free choices serve (each >= 0, at least one > 0).
+/// The largest weight: the criteria are dimensionless and weigh against each other, so
+/// only ratios matter; beyond it the residuals of a long motion would overflow.
+inline constexpr double kMaxRedundancyWeight = 1e6;
+
+/// What the free choices serve (each in [0, kMaxRedundancyWeight], at least one > 0).
 struct RedundancyWeights {
   double joint_range = 0.0;     ///< away from the position limits
   double velocity = 0.0;        ///< joint velocity per its limit

@@ -91,6 +91,9 @@ TEST_F(RedundancyTest, BadRequestsNameTheirField) {
   auto negative = pa10_demo('a', 100.0, true);
   negative.mutable_optimize()->mutable_redundancy()->set_velocity_weight(-1.0);
   EXPECT_THAT(field_of(negative), HasSubstr("optimize.redundancy.velocityWeight"));
+  auto huge = pa10_demo('a', 100.0, true);
+  huge.mutable_optimize()->mutable_redundancy()->set_acceleration_weight(1e300);
+  EXPECT_THAT(field_of(huge), HasSubstr("optimize.redundancy.accelerationWeight: must be a weight in [0, "));
   auto none = pa10_demo('a', 100.0, false);
   none.mutable_optimize()->mutable_redundancy();
   EXPECT_THAT(field_of(none), HasSubstr("optimize.redundancy: weighs nothing"));

@@ -193,8 +193,8 @@ core::Expected<std::shared_ptr<const Robot>> resolved(const RobotSpec& spec, con
   return std::make_shared<const Robot>(std::move(*robot));
 }
 
-// optimize.redundancy: weights each finite and >= 0, one at least > 0, on a path (a line and a
-// joint path have no self-motion to choose here) followed by a robot with more than 6 joints.
+// optimize.redundancy: weights each finite and >= 0, one at least > 0, on a path or a
+// straight line (a joint path gives every joint) followed by a robot with more than 6 joints.
 Violations redundancy_violations(const optim::RedundancyWeights& w, const GeometryInput& geometry, const Robot* robot) {
   Violations v;
   const std::pair<const char*, double> weights[] = {{"jointRangeWeight", w.joint_range},
@@ -213,15 +213,20 @@ Violations redundancy_violations(const optim::RedundancyWeights& w, const Geomet
   if (v.empty() && !any)
     v.push_back({"optimize.redundancy", "weighs nothing: give at least one weight > 0 (accelerationWeight, velocityWeight, "
                                         "jerkWeight, jointRangeWeight, manipulabilityWeight)"});
-  if (geometry.linear_move || geometry.joint_path)
-    v.push_back({"optimize.redundancy", geometry.linear_move ? "chooses a redundant arm's joints along a path; not yet for a linearMove"
-                                                             : "chooses a redundant arm's joints along a Cartesian path; a jointPath gives every joint"});
+  if (geometry.joint_path)
+    v.push_back({"optimize.redundancy", "chooses a redundant arm's joints along a Cartesian path; a jointPath gives every joint"});
   if (robot == nullptr) {
     v.push_back({"optimize.redundancy", "needs a robot: it chooses the joints of a redundant arm"});
   } else if (robot->model->dof() <= 6) {
     v.push_back({"optimize.redundancy", "needs a robot with more than 6 joints: " + robot->model->name + " has " +
                                             std::to_string(robot->model->dof()) + ", so a tool pose leaves it no self-motion to choose"});
   }
+  if (robot != nullptr && w.jerk > 0.0 &&
+      std::none_of(robot->model->limits.begin(), robot->model->limits.end(),
+                   [](const core::JointLimits& l) { return l.max_jerk.has_value(); }))
+    v.push_back({"optimize.redundancy.jerkWeight", "weighs the joints' jerk per their maxJerk, and the " + robot->model->name +
+                                                       " model gives no joint a maxJerk: give the joints one, or weigh "
+                                                       "accelerationWeight instead"});
   return v;
 }
 
@@ -252,6 +257,7 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
     timing.budget_s = optimize->values.budget_s;
     timing.time_optimal = optimize->values.time_optimal;
     timing.jerk_limited = optimize->values.jerk_limited;
+    timing.redundancy = optimize->values.redundancy;  // a line's self-motion (a joint path's refused below)
     out.optimize = timing;
   };
   if (optimize && geometry.linear_move) timing_only("shapes a path: a linearMove is straight (optimize.timing applies to it)");

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <string_view>
 #include <utility>
 
 #include "core/format.hpp"
@@ -454,16 +455,19 @@ std::optional<Error> ends_at_goal(const Geometry& geometry, const core::JointVec
 constexpr double kRedundancyStepS = 0.01;
 constexpr std::size_t kMaxRedundancySteps = 20'000;
 
-// optimize.redundancy on a path motion with a redundant arm: the tool's poses and the
-// tracker's joints at uniform times (the sample-by-sample choice, the start), the joints
-// chosen by the optimiser for the whole motion, attached to the motion as the reference its
-// samples follow. A report whatever happens; the motion is left as it was when the
-// optimiser finds nothing better or fails.
+// optimize.redundancy on a path motion or a straight line with a redundant arm, and every
+// straight line to goal joints on one: the tool's poses and the tracker's joints at uniform
+// times (the sample-by-sample choice, the start), the joints chosen by the optimiser for the
+// whole motion (a line to goal joints ends at them exactly: `goal`, held), attached to the
+// motion as the reference its samples follow. A report whatever happens; the motion is left
+// as it was when the optimiser finds nothing better or fails.
 std::optional<Error> optimize_joints(core::Trajectory& trajectory, const Robot& robot,
-                                     const optim::RedundancyWeights& weights, const Budget& budget,
-                                     Clock::time_point deadline, OptimizerReports& reports) {
-  auto* motion = std::get_if<core::PathMotion>(&trajectory);
-  if (motion == nullptr) return std::nullopt;
+                                     const optim::RedundancyWeights& weights, const std::vector<double>* goal,
+                                     const Budget& budget, Clock::time_point deadline, OptimizerReports& reports) {
+  std::shared_ptr<const core::JointReference>* slot = nullptr;
+  if (auto* motion = std::get_if<core::PathMotion>(&trajectory)) slot = &motion->joints;
+  if (auto* line = std::get_if<core::LinearMovePlan>(&trajectory)) slot = &line->joints;
+  if (slot == nullptr) return std::nullopt;
   const double duration = core::duration(trajectory);
   const std::size_t steps = std::clamp<std::size_t>(
       static_cast<std::size_t>(std::ceil(duration / kRedundancyStepS - 1e-9)), 1, kMaxRedundancySteps);
@@ -491,6 +495,10 @@ std::optional<Error> optimize_joints(core::Trajectory& trajectory, const Robot& 
   }
   optim::RedundancyOptions options;
   options.weights = weights;
+  if (goal != nullptr) {
+    options.goal = Eigen::Map<const Eigen::VectorXd>(goal->data(), static_cast<Eigen::Index>(goal->size()));
+    options.hold_goal = true;
+  }
   options.time_budget_s = std::max(1e-3, std::chrono::duration<double>(deadline - Clock::now()).count());
   options.stopped = [&] { return budget.stop_requested() || Clock::now() >= deadline; };
   const auto started = Clock::now();
@@ -500,7 +508,7 @@ std::optional<Error> optimize_joints(core::Trajectory& trajectory, const Robot& 
   reports.redundancy = result->report;
   const optim::OptimizerStatus status = result->report.status;
   if (status == optim::OptimizerStatus::kFailed || status == optim::OptimizerStatus::kNoImprovement) return std::nullopt;
-  motion->joints = std::make_shared<const core::JointReference>(std::move(result->q), dt);
+  *slot = std::make_shared<const core::JointReference>(std::move(result->q), dt);
   return std::nullopt;
 }
 
@@ -613,7 +621,30 @@ Expected<Plan> with_reserve_noted(Expected<Plan> result, const Request& request)
   return result;
 }
 
-Expected<Plan> plan_request(const Request& request, const Budget& budget, const Limits& limits, Use use) {
+// How many times a motion timed by the limits is re-timed, slower, when the joints the
+// redundancy optimiser chose break a limit its timing (made on the sample-by-sample joints)
+// did not foresee (plan_request).
+constexpr int kRetimes = 3;
+
+// The factor f > 1 that stretches a motion's time so that the limit events fit: a velocity
+// scales as 1/f, an acceleration as 1/f^2, a jerk as 1/f^3; 0 when an event is no such limit.
+double stretch_for(const std::vector<core::LimitEvent>& violations) {
+  double f = 1.0;
+  for (const core::LimitEvent& e : violations) {
+    if (!(e.limit > 0.0) || !std::isfinite(e.value)) return 0.0;
+    const double ratio = std::abs(e.value) / e.limit;
+    switch (e.kind) {
+      case core::LimitKind::kVelocity: f = std::max(f, ratio); break;
+      case core::LimitKind::kAcceleration: f = std::max(f, std::sqrt(ratio)); break;
+      case core::LimitKind::kJerk: f = std::max(f, std::cbrt(ratio)); break;
+      default: return 0.0;
+    }
+  }
+  return f;
+}
+
+Expected<Plan> plan_request(const Request& request, const Budget& budget, const Limits& limits, Use use,
+                            int retimes_left = kRetimes) {
   if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
   if (!request.sequence.empty()) return plan_sequence(request, budget, limits, use);
   if (auto approached = with_approach(request)) {
@@ -643,9 +674,17 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
   if (auto refused = sample_limit(*result.trajectory, limits)) return tl::unexpected(std::move(*refused));
   if (request.robot) {
     if (auto refused = starts_at_robot(*result.trajectory, *request.robot)) return tl::unexpected(std::move(*refused));
-    if (request.optimize && request.optimize->redundancy) {
-      if (auto refused = optimize_joints(*result.trajectory, *request.robot, *request.optimize->redundancy, budget,
-                                         deadline, result.optimizers))
+    // A straight line to goal joints on a redundant arm ends at them only if its self-motion
+    // is chosen for the whole line: by the user's criteria, or the joints' acceleration.
+    const auto* to_joints = std::get_if<LinearMoveToJoints>(&request.geometry);
+    const bool redundant_line = to_joints != nullptr && request.robot->model->dof() > 6;
+    if ((request.optimize && request.optimize->redundancy) || redundant_line) {
+      optim::RedundancyWeights weights;
+      weights.acceleration = 1.0;
+      if (request.optimize && request.optimize->redundancy) weights = *request.optimize->redundancy;
+      if (auto refused = optimize_joints(*result.trajectory, *request.robot, weights,
+                                         redundant_line ? &to_joints->goal : nullptr, budget, deadline,
+                                         result.optimizers))
         return tl::unexpected(std::move(*refused));
       if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
     }
@@ -653,6 +692,28 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
                            cartesian_limits(*request.motion, !joint_geometry(request.geometry)), budget);
     if (!pass) return tl::unexpected(std::move(pass.error()));
     auto& [joints, peaks, last] = *pass;
+    // Timed by the limits on the sample-by-sample joints, then given others: where these break
+    // a velocity, acceleration or jerk limit, the motion is timed again, slower by what the
+    // worst of them needs (and the joints chosen again on the new timing).
+    const bool chosen = (request.optimize && request.optimize->redundancy) || redundant_line;
+    const bool timed_by_limits =
+        time_optimally_timed(*request.motion, true, request.optimize && request.optimize->time_optimal,
+                             request.optimize && request.optimize->jerk_limited);
+    if (chosen && timed_by_limits && !joints.feasible() && retimes_left > 0 && result.optimizers.redundancy &&
+        (result.optimizers.redundancy->status == optim::OptimizerStatus::kConverged ||
+         result.optimizers.redundancy->status == optim::OptimizerStatus::kIterationLimit)) {
+      if (const double f = stretch_for(joints.violations); f > 1.0) {
+        Request slower = request;
+        slower.motion->speed_scale /= 1.01 * f;
+        auto again = plan_request(slower, budget, limits, use, retimes_left - 1);
+        // Said once, by the call whose re-timing the plan kept (the deepest).
+        constexpr std::string_view kSaid = "; timed again at motion.speedScale ";
+        if (again && again->optimizers.redundancy && again->optimizers.redundancy->message.find(kSaid) == std::string::npos)
+          again->optimizers.redundancy->message += std::string(kSaid) + core::number(slower.motion->speed_scale, 4) +
+                                                   " so that the joints chosen keep their limits";
+        if (again || retimes_left > 1) return again;
+      }
+    }
     // reportOnly streams a motion that breaks joint limits (for simulation and analysis),
     // never one whose IK failed or jumped branches: those joints would be meaningless.
     const bool only_limits = std::all_of(joints.violations.begin(), joints.violations.end(), [](const auto& e) {

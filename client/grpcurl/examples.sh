@@ -18,6 +18,10 @@
 #                             to get the joint report with its violations; without it the plan
 #                             fails with FAILED_PRECONDITION and a google.rpc.PreconditionFailure
 #                             (shown below). Over 30 s or more the PA-10 can follow it.
+#   plan_pa10_path_b_redundancy.json  PlanRequest: path B on the PA-10 in the thesis's 10 s, its
+#                             self-motion chosen for the whole path (optimize.redundancy,
+#                             accelerationWeight 1): within every joint limit, where the
+#                             sample-by-sample choice breaks joint 1's acceleration limit
 #   joint_move_pa10.json      PlanRequest with a jointMove (thesis 6.2.2.1): the PA-10 from its
 #                             home (start absent) to a goal in minimum time (durationS 0: the
 #                             slowest joint sets the time), every joint on one synchronised profile
@@ -74,7 +78,7 @@ call AnalyzePath "$here/analyze_demo_path_a.json"
 
 echo "== ListRobots"
 grpcurl -plaintext -d '{}' "$address" geotraj.v1.TrajectoryService/ListRobots
-for request in plan_pa10_path_c plan_panda_path_c joint_move_pa10 linear_move_ur5 sequence_ur5 sequence_blended_ur5 \
+for request in plan_pa10_path_c plan_pa10_path_b_redundancy plan_panda_path_c joint_move_pa10 linear_move_ur5 sequence_ur5 sequence_blended_ur5 \
   plan_joint_path_panda; do
   call PlanTrajectory "$here/$request.json"
 done

@@ -23,6 +23,9 @@ class JointReference {
   double duration() const { return dt_ * static_cast<double>(q_.size() - 1); }
   double dt() const { return dt_; }
   const std::vector<JointVector>& samples() const { return q_; }
+  /// The second derivatives at the samples [rad/s^2 or m/s^2]: q_ddot is linear between
+  /// them (its extremes are there), q_dddot constant (m_{k+1} - m_k) / dt.
+  const std::vector<JointVector>& second_derivatives() const { return m_; }
 
  private:
   std::vector<JointVector> q_;

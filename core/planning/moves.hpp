@@ -20,6 +20,7 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -28,6 +29,7 @@
 #include "core/error.hpp"
 #include "core/motion/motion.hpp"
 #include "core/motion/speed_profile.hpp"
+#include "core/planning/joint_reference.hpp"
 #include "core/robot/robot.hpp"
 
 namespace geotraj::core {
@@ -182,6 +184,9 @@ struct LinearMovePlan {
   double peak_acceleration = 0.0;           ///< largest |tool acceleration| [m/s^2]
   double peak_angular_speed = 0.0;          ///< largest |omega| [rad/s]
   double peak_angular_acceleration = 0.0;   ///< largest |alpha| [rad/s^2]
+  /// With a redundant robot: the joints chosen ahead for the whole line (optim/redundancy),
+  /// which the samplers' tracker follows (JointTracker::set_reference); null: sample by sample.
+  std::shared_ptr<const JointReference> joints = nullptr;
 };
 
 /// Plans the straight-line move from spec.start to spec.goal (thesis 6.2.2.2).

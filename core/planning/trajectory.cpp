@@ -93,12 +93,16 @@ StepSampler::StepSampler(StepRef step, const RobotModel* robot, const JointVecto
              step);
   // Joint moves and joint paths carry their joints; the others need the IK at every sample.
   if (robot != nullptr && !joint_sampler_ && !joint_path_sampler_) tracker_.emplace(*robot, seed, options);
+  const auto follow = [&](const std::shared_ptr<const JointReference>& joints) {
+    if (joints && joints->samples().front().size() == static_cast<Eigen::Index>(robot->dof()))
+      tracker_->set_reference(joints.get());
+  };
   if (tracker_ && path_sampler_) {
     const PathMotion& m = *std::get<const PathMotion*>(step_);
     path_between_.emplace(m.path, m.orientation, *path_sampler_);
-    if (m.joints && m.joints->samples().front().size() == static_cast<Eigen::Index>(robot->dof()))
-      tracker_->set_reference(m.joints.get());
+    follow(m.joints);
   }
+  if (tracker_ && linear_sampler_) follow(std::get<const LinearMovePlan*>(step_)->joints);
 }
 
 namespace {

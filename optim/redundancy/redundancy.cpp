@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <numbers>
 #include <string>
@@ -12,6 +13,7 @@
 #include <ceres/ceres.h>
 
 #include "core/format.hpp"
+#include "core/planning/joint_reference.hpp"
 #include "core/robot/ik.hpp"
 #include "core/robot/kinematics.hpp"
 
@@ -69,12 +71,14 @@ Scales scales_of(const core::RobotModel& model, double dt, const RedundancyOptio
 struct Stencil {
   std::vector<std::size_t> samples;
   std::vector<double> coefficients;
+  double centre = 0.0;  // the time it measures, in steps (unclamped)
 };
 
 std::vector<Stencil> stencils(std::size_t K, std::initializer_list<double> c, long first, long last) {
   std::vector<Stencil> out;
   for (long k = first; k <= last; ++k) {
     Stencil st;
+    st.centre = static_cast<double>(k) + 0.5 * static_cast<double>(c.size() - 1);
     long index = k;
     for (const double coefficient : c) {
       const auto at = static_cast<std::size_t>(std::clamp<long>(index++, 0, static_cast<long>(K)));
@@ -107,33 +111,45 @@ Differences differences(std::size_t K) {
           stencils(K, {-1.0, 3.0, -3.0, 1.0}, -2, static_cast<long>(K) - 1)};
 }
 
-// r = scale .* sum_j c_j q_{samples[j]} (n residuals, one block per sample).
+// r_i = w (s_i d_i)^p with d = sum_j c_j q_{samples[j]} (n residuals, one block per sample):
+// p = 1, w = 1 a derivative criterion (s its scale); p > 1 the limits' term of the rounds
+// (s the limit's unit over kPeakUsage, so s_i d_i is the usage over it): r^2 = w^2 u^{2p}, a
+// smooth stand-in for the largest usage (a high norm), negligible well below 1, steep above.
 class DifferenceCost final : public ceres::CostFunction {
  public:
-  DifferenceCost(const Stencil& stencil, const JointVector& scale) : c_(stencil.coefficients), scale_(scale) {
+  DifferenceCost(const Stencil& stencil, const JointVector& scale, int power = 1)
+      : c_(stencil.coefficients), scale_(scale), power_(power) {
     set_num_residuals(static_cast<int>(scale.size()));
     for (std::size_t j = 0; j < c_.size(); ++j) mutable_parameter_block_sizes()->push_back(static_cast<int>(scale.size()));
   }
   bool Evaluate(double const* const* q, double* r, double** jac) const override {
-    const auto n = static_cast<std::size_t>(scale_.size());
-    for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Index n = scale_.size();
+    JointVector slope(n);  // dr_i / dd_i (a fixed-capacity vector: no allocation)
+    for (Eigen::Index i = 0; i < n; ++i) {
       double sum = 0.0;
       for (std::size_t j = 0; j < c_.size(); ++j) sum += c_[j] * q[j][i];
-      r[i] = scale_(static_cast<Eigen::Index>(i)) * sum;
+      const double u = scale_(i) * sum;
+      r[i] = power_ == 1 ? weight_ * u : weight_ * std::pow(u, power_);
+      slope(i) = (power_ == 1 ? weight_ : weight_ * power_ * std::pow(u, power_ - 1)) * scale_(i);
     }
     if (jac) {
       for (std::size_t j = 0; j < c_.size(); ++j) {
         if (!jac[j]) continue;
-        std::fill(jac[j], jac[j] + n * n, 0.0);
-        for (std::size_t i = 0; i < n; ++i) jac[j][i * n + i] = scale_(static_cast<Eigen::Index>(i)) * c_[j];
+        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> block(jac[j], n, n);
+        block.setZero();
+        block.diagonal() = slope * c_[j];
       }
     }
     return true;
   }
+  double weight() const { return weight_; }
+  void set_weight(double weight) { weight_ = weight; }
 
  private:
   std::vector<double> c_;
   JointVector scale_;
+  int power_;
+  double weight_ = 1.0;
 };
 
 // r = scale .* (q - centre) (the range, or the goal).
@@ -325,6 +341,77 @@ double difference_objective(const std::vector<Stencil>& all, const std::vector<J
   return sum;
 }
 
+// The limits' reciprocals per derivative, at the step dt: a difference of order p times
+// these is the usage (1 at the limit); 0 where the joint has no such limit (jerk).
+struct Units {
+  JointVector velocity, acceleration, jerk;
+};
+Units units_of(const core::RobotModel& model, double dt) {
+  const auto n = static_cast<Eigen::Index>(model.dof());
+  Units u{JointVector::Zero(n), JointVector::Zero(n), JointVector::Zero(n)};
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const core::JointLimits& l = model.limits[static_cast<std::size_t>(j)];
+    u.velocity(j) = 1.0 / (dt * l.max_velocity);
+    u.acceleration(j) = 1.0 / (dt * dt * l.max_acceleration);
+    u.jerk(j) = l.max_jerk ? 1.0 / (dt * dt * dt * *l.max_jerk) : 0.0;
+  }
+  return u;
+}
+
+// One derivative criterion in the problem: its stencils, the user's scale, the limits' units.
+struct Derivative {
+  const std::vector<Stencil>* stencils;
+  JointVector scale;
+  JointVector unit;
+};
+
+// The usage of each derivative's limits at every sample k = 0 .. K, as the samples will move:
+// along the C2 spline through the joints that the samplers follow (core::JointReference):
+// the velocity at the sample and half a step on, the acceleration at the sample (the
+// spline's is linear between samples), the jerk on the steps either side (constant on each).
+struct Usage {
+  std::vector<JointVector> per_sample[3];  // velocity, acceleration, jerk
+  Peaks peaks;
+};
+Usage usage_of(const Derivative (&derivatives)[3], const std::vector<JointVector>& q, double dt) {
+  const core::JointReference spline(q, dt);
+  const std::vector<JointVector>& m = spline.second_derivatives();
+  const std::size_t K = q.size() - 1;
+  const auto n = q.front().size();
+  Usage u;
+  JointVector at_q, v0, v1, a;
+  double worst[3] = {0.0, 0.0, 0.0};
+  for (std::size_t p = 0; p < 3; ++p) u.per_sample[p].assign(K + 1, JointVector::Zero(n));
+  for (std::size_t k = 0; k <= K; ++k) {
+    const double t = static_cast<double>(k) * dt;
+    spline.at(t, at_q, v0, a);
+    spline.at(std::min(t + 0.5 * dt, spline.duration()), at_q, v1, a);
+    // units are per difference at the step dt: the derivative times dt^p.
+    u.per_sample[0][k] = v0.cwiseAbs().cwiseMax(v1.cwiseAbs()).cwiseProduct(derivatives[0].unit) * dt;
+    u.per_sample[1][k] = m[k].cwiseAbs().cwiseProduct(derivatives[1].unit) * (dt * dt);
+    const JointVector before = k > 0 ? JointVector((m[k] - m[k - 1]).cwiseAbs()) : JointVector::Zero(n);
+    const JointVector after = k < K ? JointVector((m[k + 1] - m[k]).cwiseAbs()) : JointVector::Zero(n);
+    u.per_sample[2][k] = before.cwiseMax(after).cwiseProduct(derivatives[2].unit) * (dt * dt);
+    for (std::size_t p = 0; p < 3; ++p) worst[p] = std::max(worst[p], u.per_sample[p][k].maxCoeff());
+  }
+  u.peaks = {worst[0], worst[1], worst[2]};
+  return u;
+}
+
+// The rounds that bring peaks within the limits (optimize_redundancy): the power of the
+// usage they penalise, the usage they aim at, lambda's growth per round; they end when no
+// usage exceeds kAcceptedUsage (a margin for the 1 kHz samples between the optimised
+// steps), after kMaxRounds, or after kStalledRounds rounds in a row that lower the peak by
+// less than 0.1 % (limits out of reach of the self-motion at this timing); each round takes
+// kRoundIterations iterations at most.
+constexpr int kPeakPower = 8;
+constexpr double kPeakUsage = 0.95;
+constexpr double kPeakGrowth = 4.0;
+constexpr double kAcceptedUsage = 0.98;
+constexpr int kMaxRounds = 8;
+constexpr int kStalledRounds = 2;
+constexpr int kRoundIterations = 40;  // per round: a limit out of reach must not take them all
+
 bool solver_available(ceres::SparseLinearAlgebraLibraryType type) {
   return ceres::IsSparseLinearAlgebraLibraryTypeAvailable(type);
 }
@@ -364,8 +451,16 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   if (poses.size() < 2 || initial.size() != poses.size())
     v.push_back({"initial", "needs one joint vector per pose, at least 2 (got " + std::to_string(initial.size()) +
                                 " for " + std::to_string(poses.size()) + " poses)"});
-  if (options.goal && static_cast<std::size_t>(options.goal->size()) != n)
-    v.push_back({"goal", "needs " + std::to_string(n) + " joint values"});
+  if (options.goal && (static_cast<std::size_t>(options.goal->size()) != n || !options.goal->allFinite()))
+    v.push_back({"goal", "needs " + std::to_string(n) + " finite joint values"});
+  else if (options.hold_goal && !options.goal)
+    v.push_back({"goal", "is held at the end, so it must be given"});
+  else if (options.hold_goal && !poses.empty()) {
+    const core::Vector6d e = pose_error(core::forward_kinematics(model, *options.goal), poses.back());
+    if (e.head<3>().norm() > 1e-6 || e.tail<3>().norm() > 1e-6)
+      v.push_back({"goal", "is held at the end but does not reach the last pose (" + core::number(e.head<3>().norm()) +
+                               " m, " + core::number(e.tail<3>().norm()) + " rad off)"});
+  }
   if (n <= 6)
     v.push_back({"robot", "has " + std::to_string(n) + " joints: a pose leaves it no self-motion to choose"});
   if (!v.empty()) return tl::make_unexpected(std::move(v));
@@ -397,29 +492,54 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
     return result;
   }
 
+  // The start: the given joints, or with the goal held, their self-motion ramped from
+  // nothing at the start to the goal's offset at the end (smoothstep), each sample projected
+  // back onto its pose (kept as given where the IK does not).
+  std::vector<JointVector> start = initial;
+  if (options.hold_goal) {
+    const JointVector offset = *options.goal - initial[K];
+    core::IkOptions project;
+    project.position_tolerance = project.orientation_tolerance = 1e-11;
+    for (std::size_t k = 1; k < K; ++k) {
+      const double u = static_cast<double>(k) / static_cast<double>(K), blend = u * u * (3.0 - 2.0 * u);
+      const core::IkResult ik = core::solve_ik(model, poses[k], initial[k] + blend * offset, project);
+      if (ik.converged && ik.within_limits) start[k] = ik.q;
+    }
+    start[K] = *options.goal;
+  }
   std::vector<double> x(poses.size() * n);
-  for (std::size_t k = 0; k <= K; ++k) std::copy(initial[k].data(), initial[k].data() + n, x.data() + k * n);
+  for (std::size_t k = 0; k <= K; ++k) std::copy(start[k].data(), start[k].data() + n, x.data() + k * n);
   const auto block = [&](std::size_t k) { return x.data() + k * n; };
 
   ceres::Problem problem;
   for (std::size_t k = 0; k <= K; ++k) problem.AddParameterBlock(block(k), static_cast<int>(n));
   problem.SetParameterBlockConstant(block(0));
+  if (options.hold_goal) problem.SetParameterBlockConstant(block(K));
   for (std::size_t k = 1; k <= K; ++k) {
-    problem.SetManifold(block(k), new SelfMotion(model, poses[k]));
+    if (k < K || !options.hold_goal) problem.SetManifold(block(k), new SelfMotion(model, poses[k]));
     if (!s.range.isZero()) problem.AddResidualBlock(new OffsetCost(s.mid, s.range), nullptr, block(k));
     if (s.manipulability > 0.0) problem.AddResidualBlock(new ManipulabilityCost(model, s.manipulability), nullptr, block(k));
   }
+  // The derivative criteria (the stencils are kept: the rounds below add the limits' terms).
   const Differences d = differences(K);
-  for (const auto& [all, scale] : {std::pair{&d.velocity, &s.velocity}, std::pair{&d.acceleration, &s.acceleration},
-                                   std::pair{&d.jerk, &s.jerk}}) {
-    if (scale->isZero()) continue;
-    for (const Stencil& st : *all) {
+  const Units units = units_of(model, dt);
+  const Derivative derivatives[3] = {{&d.velocity, s.velocity, units.velocity},
+                                     {&d.acceleration, s.acceleration, units.acceleration},
+                                     {&d.jerk, s.jerk, units.jerk}};
+  // Every stencil of `derivative` as a cost of `scale` and `power` (the costs, kept).
+  const auto add_blocks = [&](const Derivative& derivative, const JointVector& scale, int power) {
+    std::vector<DifferenceCost*> costs;
+    for (const Stencil& st : *derivative.stencils) {
       std::vector<double*> blocks;
       for (const std::size_t k : st.samples) blocks.push_back(block(k));
-      problem.AddResidualBlock(new DifferenceCost(st, *scale), nullptr, blocks);
+      costs.push_back(new DifferenceCost(st, scale, power));
+      problem.AddResidualBlock(costs.back(), nullptr, blocks);
     }
-  }
-  if (options.goal) problem.AddResidualBlock(new OffsetCost(*options.goal, s.goal), nullptr, block(K));
+    return costs;
+  };
+  for (const Derivative& derivative : derivatives)
+    if (!derivative.scale.isZero()) add_blocks(derivative, derivative.scale, 1);
+  if (options.goal && !options.hold_goal) problem.AddResidualBlock(new OffsetCost(*options.goal, s.goal), nullptr, block(K));
 
   ceres::Solver::Options so;
   so.minimizer_type = ceres::TRUST_REGION;
@@ -431,18 +551,68 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   so.sparse_linear_algebra_library_type = solver_available(ceres::SUITE_SPARSE) ? ceres::SUITE_SPARSE : ceres::EIGEN_SPARSE;
   so.num_threads = 1;
-  so.max_num_iterations = std::max(1, options.max_iterations);
-  so.max_solver_time_in_seconds = std::max(1e-3, options.time_budget_s);
   so.function_tolerance = 1e-6;
   so.gradient_tolerance = 1e-12;
   so.parameter_tolerance = 1e-12;
   so.logging_type = ceres::SILENT;
   so.minimizer_progress_to_stdout = false;
-
   StopCallback stop(options.stopped);
   so.callbacks.push_back(&stop);
+
+  const int max_iterations = std::max(1, options.max_iterations);
+  const double budget_s = std::max(1e-3, options.time_budget_s);
+  const auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count(); };
+  const auto current = [&] {
+    std::vector<JointVector> q(poses.size());
+    for (std::size_t k = 0; k <= K; ++k) q[k] = Eigen::Map<const Eigen::VectorXd>(block(k), static_cast<Eigen::Index>(n));
+    return q;
+  };
+  const std::vector<double> x_start = x;
+  const double start_peak = options.within_limits ? usage_of(derivatives, start, dt).peaks.worst() : 0.0;
+  std::vector<DifferenceCost*> peak_costs;  // the limits' terms, once added
   ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
+  int iterations = 0, stalled = 0;
+  double lowest_peak = std::numeric_limits<double>::infinity();
+  for (;;) {
+    so.max_num_iterations = std::max(1, max_iterations - iterations);
+    if (result.rounds > 0) so.max_num_iterations = std::min(so.max_num_iterations, kRoundIterations);
+    so.max_solver_time_in_seconds = std::max(1e-3, budget_s - elapsed());
+    ceres::Solve(so, &problem, &summary);
+    iterations += static_cast<int>(summary.iterations.size());
+    if (summary.termination_type == ceres::FAILURE || stop.fired() || summary.termination_type == ceres::USER_SUCCESS)
+      break;
+    // The limits are constraints, the weights preferences: a least-squares optimum spreads the
+    // usage but keeps peaks. Where it breaks a limit, every difference of a limited derivative
+    // gets the term lambda (u / kPeakUsage)^kPeakPower (u its usage as the samples will move),
+    // a smooth stand-in for the largest usage: nothing well below kPeakUsage, steep above;
+    // solved again from there, lambda x4 each round while the peak falls (a penalty
+    // continuation: one smooth objective per round, where raising single residuals' weights
+    // made the peaks hop between neighbours).
+    if (!options.within_limits || result.rounds >= kMaxRounds || iterations >= max_iterations || elapsed() >= budget_s)
+      break;
+    const double peak = usage_of(derivatives, current(), dt).peaks.worst();
+    if (peak <= kAcceptedUsage) break;
+    if (peak < (1.0 - 1e-3) * lowest_peak) {
+      lowest_peak = peak;
+      stalled = 0;
+    } else if (++stalled >= kStalledRounds) {
+      break;
+    }
+    if (peak_costs.empty()) {
+      // The rounds start from the lower peak: the least-squares optimum, or the start (a
+      // start within the limits that a strong criterion left far behind: from there the
+      // limits' term keeps the iterates near the limits' side it starts on).
+      if (start_peak < peak) std::copy(x_start.begin(), x_start.end(), x.begin());
+      for (const Derivative& derivative : derivatives) {
+        if (derivative.unit.isZero()) continue;
+        const auto costs = add_blocks(derivative, derivative.unit / kPeakUsage, kPeakPower);
+        peak_costs.insert(peak_costs.end(), costs.begin(), costs.end());
+      }
+    } else {
+      for (DifferenceCost* cost : peak_costs) cost->set_weight(cost->weight() * kPeakGrowth);
+    }
+    ++result.rounds;
+  }
 
   // Every sample polished by the IK from the optimum (minimum-norm corrections, ~1e-8).
   std::vector<JointVector> q(poses.size());
@@ -453,6 +623,10 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   polish.max_iterations = 20;
   bool reached = true;
   for (std::size_t k = 1; k <= K; ++k) {
+    if (options.hold_goal && k == K) {
+      q[k] = *options.goal;
+      continue;
+    }
     const core::IkResult ik = core::solve_ik(model, poses[k], Eigen::Map<const Eigen::VectorXd>(block(k), static_cast<Eigen::Index>(n)), polish);
     q[k] = ik.q;
     result.worst_position_error = std::max(result.worst_position_error, ik.position_error);
@@ -461,30 +635,45 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   }
 
   OptimizerReport& report = result.report;
-  report.iterations = static_cast<int>(summary.iterations.size());
+  report.iterations = iterations;
   report.message = summary.message;
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  report.seconds = elapsed();
+  const Peaks peaks_before = usage_of(derivatives, initial, dt).peaks;
+  result.peaks = peaks_before;
   if (!reached || summary.termination_type == ceres::FAILURE) {
     report.status = OptimizerStatus::kFailed;
     if (!reached) report.message = "the optimum's joints do not all reach their poses after the IK's polish";
     report.objective_after = report.objective_before;
     return result;
   }
+  // Better: closer to the limits where the start breaks them, else a lower objective.
   const double after = redundancy_objective(model, q, dt, options);
-  if (!(after < report.objective_before)) {
+  const Peaks peaks_after = usage_of(derivatives, q, dt).peaks;
+  const double excess_before = std::max(0.0, peaks_before.worst() - 1.0);
+  const double excess_after = std::max(0.0, peaks_after.worst() - 1.0);
+  // With the goal held, the given joints break that constraint: the optimum is the answer.
+  const bool better = std::isfinite(after) &&
+                      (options.hold_goal || excess_after < excess_before - 1e-9 ||
+                       (excess_after <= excess_before + 1e-9 && after < report.objective_before));
+  if (!better) {
     report.status = OptimizerStatus::kNoImprovement;
     report.objective_after = report.objective_before;
     return result;
   }
   report.objective_after = after;
   result.q = std::move(q);
+  result.peaks = peaks_after;
+  if (result.rounds > 0)
+    report.message += "; " + std::to_string(result.rounds) + " rounds weighing the peaks beyond the limits, " +
+                      "peak usage " + core::number(peaks_after.worst(), 4);
   if (stop.fired() || summary.termination_type == ceres::USER_SUCCESS) {
     report.status = OptimizerStatus::kTimeLimit;
+  } else if (options.within_limits && peaks_after.worst() > 1.0 && result.rounds >= kMaxRounds) {
+    report.status = OptimizerStatus::kIterationLimit;
   } else if (summary.termination_type == ceres::CONVERGENCE) {
     report.status = OptimizerStatus::kConverged;
   } else {
-    report.status = summary.total_time_in_seconds >= so.max_solver_time_in_seconds ? OptimizerStatus::kTimeLimit
-                                                                                  : OptimizerStatus::kIterationLimit;
+    report.status = elapsed() >= budget_s ? OptimizerStatus::kTimeLimit : OptimizerStatus::kIterationLimit;
   }
   return result;
 }

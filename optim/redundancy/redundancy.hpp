@@ -20,10 +20,19 @@
 //   goal       w_g (q_K - q_goal) / range                      (closeness to given joints)
 // Weights are the user's (RedundancyWeights); the
 // objective reported is 1/2 the sum of the squared criteria residuals.
+// The joints' velocity, acceleration and jerk limits are constraints: a least-squares optimum
+// spreads the usage but keeps peaks, so where it breaks a limit (usage of the difference
+// above 0.98), the residuals above 0.96 of their limit weigh more (by their usage squared,
+// at least twice; added for a derivative the user did not weigh) and the problem is solved
+// again from there: iteratively reweighted least squares, rounds until every usage is within
+// 0.98, or 40 rounds, or 4 rounds in a row that lower the peak by less than 0.1 % (limits
+// the path's timing leaves out of reach). An optimum is taken over the start when it breaks the limits by less,
+// or as little with a lower objective.
 // Solved by Levenberg-Marquardt with a sparse normal-equations Cholesky: the Jacobian is
 // banded (a sample couples with its three neighbours at most).
 #pragma once
 
+#include <algorithm>
 #include <functional>
 #include <optional>
 #include <vector>
@@ -54,15 +63,34 @@ struct RedundancyOptions {
   /// Joints the motion should end near (closeness weighted by goal_weight), or none.
   std::optional<core::JointVector> goal;
   double goal_weight = 1.0;
-  int max_iterations = 100;
+  /// The motion ends at `goal` exactly (it must reach the last pose): the last sample is held
+  /// there like the first, and the start's self-motion is ramped towards it (a straight line
+  /// to goal joints on a redundant arm). Its initial joints may end elsewhere on that pose;
+  /// the optimum is taken whenever it reaches every pose.
+  bool hold_goal = false;
+  /// The joints' velocity, acceleration and jerk limits as constraints (the reweighting
+  /// rounds above); false: the least-squares optimum alone.
+  bool within_limits = true;
+  int max_iterations = 400;
   double time_budget_s = 10.0;
   /// Asked between iterations: true ends the solve there (deadline, cancellation).
   std::function<bool()> stopped;
 };
 
+/// The largest usage of the joints' limits (1 at the limit) by differences of the joints at
+/// the step dt, with rests beyond both ends; 0 for jerk when no joint has a jerk limit.
+struct Peaks {
+  double velocity = 0.0;
+  double acceleration = 0.0;
+  double jerk = 0.0;
+  double worst() const { return std::max({velocity, acceleration, jerk}); }
+};
+
 struct RedundancyResult {
   std::vector<core::JointVector> q;  ///< one per pose, q[0] the start's
   OptimizerReport report;            ///< objective: 1/2 sum of squared criteria residuals
+  Peaks peaks;                       ///< of q
+  int rounds = 0;                    ///< reweighting rounds that pulled peaks within the limits
   double worst_position_error = 0.0;     ///< after the IK's polish [m]
   double worst_orientation_error = 0.0;  ///< [rad]
 };
@@ -70,7 +98,8 @@ struct RedundancyResult {
 /// The joints along `poses` (X_WT at t_k = k dt [s], at least 2) from `initial` (one per
 /// pose, within the limits, each reaching its pose: the sample-by-sample solution), q_0 held.
 /// Errors name the field: `weights` (negative, or all 0), `dt`, `initial` (size, joints
-/// not reaching their pose), `goal`, `robot` (6 joints or fewer: no self-motion).
+/// not reaching their pose), `goal` (size; held but absent or not reaching the last pose),
+/// `robot` (6 joints or fewer: no self-motion).
 core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& robot,
                                                      const std::vector<Eigen::Isometry3d>& poses, double dt,
                                                      const std::vector<core::JointVector>& initial,

@@ -210,7 +210,9 @@ grpc::Status plan_trajectory(const Abandon& abandon, const Services& services, c
                              v1::PlanResponse& response) {
   auto plan = plan_call(abandon, services, request, planner::Use::kPlan);
   if (!plan) return plan.error();
-  to_proto(*plan, request.has_optimize(), response);
+  // The optimisers' report where the request asks for one, or where an optimiser ran unasked
+  // (the joints of a straight line to goal joints on a redundant arm).
+  to_proto(*plan, request.has_optimize() || plan->optimizers.redundancy.has_value(), response);
   return grpc::Status::OK;
 }
 

@@ -142,18 +142,22 @@ TEST(Redundancy, TheRangeCriterionMovesTheJointsTowardsTheMiddleOfTheirRanges) {
       }
     return sum;
   };
-  EXPECT_LT(spread(r->q), spread(m.smooth));
+  EXPECT_LT(spread(r->q), spread(m.smooth)) << r->report.message << " " << r->peaks.worst() << " " << r->rounds;
+}
+
+// The last pose reached with the elbow swung 0.3 rad round the self-motion.
+core::IkResult swung_goal(const Motion& m) {
+  const JointVector& last = m.smooth.back();
+  core::IkOptions ik_options;
+  ik_options.position_tolerance = ik_options.orientation_tolerance = 1e-12;
+  return core::solve_ik(m.robot, m.poses.back(), last + 0.3 * null_direction(m.robot, last), ik_options);
 }
 
 TEST(Redundancy, TheGoalEndsTheMotionAtTheJointsGiven) {
   const Motion m = pa10_motion();
-  // The last pose reached with the elbow swung 0.3 rad round the self-motion.
-  const JointVector& last = m.smooth.back();
-  core::IkOptions ik_options;
-  ik_options.position_tolerance = ik_options.orientation_tolerance = 1e-12;
-  const core::IkResult goal = core::solve_ik(m.robot, m.poses.back(), last + 0.3 * null_direction(m.robot, last), ik_options);
+  const core::IkResult goal = swung_goal(m);
   ASSERT_TRUE(goal.converged);
-  ASSERT_GT((goal.q - last).norm(), 0.2);
+  ASSERT_GT((goal.q - m.smooth.back()).norm(), 0.2);
   RedundancyOptions o;
   o.weights.acceleration = 1.0;
   o.goal = goal.q;
@@ -162,6 +166,29 @@ TEST(Redundancy, TheGoalEndsTheMotionAtTheJointsGiven) {
   ASSERT_TRUE(r);
   expect_poses_held(m, *r);
   EXPECT_LT((r->q.back() - goal.q).norm(), 1e-3);
+}
+
+// Held (a straight line to goal joints): the motion ends at the goal exactly, the self-motion
+// spread over the whole motion within the joints' limits, every pose kept.
+TEST(Redundancy, AHeldGoalEndsTheMotionThereExactly) {
+  const Motion m = pa10_motion();
+  const core::IkResult goal = swung_goal(m);
+  ASSERT_TRUE(goal.converged);
+  RedundancyOptions o;
+  o.weights.acceleration = 1.0;
+  o.goal = goal.q;
+  o.hold_goal = true;
+  auto r = optimize_redundancy(m.robot, m.poses, kDt, m.smooth, o);
+  ASSERT_TRUE(r);
+  expect_poses_held(m, *r);
+  EXPECT_EQ(r->q.back(), goal.q);
+  EXPECT_NE(r->report.status, OptimizerStatus::kFailed) << r->report.message;
+  EXPECT_LE(acceleration_usage(m.robot, r->q), 1.0);
+  EXPECT_LE(r->peaks.worst(), 1.0);
+  // Between: no sample jumps (the self-motion travels 0.3 rad over 4 s).
+  double step = 0.0;
+  for (std::size_t k = 1; k < r->q.size(); ++k) step = std::max(step, (r->q[k] - r->q[k - 1]).norm());
+  EXPECT_LT(step, 0.02);
 }
 
 TEST(Redundancy, BadInputNamesItsField) {
@@ -185,6 +212,11 @@ TEST(Redundancy, BadInputNamesItsField) {
   RedundancyOptions short_goal = ok;
   short_goal.goal = JointVector::Zero(6);
   EXPECT_EQ(field(short_goal, m.smooth), "goal");
+  RedundancyOptions held = ok;
+  held.hold_goal = true;
+  EXPECT_EQ(field(held, m.smooth), "goal") << "held, but none given";
+  held.goal = m.smooth.front();
+  EXPECT_EQ(field(held, m.smooth), "goal") << "held, but not reaching the last pose";
 }
 
 }  // namespace

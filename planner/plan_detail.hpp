@@ -90,6 +90,13 @@ core::CartesianLimits cartesian_limits(const core::MotionSpec& motion, bool tool
 /// A joint move (to joints or to a pose).
 bool joint_geometry(const Geometry& geometry);
 
+/// A redundant arm's joints along a path motion or a straight line chosen for the whole
+/// motion (optim/redundancy) and attached to it; `goal`: joints the motion ends at, held.
+/// The report in `reports.redundancy`; an error only for a request the optimiser refuses.
+std::optional<Error> optimize_joints(core::Trajectory& trajectory, const Robot& robot,
+                                     const optim::RedundancyWeights& weights, const std::vector<double>* goal,
+                                     const Budget& budget, Clock::time_point deadline, OptimizerReports& reports);
+
 /// A line to joint values ends at them (the tracked branch is the goal's).
 std::optional<Error> ends_at_goal(const Geometry& geometry, const core::JointVector& last);
 

@@ -329,6 +329,17 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     if (i == 0 && robot) {
       if (auto refused = starts_at_robot(*trajectory, *robot)) return tl::unexpected(std::move(*refused));
     }
+    // A straight line to goal joints on a redundant arm ends at them only with its self-motion
+    // chosen for the whole line (as a request of its own: plan_request).
+    if (const auto* to_joints = std::get_if<LinearMoveToJoints>(&sub.geometry);
+        to_joints != nullptr && last == i && robot && robot->model->dof() > 6) {
+      optim::RedundancyWeights weights;
+      weights.acceleration = 1.0;
+      if (auto refused = optimize_joints(*trajectory, *sub.robot, weights, &to_joints->goal, budget, deadline,
+                                         report.optimizers))
+        return tl::unexpected(in_step(std::move(*refused), i, step));
+      if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
+    }
     core::StepMotion motion = as_step(std::move(*trajectory));
     const std::size_t n = core::sample_count(motion);
     const bool last_unit = last + 1 == request.sequence.size();

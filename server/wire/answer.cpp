@@ -109,7 +109,10 @@ void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanRespons
       *out.mutable_closed_loop() = std::move(*one.mutable_closed_loop());
       *out.mutable_warnings() = std::move(*one.mutable_warnings());
     }
-    if (with_optimization && (s.optimizers.tangent_scales || s.optimizers.breakpoints || s.optimizers.timing)) {
+    // The redundancy optimiser's report even unasked: it runs on every line to goal joints of
+    // a redundant arm.
+    if ((with_optimization && (s.optimizers.tangent_scales || s.optimizers.breakpoints || s.optimizers.timing)) ||
+        s.optimizers.redundancy) {
       to_proto(s.optimizers, *out.mutable_optimization());
     }
   }

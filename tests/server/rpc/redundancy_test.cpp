@@ -191,6 +191,45 @@ TEST_F(RedundancyTest, ALineToGoalJointsEndsAtThemOnEveryRedundantArm) {
   }
 }
 
+// The same lines as the steps of a sequence: the PA-10 from home to one set of goal joints
+// and on to another, each line ending at its own goal joints.
+TEST_F(RedundancyTest, LinesToGoalJointsInASequenceEndAtThem) {
+  const auto model = robot_model("pa10");
+  std::vector<double> first(model.home().begin(), model.home().end()), second = first;
+  const double offsets[7] = {0.3, -0.15, 0.4, 0.2, -0.25, 0.2, 0.3};
+  for (std::size_t j = 0; j < 7; ++j) {
+    first[j] += 0.5 * offsets[j];
+    second[j] += offsets[j];
+  }
+  v1::PlanRequest request;
+  request.mutable_robot()->set_name("pa10");
+  request.mutable_motion()->set_duration_s(3.0);
+  request.mutable_motion()->set_cycle_rate_hz(1000.0);
+  request.mutable_motion()->set_profile(v1::MOTION_PROFILE_S_CURVE);
+  for (const auto* goal : {&first, &second}) {
+    auto* line = request.add_sequence()->mutable_linear_move();
+    for (const double q : *goal) line->add_goal_joints(q);
+  }
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_EQ(samples.size(), 6001u);
+  double worst_first = 0.0, worst_second = 0.0;
+  for (std::size_t j = 0; j < 7; ++j) {
+    worst_first = std::max(worst_first, std::abs(samples[3000].joints(static_cast<int>(j)) - first[j]));
+    worst_second = std::max(worst_second, std::abs(samples.back().joints(static_cast<int>(j)) - second[j]));
+  }
+  EXPECT_LT(worst_first, 1e-9);
+  EXPECT_LT(worst_second, 1e-9);
+  EXPECT_LE(streamed_acceleration_usage(samples, model), 1.0);
+  v1::PlanResponse response;
+  ASSERT_TRUE(plan(request, response).ok());
+  ASSERT_EQ(response.steps_size(), 2);
+  for (const auto& step : response.steps())
+    EXPECT_EQ(step.optimization().redundancy().status(), v1::OPTIMIZER_STATUS_CONVERGED)
+        << step.optimization().redundancy().message();
+}
+
 TEST_F(RedundancyTest, BadRequestsNameTheirField) {
   auto field_of = [&](const v1::PlanRequest& request) {
     v1::PlanResponse response;

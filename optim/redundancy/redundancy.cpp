@@ -2,6 +2,7 @@
 #include "optim/redundancy/redundancy.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -129,8 +130,10 @@ class DifferenceCost final : public ceres::CostFunction {
       double sum = 0.0;
       for (std::size_t j = 0; j < c_.size(); ++j) sum += c_[j] * q[j][i];
       const double u = scale_(i) * sum;
-      r[i] = power_ == 1 ? weight_ * u : weight_ * std::pow(u, power_);
-      slope(i) = (power_ == 1 ? weight_ : weight_ * power_ * std::pow(u, power_ - 1)) * scale_(i);
+      double below = 1.0;  // u^(p - 1), by multiplication (std::pow costs more here)
+      for (int k = 1; k < power_; ++k) below *= u;
+      r[i] = weight_ * below * u;
+      slope(i) = weight_ * power_ * below * scale_(i);
     }
     if (jac) {
       for (std::size_t j = 0; j < c_.size(); ++j) {
@@ -186,7 +189,7 @@ constexpr double kLongestSelfMotionStep = 0.5;  // [rad], of one sample's joints
 class SelfMotion final : public ceres::Manifold {
  public:
   SelfMotion(const core::RobotModel& model, const Isometry3d& target) : model_(model), target_(target) {
-    ik_.position_tolerance = ik_.orientation_tolerance = 1e-11;
+    ik_.position_tolerance = ik_.orientation_tolerance = 1e-9;
     ik_.max_iterations = 12;
   }
   int AmbientSize() const override { return static_cast<int>(model_.dof()); }
@@ -238,6 +241,8 @@ class SelfMotion final : public ceres::Manifold {
   // it at the same q in PlusJacobian, Plus and Minus.
   const Eigen::MatrixXd& basis(const JointVector& q) const {
     if (have_basis_ && q == basis_q_) return basis_;
+    using Square = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, static_cast<int>(core::kMaxJoints),
+                                 static_cast<int>(core::kMaxJoints)>;
     Isometry3d X;
     core::JointJacobian J;
     core::forward_kinematics(model_, q, X, J);
@@ -246,13 +251,17 @@ class SelfMotion final : public ceres::Manifold {
     Eigen::Index found = 0;
     const Eigen::LLT<Eigen::Matrix<double, 6, 6>> llt(J * J.transpose());
     if (llt.info() == Eigen::Success) {
-      const Eigen::MatrixXd P = Eigen::MatrixXd::Identity(n, n) - J.transpose() * llt.solve(J);
-      std::vector<Eigen::Index> order(static_cast<std::size_t>(n));
+      // Fixed-capacity matrices and lazy products: these are at most 12 x 12, where Eigen's
+      // general matrix kernels (and the heap) cost more than the arithmetic.
+      const core::JointJacobian solved = llt.solve(J);
+      Square P = -J.transpose().lazyProduct(solved);
+      P.diagonal().array() += 1.0;
+      std::array<Eigen::Index, core::kMaxJoints> order{};
       for (Eigen::Index i = 0; i < n; ++i) order[static_cast<std::size_t>(i)] = i;
-      std::sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return P(a, a) > P(b, b); });
-      for (const Eigen::Index i : order) {
-        if (found == r) break;
-        Eigen::VectorXd v = P.col(i);
+      std::sort(order.begin(), order.begin() + n, [&](Eigen::Index a, Eigen::Index b) { return P(a, a) > P(b, b); });
+      JointVector v(n);
+      for (Eigen::Index o = 0; o < n && found < r; ++o) {
+        v = P.col(order[static_cast<std::size_t>(o)]);
         for (Eigen::Index k = 0; k < found; ++k) v -= basis_.col(k).dot(v) * basis_.col(k);
         const double norm = v.norm();
         if (norm < 1e-3) continue;

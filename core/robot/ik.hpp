@@ -128,4 +128,13 @@ struct IkSearchResult {
 IkSearchResult search_ik(const RobotModel& model, const Eigen::Isometry3d& X_WT_target, const JointVector& seed,
                          const IkSearchOptions& options = {});
 
+/// The closest pose to `X_WT_target` from `start` (within the limits, clamped there): the
+/// Levenberg-Marquardt refinement search_ik ends with when nothing converges, alone: a local
+/// minimum of |e|^2 = |p error|^2 + |orientation error|^2 [m^2 + rad^2], steps
+/// dq = J^T (J J^T + mu I)^-1 e projected onto the limits, mu x4 on a rejected step and / 3 on
+/// an accepted one, at most max_iterations (>= 1). converged: within options' tolerances.
+/// Preconditions (checked): start.size() == model.dof(), a valid model.
+IkResult closest_pose(const RobotModel& model, const Eigen::Isometry3d& X_WT_target, const JointVector& start,
+                      int max_iterations = 200, const IkOptions& options = {});
+
 }  // namespace geotraj::core

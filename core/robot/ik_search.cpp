@@ -48,6 +48,18 @@ void nearest_representative(const JointBounds& bounds, const JointVector& seed, 
   }
 }
 
+// The inverse of SO(3)'s right Jacobian at the rotation vector phi (angle theta < pi):
+// J_r^-1 = I + [phi]x / 2 + (1 / theta^2 - (1 + cos theta) / (2 theta sin theta)) [phi]x^2,
+// the coefficient's series 1/12 + theta^2 / 720 below 1e-4 rad.
+Matrix3d inverse_right_jacobian(const Vector3d& phi) {
+  const double theta = phi.norm();
+  Matrix3d hat;
+  hat << 0.0, -phi.z(), phi.y(), phi.z(), 0.0, -phi.x(), -phi.y(), phi.x(), 0.0;
+  const double c = theta < 1e-4 ? 1.0 / 12.0 + theta * theta / 720.0
+                                : 1.0 / (theta * theta) - (1.0 + std::cos(theta)) / (2.0 * theta * std::sin(theta));
+  return Matrix3d::Identity() + 0.5 * hat + c * hat * hat;
+}
+
 // Levenberg-Marquardt on |e|^2 within the bounds (projected steps, accepted only when they
 // reduce it): the closest pose to an unreachable target that q's basin holds. Steps
 // dq = J^T (J J^T + mu I)^-1 e, mu adapted (x 4 on a rejected step, / 3 on an accepted one).
@@ -55,10 +67,15 @@ NewtonOutcome refine_closest(const SerialChain& chain, const JointBounds& bounds
                              const Vector3d& p_target, int max_iterations, JointVector& q, NewtonWorkspace& ws) {
   const Eigen::Index n = chain.dof();
   Vector6d e;
+  // The orientation error's exact derivative: phi = log(R_t R^T) moves by
+  // J_r^-1(phi) (-d omega) when the tool turns by d omega (in W), where the Newton steps take
+  // -d omega (exact only for small errors; far from the target, as here, the steps crawled:
+  // a UR5 target 1.3 reaches away still moved after 5,000 of them).
   const auto error_at = [&](const JointVector& x) {
     chain.jacobian(x, ws.R, ws.p, ws.z, ws.o, ws.J);
     e.head<3>() = p_target - ws.p;
     e.tail<3>() = rotation_vector(R_target * ws.R.transpose());
+    ws.J.bottomRows<3>() = inverse_right_jacobian(e.tail<3>()) * ws.J.bottomRows<3>();
     return e.squaredNorm();
   };
   NewtonOutcome out;
@@ -69,10 +86,18 @@ NewtonOutcome refine_closest(const SerialChain& chain, const JointBounds& bounds
   JointVector trial(n);
   for (int it = 0; it < max_iterations; ++it) {
     out.iterations = it + 1;
-    ws.A.noalias() = J * J.transpose();
+    // A joint at a limit that the descent direction J^T e pushes further out is held: its
+    // column leaves the step (projecting a step that counted on it crawled along the limit).
+    JointJacobian free_J = J;
+    const JointVector descent = J.transpose() * e_q;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      if ((q(i) >= bounds.hi[k] && descent(i) > 0.0) || (q(i) <= bounds.lo[k] && descent(i) < 0.0)) free_J.col(i).setZero();
+    }
+    ws.A.noalias() = free_J * free_J.transpose();
     ws.A.diagonal().array() += mu;
     ws.llt.compute(ws.A);
-    trial = q + J.transpose() * ws.llt.solve(e_q);
+    trial = q + free_J.transpose() * ws.llt.solve(e_q);
     for (Eigen::Index i = 0; i < n; ++i) {
       const auto k = static_cast<std::size_t>(i);
       trial(i) = std::clamp(trial(i), bounds.lo[k], bounds.hi[k]);
@@ -99,6 +124,11 @@ NewtonOutcome refine_closest(const SerialChain& chain, const JointBounds& bounds
 }
 
 }  // namespace
+
+NewtonOutcome refine_closest_pose(const SerialChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
+                                  const Vector3d& p_target, int max_iterations, JointVector& q, NewtonWorkspace& ws) {
+  return refine_closest(chain, bounds, R_target, p_target, max_iterations, q, ws);
+}
 
 IkSearchResult search(const SerialChain& chain, const JointBounds& bounds, const Matrix3d& R_target,
                       const Vector3d& p_target, const JointVector& seed, const IkSearchOptions& options) {
@@ -206,6 +236,28 @@ IkSearchResult search_ik(const RobotModel& model, const Eigen::Isometry3d& X_WT_
   const detail::SerialChain& chain = detail::cached_chain(model);
   const detail::JointBounds& bounds = detail::cached_bounds(model);
   return detail::search(chain, bounds, X_WT_target.linear(), X_WT_target.translation(), seed, options);
+}
+
+IkResult closest_pose(const RobotModel& model, const Eigen::Isometry3d& X_WT_target, const JointVector& start,
+                      int max_iterations, const IkOptions& options) {
+  GEOTRAJ_CHECK(start.size() == static_cast<Eigen::Index>(model.dof()) && max_iterations >= 1);
+  const detail::SerialChain& chain = detail::cached_chain(model);
+  const detail::JointBounds& bounds = detail::cached_bounds(model);
+  IkResult result;
+  result.q = start;
+  for (Eigen::Index i = 0; i < start.size(); ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    result.q(i) = std::clamp(result.q(i), bounds.lo[k], bounds.hi[k]);
+  }
+  detail::NewtonWorkspace ws;
+  const detail::NewtonOutcome out = detail::refine_closest_pose(chain, bounds, X_WT_target.linear(),
+                                                           X_WT_target.translation(), max_iterations, result.q, ws);
+  result.iterations = out.iterations;
+  result.position_error = out.position_error;
+  result.orientation_error = out.orientation_error;
+  result.converged = out.position_error <= options.position_tolerance && out.orientation_error <= options.orientation_tolerance;
+  result.within_limits = true;
+  return result;
 }
 
 }  // namespace geotraj::core

@@ -161,6 +161,11 @@ class SplitMix64 {
 /// q (its size set) uniform within the bounds.
 void random_configuration(const JointBounds& bounds, SplitMix64& random, JointVector& q);
 
+/// closest_pose's Levenberg-Marquardt on a prepared chain (ik.hpp), from q (within bounds).
+NewtonOutcome refine_closest_pose(const SerialChain& chain, const JointBounds& bounds, const Eigen::Matrix3d& R_target,
+                                  const Eigen::Vector3d& p_target, int max_iterations, JointVector& q,
+                                  NewtonWorkspace& ws);
+
 /// search_ik on a prepared chain (ik.hpp).
 IkSearchResult search(const SerialChain& chain, const JointBounds& bounds, const Eigen::Matrix3d& R_target,
                       const Eigen::Vector3d& p_target, const JointVector& seed, const IkSearchOptions& options);

@@ -184,5 +184,42 @@ TEST(IkSearch, TheClosestPoseToAnUnreachableTarget) {
               target.translation().norm(), e_p, e_r);
 }
 
+// closest_pose alone, from a start: a local minimum of the pose error within the limits, below
+// the start's; from outside the limits it starts clamped; a reachable target is reached.
+TEST(IkSearch, TheClosestPoseFromAStart) {
+  const RobotModel& m = *core::find_builtin_robot("ur5");
+  Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
+  target.translation() = Eigen::Vector3d(1.4, -0.6, 0.9);
+  target.linear() = Eigen::AngleAxisd(1.1, Eigen::Vector3d(3, -1, 2).normalized()).toRotationMatrix();
+  JointVector start = core::home_configuration(m);
+  start(0) = m.limits[0].max_position + 1.0;  // clamped first
+  const core::IkResult r = core::closest_pose(m, target, start);
+  std::printf("[ measured ] closest pose from a start: %d iterations, %.6f m, %.6f rad\n", r.iterations, r.position_error, r.orientation_error);
+  EXPECT_FALSE(r.converged);
+  ASSERT_TRUE(within_limits(m, r.q));
+  const auto [e_p, e_r] = pose_errors(m, r.q, target);
+  EXPECT_NEAR(e_p, r.position_error, 1e-12);
+  EXPECT_NEAR(e_r, r.orientation_error, 1e-12);
+  const double merit = e_p * e_p + e_r * e_r;
+  for (Eigen::Index i = 0; i < r.q.size(); ++i) {
+    for (const double h : {-1e-4, 1e-4}) {
+      JointVector x = r.q;
+      x(i) += h;
+      if (!within_limits(m, x)) continue;
+      const auto [p, o] = pose_errors(m, x, target);
+      EXPECT_GE(p * p + o * o, merit - 1e-9) << "joint " << i << " moved by " << h;
+    }
+  }
+  JointVector q = core::home_configuration(m);
+  q(1) += 0.3;
+  q(3) -= 0.4;
+  const Eigen::Isometry3d reachable = core::forward_kinematics(m, q);
+  const core::IkResult reached = core::closest_pose(m, reachable, core::home_configuration(m));
+  EXPECT_TRUE(reached.converged);
+  const auto [p, o] = pose_errors(m, reached.q, reachable);
+  EXPECT_LT(p, 1e-9);
+  EXPECT_LT(o, 1e-9);
+}
+
 }  // namespace
 }  // namespace geotraj::test

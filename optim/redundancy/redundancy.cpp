@@ -374,37 +374,28 @@ struct Derivative {
   JointVector unit;
 };
 
-// The usage of each derivative's limits at every sample k = 0 .. K, as the samples will move:
-// along the C2 spline through the joints that the samplers follow (core::JointReference):
-// the velocity at the sample and half a step on, the acceleration at the sample (the
-// spline's is linear between samples), the jerk on the steps either side (constant on each).
-struct Usage {
-  std::vector<JointVector> per_sample[3];  // velocity, acceleration, jerk
-  Peaks peaks;
-};
-Usage usage_of(const Derivative (&derivatives)[3], const std::vector<JointVector>& q, double dt) {
+// The largest usage of each derivative's limits over the samples k = 0 .. K, as the samples
+// will move: along the C2 spline through the joints that the samplers follow
+// (core::JointReference): the velocity at the sample and half a step on, the acceleration at
+// the sample (the spline's is linear between samples), the jerk on the steps either side
+// (constant on each).
+Peaks peaks_of(const Derivative (&derivatives)[3], const std::vector<JointVector>& q, double dt) {
   const core::JointReference spline(q, dt);
   const std::vector<JointVector>& m = spline.second_derivatives();
   const std::size_t K = q.size() - 1;
-  const auto n = q.front().size();
-  Usage u;
   JointVector at_q, v0, v1, a;
-  double worst[3] = {0.0, 0.0, 0.0};
-  for (std::size_t p = 0; p < 3; ++p) u.per_sample[p].assign(K + 1, JointVector::Zero(n));
+  Peaks peaks;
   for (std::size_t k = 0; k <= K; ++k) {
     const double t = static_cast<double>(k) * dt;
     spline.at(t, at_q, v0, a);
     spline.at(std::min(t + 0.5 * dt, spline.duration()), at_q, v1, a);
     // units are per difference at the step dt: the derivative times dt^p.
-    u.per_sample[0][k] = v0.cwiseAbs().cwiseMax(v1.cwiseAbs()).cwiseProduct(derivatives[0].unit) * dt;
-    u.per_sample[1][k] = m[k].cwiseAbs().cwiseProduct(derivatives[1].unit) * (dt * dt);
-    const JointVector before = k > 0 ? JointVector((m[k] - m[k - 1]).cwiseAbs()) : JointVector::Zero(n);
-    const JointVector after = k < K ? JointVector((m[k + 1] - m[k]).cwiseAbs()) : JointVector::Zero(n);
-    u.per_sample[2][k] = before.cwiseMax(after).cwiseProduct(derivatives[2].unit) * (dt * dt);
-    for (std::size_t p = 0; p < 3; ++p) worst[p] = std::max(worst[p], u.per_sample[p][k].maxCoeff());
+    peaks.velocity = std::max(peaks.velocity, (v0.cwiseAbs().cwiseMax(v1.cwiseAbs()).cwiseProduct(derivatives[0].unit) * dt).maxCoeff());
+    peaks.acceleration = std::max(peaks.acceleration, (m[k].cwiseAbs().cwiseProduct(derivatives[1].unit) * (dt * dt)).maxCoeff());
+    if (k > 0)
+      peaks.jerk = std::max(peaks.jerk, ((m[k] - m[k - 1]).cwiseAbs().cwiseProduct(derivatives[2].unit) * (dt * dt)).maxCoeff());
   }
-  u.peaks = {worst[0], worst[1], worst[2]};
-  return u;
+  return peaks;
 }
 
 // The rounds that bring peaks within the limits (optimize_redundancy): the power of the
@@ -577,7 +568,6 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
     return q;
   };
   const std::vector<double> x_start = x;
-  const double start_peak = options.within_limits ? usage_of(derivatives, start, dt).peaks.worst() : 0.0;
   std::vector<DifferenceCost*> peak_costs;  // the limits' terms, once added
   ceres::Solver::Summary summary;
   int iterations = 0, stalled = 0;
@@ -599,7 +589,7 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
     // made the peaks hop between neighbours).
     if (!options.within_limits || result.rounds >= kMaxRounds || iterations >= max_iterations || elapsed() >= budget_s)
       break;
-    const double peak = usage_of(derivatives, current(), dt).peaks.worst();
+    const double peak = peaks_of(derivatives, current(), dt).worst();
     if (peak <= kAcceptedUsage) break;
     if (peak < (1.0 - 1e-3) * lowest_peak) {
       lowest_peak = peak;
@@ -611,7 +601,7 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
       // The rounds start from the lower peak: the least-squares optimum, or the start (a
       // start within the limits that a strong criterion left far behind: from there the
       // limits' term keeps the iterates near the limits' side it starts on).
-      if (start_peak < peak) std::copy(x_start.begin(), x_start.end(), x.begin());
+      if (peaks_of(derivatives, start, dt).worst() < peak) std::copy(x_start.begin(), x_start.end(), x.begin());
       for (const Derivative& derivative : derivatives) {
         if (derivative.unit.isZero()) continue;
         const auto costs = add_blocks(derivative, derivative.unit / kPeakUsage, kPeakPower);
@@ -647,7 +637,7 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   report.iterations = iterations;
   report.message = summary.message;
   report.seconds = elapsed();
-  const Peaks peaks_before = usage_of(derivatives, initial, dt).peaks;
+  const Peaks peaks_before = peaks_of(derivatives, initial, dt);
   result.peaks = peaks_before;
   if (!reached || summary.termination_type == ceres::FAILURE) {
     report.status = OptimizerStatus::kFailed;
@@ -657,7 +647,7 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   }
   // Better: closer to the limits where the start breaks them, else a lower objective.
   const double after = redundancy_objective(model, q, dt, options);
-  const Peaks peaks_after = usage_of(derivatives, q, dt).peaks;
+  const Peaks peaks_after = peaks_of(derivatives, q, dt);
   const double excess_before = std::max(0.0, peaks_before.worst() - 1.0);
   const double excess_after = std::max(0.0, peaks_after.worst() - 1.0);
   // With the goal held, the given joints break that constraint: the optimum is the answer.
@@ -672,9 +662,17 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   report.objective_after = after;
   result.q = std::move(q);
   result.peaks = peaks_after;
-  if (result.rounds > 0)
+  if (result.rounds > 0 && peaks_after.worst() > 1.0) {
+    // Ceres's status is the penalised problem's: say plainly that the limits are not kept.
+    report.message = "the joints' limits stay broken: peak usage " + core::number(peaks_after.worst(), 4) +
+                     " of a limit (from " + core::number(peaks_before.worst(), 4) + ") after " +
+                     std::to_string(result.rounds) +
+                     " rounds weighing the peaks; beyond the self-motion's reach at this timing: slow the motion (" +
+                     summary.message + ")";
+  } else if (result.rounds > 0) {
     report.message += "; " + std::to_string(result.rounds) + " rounds weighing the peaks beyond the limits, " +
                       "peak usage " + core::number(peaks_after.worst(), 4);
+  }
   if (stop.fired() || summary.termination_type == ceres::USER_SUCCESS) {
     report.status = OptimizerStatus::kTimeLimit;
   } else if (options.within_limits && peaks_after.worst() > 1.0 && result.rounds >= kMaxRounds) {

@@ -21,13 +21,14 @@
 // Weights are the user's (RedundancyWeights); the
 // objective reported is 1/2 the sum of the squared criteria residuals.
 // The joints' velocity, acceleration and jerk limits are constraints: a least-squares optimum
-// spreads the usage but keeps peaks, so where it breaks a limit (usage of the difference
-// above 0.98), the residuals above 0.96 of their limit weigh more (by their usage squared,
-// at least twice; added for a derivative the user did not weigh) and the problem is solved
-// again from there: iteratively reweighted least squares, rounds until every usage is within
-// 0.98, or 40 rounds, or 4 rounds in a row that lower the peak by less than 0.1 % (limits
-// the path's timing leaves out of reach). An optimum is taken over the start when it breaks the limits by less,
-// or as little with a lower objective.
+// spreads the usage but keeps peaks, so where it breaks a limit (the usage u of a derivative,
+// measured on the C2 spline the samples follow, above 0.98), every difference of a limited
+// derivative gets the term lambda (u / 0.95)^8 (nothing well below 0.95, steep above) and the
+// problem is solved again from the lower peak of the optimum and the start; lambda x4 a
+// round, until every usage is within 0.98, or 8 rounds, or 2 rounds in a row that lower the
+// peak by less than 0.1 % (limits the motion's timing puts beyond the self-motion's reach:
+// the report's message says so). An optimum is taken over the start when it breaks the limits
+// by less, or as little with a lower objective.
 // Solved by Levenberg-Marquardt with a sparse normal-equations Cholesky: the Jacobian is
 // banded (a sample couples with its three neighbours at most).
 #pragma once
@@ -68,7 +69,7 @@ struct RedundancyOptions {
   /// to goal joints on a redundant arm). Its initial joints may end elsewhere on that pose;
   /// the optimum is taken whenever it reaches every pose.
   bool hold_goal = false;
-  /// The joints' velocity, acceleration and jerk limits as constraints (the reweighting
+  /// The joints' velocity, acceleration and jerk limits as constraints (the penalty
   /// rounds above); false: the least-squares optimum alone.
   bool within_limits = true;
   int max_iterations = 400;
@@ -90,7 +91,7 @@ struct RedundancyResult {
   std::vector<core::JointVector> q;  ///< one per pose, q[0] the start's
   OptimizerReport report;            ///< objective: 1/2 sum of squared criteria residuals
   Peaks peaks;                       ///< of q
-  int rounds = 0;                    ///< reweighting rounds that pulled peaks within the limits
+  int rounds = 0;                    ///< penalty rounds that weighed the peaks beyond the limits
   double worst_position_error = 0.0;     ///< after the IK's polish [m]
   double worst_orientation_error = 0.0;  ///< [rad]
 };

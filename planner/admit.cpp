@@ -217,9 +217,10 @@ Violations redundancy_violations(const optim::RedundancyWeights& w, const Geomet
     v.push_back({"optimize.redundancy", "chooses a redundant arm's joints along a Cartesian path; a jointPath gives every joint"});
   if (robot == nullptr) {
     v.push_back({"optimize.redundancy", "needs a robot: it chooses the joints of a redundant arm"});
-  } else if (robot->model->dof() <= 6) {
-    v.push_back({"optimize.redundancy", "needs a robot with more than 6 joints: " + robot->model->name + " has " +
-                                            std::to_string(robot->model->dof()) + ", so a tool pose leaves it no self-motion to choose"});
+  } else if (robot->model->dof() <= 6 && !robot->tool_axis_free) {
+    v.push_back({"optimize.redundancy", "needs a robot with more than 6 joints, or robot.toolAxisFree: " +
+                                            robot->model->name + " has " + std::to_string(robot->model->dof()) +
+                                            ", so a tool pose leaves it no self-motion to choose"});
   }
   if (robot != nullptr && w.jerk > 0.0 &&
       std::none_of(robot->model->limits.begin(), robot->model->limits.end(),
@@ -244,6 +245,11 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
         {"path", kinds == 0 ? "is required: give the key frames of a `path`, or a `jointMove`, a `linearMove` or a "
                               "`jointPath`"
                             : "give exactly one of `path`, `jointMove`, `linearMove` and `jointPath`"}});
+  }
+  if (robot && robot->tool_axis_free && (geometry.joint_move || geometry.joint_path)) {
+    violations.push_back({"robot.toolAxisFree", std::string("frees the tool's roll along a Cartesian path or line; a ") +
+                                                    (geometry.joint_move ? "jointMove" : "jointPath") +
+                                                    " gives the joints, and the tool turns as they take it: drop it"});
   }
   if (optimize && geometry.joint_move) {
     violations.push_back({"optimize", "applies to a `path` or a linearMove's timing: a jointMove is timed by its "
@@ -499,6 +505,9 @@ core::Expected<Request> admit_sequence(const RequestInput& input, const RobotCat
   }
   if (input.optimize && input.optimize->values.redundancy)
     violations.push_back({"optimize.redundancy", "chooses the joints along a single path; not yet in a sequence"});
+  if (robot && robot->tool_axis_free)
+    violations.push_back({"robot.toolAxisFree", "frees the tool's roll along a single path or line; not yet in a "
+                                                "sequence"});
   // optimize.timing times the paths, lines and joint paths (a blended chain of lines
   // included); the shape optimisers need a path.
   if (input.optimize && !any_path && !any_line && !any_joint_path) {

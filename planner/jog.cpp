@@ -15,6 +15,10 @@ core::Expected<Jog> admit(JogInput input, const RobotCatalog& catalog) {
   } else {
     for (auto& v : resolved.error()) violations.push_back({"start." + v.field, std::move(v.description), v.kind});
   }
+  if (robot && robot->tool_axis_free) {
+    violations.push_back({"start.robot.toolAxisFree", "frees the tool's roll along a planned motion; a jog moves the "
+                                                      "tool as the operator says: drop it"});
+  }
   if (violations.empty() && robot) {  // the per-joint bounds the jogger derives (velocityScale x maxVelocity, ...)
     violations = core::validate_jog_limits(robot->model, input.options, "start");
   }

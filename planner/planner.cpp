@@ -459,15 +459,29 @@ constexpr std::size_t kMaxRedundancySteps = 20'000;
 // straight line to goal joints on one: the tool's poses and the tracker's joints at uniform
 // times (the sample-by-sample choice, the start), the joints chosen by the optimiser for the
 // whole motion (a line to goal joints ends at them exactly: `goal`, held), attached to the
-// motion as the reference its samples follow. A report whatever happens; the motion is left
-// as it was when the optimiser finds nothing better or fails.
+// motion as the reference its samples follow. With robot.toolAxisFree the optimiser works on
+// the arm with the tool's roll as one more joint (core::with_tool_roll; from 0, the planned
+// orientation, and back to 0 at a held goal), and the roll it chooses is attached too: every
+// sample's tool turned by it (core::apply_roll), which the real joints then follow. A report
+// whatever happens; the motion is left as it was when the optimiser finds nothing better or
+// fails.
 std::optional<Error> optimize_joints(core::Trajectory& trajectory, const Robot& robot,
                                      const optim::RedundancyWeights& weights, const std::vector<double>* goal,
                                      const Budget& budget, Clock::time_point deadline, OptimizerReports& reports) {
   std::shared_ptr<const core::JointReference>* slot = nullptr;
-  if (auto* motion = std::get_if<core::PathMotion>(&trajectory)) slot = &motion->joints;
-  if (auto* line = std::get_if<core::LinearMovePlan>(&trajectory)) slot = &line->joints;
+  std::shared_ptr<const core::JointReference>* roll_slot = nullptr;
+  if (auto* motion = std::get_if<core::PathMotion>(&trajectory)) slot = &motion->joints, roll_slot = &motion->roll;
+  if (auto* line = std::get_if<core::LinearMovePlan>(&trajectory)) slot = &line->joints, roll_slot = &line->roll;
   if (slot == nullptr) return std::nullopt;
+  const bool roll = robot.tool_axis_free;
+  const auto n = static_cast<Eigen::Index>(robot.model->dof());
+  // The joints with the roll after them (0: the orientation as planned).
+  const auto with_roll = [&](const core::JointVector& q) {
+    if (!roll) return q;
+    core::JointVector out(n + 1);
+    out << q, 0.0;
+    return out;
+  };
   const double duration = core::duration(trajectory);
   const std::size_t steps = std::clamp<std::size_t>(
       static_cast<std::size_t>(std::ceil(duration / kRedundancyStepS - 1e-9)), 1, kMaxRedundancySteps);
@@ -490,24 +504,34 @@ std::optional<Error> optimize_joints(core::Trajectory& trajectory, const Robot& 
         return std::nullopt;
       }
       poses.push_back(sample.tool.X_WT);
-      joints.push_back(sample.joints.q);
+      joints.push_back(with_roll(sample.joints.q));
     }
   }
   optim::RedundancyOptions options;
   options.weights = weights;
   if (goal != nullptr) {
-    options.goal = Eigen::Map<const Eigen::VectorXd>(goal->data(), static_cast<Eigen::Index>(goal->size()));
+    options.goal = with_roll(Eigen::Map<const Eigen::VectorXd>(goal->data(), static_cast<Eigen::Index>(goal->size())));
     options.hold_goal = true;
   }
   options.time_budget_s = std::max(1e-3, std::chrono::duration<double>(deadline - Clock::now()).count());
   options.stopped = [&] { return budget.stop_requested() || Clock::now() >= deadline; };
   const auto started = Clock::now();
-  auto result = optim::optimize_redundancy(robot.model, poses, dt, joints, options);
+  auto result = optim::optimize_redundancy(roll ? core::with_tool_roll(robot.model) : robot.model, poses, dt, joints,
+                                           options);
   observe(budget, "redundancy", started);
   if (!result) return invalid(core::prefixed(std::move(result.error()), "optimize.redundancy."));
   reports.redundancy = result->report;
   const optim::OptimizerStatus status = result->report.status;
   if (status == optim::OptimizerStatus::kFailed || status == optim::OptimizerStatus::kNoImprovement) return std::nullopt;
+  if (roll) {
+    std::vector<core::JointVector> angles(result->q.size(), core::JointVector(1));
+    for (std::size_t k = 0; k < angles.size(); ++k) {
+      angles[k](0) = -result->q[k](n);  // X_WT(q) RotZ(phi) holds the pose: the real tool is turned by -phi
+      result->q[k].conservativeResize(n);
+    }
+    *roll_slot = std::make_shared<const core::JointReference>(std::move(angles), dt);
+    if (n <= 6) return std::nullopt;  // the tracker follows the rolled pose: no self-motion left
+  }
   *slot = std::make_shared<const core::JointReference>(std::move(result->q), dt);
   return std::nullopt;
 }
@@ -676,9 +700,12 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
     if (auto refused = starts_at_robot(*result.trajectory, *request.robot)) return tl::unexpected(std::move(*refused));
     // A straight line to goal joints on a redundant arm ends at them only if its self-motion
     // is chosen for the whole line: by the user's criteria, or the joints' acceleration.
+    // With the tool's roll free, the roll is chosen the same way (and a line to goal joints
+    // ends at them: its roll back to 0).
     const auto* to_joints = std::get_if<LinearMoveToJoints>(&request.geometry);
-    const bool redundant_line = to_joints != nullptr && request.robot->model->dof() > 6;
-    if ((request.optimize && request.optimize->redundancy) || redundant_line) {
+    const bool free_roll = request.robot->tool_axis_free;
+    const bool redundant_line = to_joints != nullptr && (request.robot->model->dof() > 6 || free_roll);
+    if ((request.optimize && request.optimize->redundancy) || redundant_line || free_roll) {
       optim::RedundancyWeights weights;
       weights.acceleration = 1.0;
       if (request.optimize && request.optimize->redundancy) weights = *request.optimize->redundancy;
@@ -695,7 +722,7 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
     // Timed by the limits on the sample-by-sample joints, then given others: where these break
     // a velocity, acceleration or jerk limit, the motion is timed again, slower by what the
     // worst of them needs (and the joints chosen again on the new timing).
-    const bool chosen = (request.optimize && request.optimize->redundancy) || redundant_line;
+    const bool chosen = (request.optimize && request.optimize->redundancy) || redundant_line || free_roll;
     const bool timed_by_limits =
         time_optimally_timed(*request.motion, true, request.optimize && request.optimize->time_optimal,
                              request.optimize && request.optimize->jerk_limited);

@@ -68,6 +68,10 @@ struct Robot {
   core::ValidRobot model;
   core::JointVector seed;          ///< the initial joints, or the model's home [rad, m]
   bool report_only = false;        ///< report broken limits instead of refusing the plan
+  /// RobotSpec.toolAxisFree: the roll about the tool's z axis is chosen with the joints for
+  /// the whole motion (optimize_joints on core::with_tool_roll's arm); the streamed tool keeps
+  /// the planned position and z axis.
+  bool tool_axis_free = false;
   double branch_tolerance = 1e-3;  ///< [m]
   /// How far a path's first tool pose may be from the pose of `seed` [m], [rad].
   double start_position_tolerance = kStartPositionTolerance;

@@ -220,6 +220,16 @@ core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& c
                                                           core::number(far)});
     }
   }
+  if (spec.tool_axis_free && !motion) {
+    out.push_back({"robot.toolAxisFree", "frees the tool's roll along a planned motion; the kinematics calls take the "
+                                         "full pose: drop it"});
+  } else if (spec.tool_axis_free && source &&
+             ((*source)->dof() < 6 || (*source)->dof() >= core::kMaxJoints)) {
+    out.push_back({"robot.toolAxisFree", "needs an arm of 6 to " + std::to_string(core::kMaxJoints - 1) + " joints: " +
+                                             (*source)->name + " has " + std::to_string((*source)->dof()) +
+                                             ((*source)->dof() < 6 ? ", too few to hold the tool's position and axis"
+                                                                   : ", and the roll is one joint more")});
+  }
   core::JointVector seed;
   if (source && (*source)->dof() > 0) seed = initial_joints(spec.initial_joints, model ? *model : source->model(), out);
   // No model and nothing said: an inline model whose wire form was refused, and named there.
@@ -234,6 +244,7 @@ core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& c
   }
   Robot robot(std::move(valid), std::move(seed));
   robot.report_only = spec.report_only;
+  robot.tool_axis_free = spec.tool_axis_free;
   robot.branch_tolerance = branch_tolerance;
   robot.start_position_tolerance = start_position_tolerance;
   robot.start_orientation_tolerance = start_orientation_tolerance;

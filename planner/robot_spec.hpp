@@ -60,6 +60,8 @@ struct RobotSpec {
   std::optional<Eigen::Isometry3d> base;            ///< X_WB over the model's
   std::optional<Eigen::Isometry3d> tool;            ///< X_FT over the model's
   bool report_only = false;
+  /// The tool's roll about its z axis is a free choice (a tool symmetric about its axis).
+  bool tool_axis_free = false;
   std::optional<double> branch_tolerance;           ///< [m]
   std::optional<double> start_position_tolerance;   ///< [m]
   std::optional<double> start_orientation_tolerance;  ///< [rad]

@@ -451,6 +451,11 @@ std::optional<Expected<Request>> with_approach(const Request& request) {
   const double dp = (start.p_WT - X.translation()).norm();
   const double dr = rotation_angle(start.q_WT, Eigen::Quaterniond(X.linear()));
   if (dp <= robot->start_position_tolerance && dr <= robot->start_orientation_tolerance) return std::nullopt;
+  if (robot->tool_axis_free) {
+    return tl::unexpected(invalid(core::Violations{
+        {"robot.toolAxisFree", "frees the tool's roll along a single path; with robot.approach the plan is a sequence "
+                               "(the approach, then the path), where it is not yet: start the path at the robot"}}));
+  }
   Request out = request;
   Step approach;
   approach.name = "robot.approach";

@@ -79,7 +79,7 @@ call AnalyzePath "$here/analyze_demo_path_a.json"
 
 echo "== ListRobots"
 "$buf" curl "${opts[@]}" -d '{}' "$service/ListRobots"
-for request in plan_pa10_path_c plan_pa10_path_b_redundancy plan_panda_path_c joint_move_pa10 linear_move_ur5 sequence_ur5 sequence_blended_ur5; do
+for request in plan_pa10_path_c plan_pa10_path_b_redundancy plan_seam_roll_ur5e plan_panda_path_c joint_move_pa10 linear_move_ur5 sequence_ur5 sequence_blended_ur5; do
   call PlanTrajectory "$here/$request.json"
 done
 call ComputeForwardKinematics "$here/fk_pa10.json"

@@ -22,6 +22,10 @@
 #                             self-motion chosen for the whole path (optimize.redundancy,
 #                             accelerationWeight 1): within every joint limit, where the
 #                             sample-by-sample choice breaks joint 1's acceleration limit
+#   plan_seam_roll_ur5e.json  PlanRequest: a 0.2 m seam on the UR5e whose plan turns the torch
+#                             2.6 rad about its own axis in 1.5 s (beyond wrist 3's speed); with
+#                             robot.toolAxisFree the roll is chosen with the joints and the
+#                             streamed torch keeps its planned position and axis
 #   joint_move_pa10.json      PlanRequest with a jointMove (thesis 6.2.2.1): the PA-10 from its
 #                             home (start absent) to a goal in minimum time (durationS 0: the
 #                             slowest joint sets the time), every joint on one synchronised profile
@@ -78,7 +82,7 @@ call AnalyzePath "$here/analyze_demo_path_a.json"
 
 echo "== ListRobots"
 grpcurl -plaintext -d '{}' "$address" geotraj.v1.TrajectoryService/ListRobots
-for request in plan_pa10_path_c plan_pa10_path_b_redundancy plan_panda_path_c joint_move_pa10 linear_move_ur5 sequence_ur5 sequence_blended_ur5 \
+for request in plan_pa10_path_c plan_pa10_path_b_redundancy plan_seam_roll_ur5e plan_panda_path_c joint_move_pa10 linear_move_ur5 sequence_ur5 sequence_blended_ur5 \
   plan_joint_path_panda; do
   call PlanTrajectory "$here/$request.json"
 done

@@ -183,6 +183,13 @@ bool apply_flags(const OptimizeFlags& flags, v1::PlanRequest& request) {
     }
     request.mutable_robot()->set_approach(flags.approach == "joint" ? v1::APPROACH_MOVE_JOINT : v1::APPROACH_MOVE_LINEAR);
   }
+  if (flags.tool_axis_free) {
+    if (!request.has_robot()) {
+      std::cerr << "geotraj: --tool-axis-free frees a robot's tool roll: the request has no robot (--robot NAME)\n";
+      return false;
+    }
+    request.mutable_robot()->set_tool_axis_free(true);
+  }
   const bool any = !flags.tangent_scales.empty() || !flags.breakpoints.empty() || flags.time_optimal ||
                    flags.jerk_limited || flags.budget_s > 0.0 || flags.length_weight || !flags.redundancy.empty();
   if (!any) return true;  // the request's own `optimize`, if any, stays as it is

@@ -29,6 +29,7 @@ struct OptimizeFlags {
   std::optional<double> velocity_scale;      ///< robot.velocityScale; absent: the request's
   std::optional<double> acceleration_scale;  ///< robot.accelerationScale; absent: the request's
   std::string approach;  ///< robot.approach (joint, linear); empty: the request's
+  bool tool_axis_free = false;  ///< robot.toolAxisFree (set when given; false: the request's)
   /// --waypoints: joint waypoints (waypoints.hpp) as the request's jointPath; empty: none.
   std::string waypoints;
   double blend_tolerance = -1.0;  ///< jointPath.blendTolerance [rad or m]; < 0: the request's

@@ -101,6 +101,9 @@ int main(int argc, char** argv) {
                     "a path that starts away from the robot: joint or linear, a minimum-time move there first "
                     "(robot.approach)")
         ->check(CLI::IsMember({"joint", "linear"}));
+    sub->add_flag("--tool-axis-free", options.optimize.tool_axis_free,
+                  "the tool is symmetric about its z axis: its roll is chosen with the joints for the whole motion "
+                  "(robot.toolAxisFree)");
   };
   auto* convert = app.add_subcommand("convert", "ConvertConstraints: key-frame constraints -> parametric derivatives");
   request_arg(convert, "a ConvertRequest");

@@ -32,7 +32,22 @@ bool PathMotionSource::state_at(double t, CartesianState& x) {
   scratch_ = sampler_;
   scratch_.at(t, sample_);
   x = cartesian_state(*path_, *orientation_, sample_);
+  apply_roll(roll_, x);
   return true;
+}
+
+void roll_about_tool_axis(CartesianState& x, double phi, double phi_dot, double phi_ddot) {
+  const Vector3d z = x.X_WT.linear().col(2);
+  x.X_WT.linear() = x.X_WT.linear() * Eigen::AngleAxisd(phi, Vector3d::UnitZ()).toRotationMatrix();
+  x.alpha_WT += phi_ddot * z + phi_dot * x.omega_WT.cross(z);
+  x.omega_WT += phi_dot * z;
+}
+
+void apply_roll(const JointReference* roll, CartesianState& x) {
+  if (roll == nullptr) return;
+  JointVector phi(1), phi_dot(1), phi_ddot(1);
+  roll->at(x.t, phi, phi_dot, phi_ddot);
+  roll_about_tool_axis(x, phi(0), phi_dot(0), phi_ddot(0));
 }
 
 // ---------------------------------------------------------------------------------------

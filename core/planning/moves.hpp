@@ -187,6 +187,10 @@ struct LinearMovePlan {
   /// With a redundant robot: the joints chosen ahead for the whole line (optim/redundancy),
   /// which the samplers' tracker follows (JointTracker::set_reference); null: sample by sample.
   std::shared_ptr<const JointReference> joints = nullptr;
+  /// With a robot whose tool's roll is free (RobotSpec.toolAxisFree): the roll phi(t) [rad]
+  /// about the tool's z axis chosen ahead, applied to every sample's tool state (trajectory.hpp's
+  /// samplers); null: the orientation as planned.
+  std::shared_ptr<const JointReference> roll = nullptr;
 };
 
 /// Plans the straight-line move from spec.start to spec.goal (thesis 6.2.2.2).

@@ -99,7 +99,7 @@ StepSampler::StepSampler(StepRef step, const RobotModel* robot, const JointVecto
   };
   if (tracker_ && path_sampler_) {
     const PathMotion& m = *std::get<const PathMotion*>(step_);
-    path_between_.emplace(m.path, m.orientation, *path_sampler_);
+    path_between_.emplace(m.path, m.orientation, *path_sampler_, m.roll.get());
     follow(m.joints);
   }
   if (tracker_ && linear_sampler_) follow(std::get<const LinearMovePlan*>(step_)->joints);
@@ -153,6 +153,7 @@ void StepSampler::finish(TrajectorySample& out) {
     const PathMotion& m = *std::get<const PathMotion*>(step_);
     const MotionSample& ms = motion_sample_;
     x = cartesian_state(m.path, m.orientation, ms);
+    apply_roll(m.roll.get(), x);
     out.t = ms.t;
     out.u = ms.u;
     out.s = ms.s;
@@ -168,6 +169,12 @@ void StepSampler::finish(TrajectorySample& out) {
     out.speed = ms.speed;
     x = move_state(ms);
     out.q_WT = ms.q_WT;
+    if (linear_sampler_) {
+      if (const JointReference* roll = std::get<const LinearMovePlan*>(step_)->roll.get()) {
+        apply_roll(roll, x);
+        out.q_WT = Eigen::Quaterniond(x.X_WT.linear());
+      }
+    }
   }
   out.has_joints = false;
   if ((joint_sampler_ || joint_path_sampler_) && move_sample_.has_joints) {
@@ -194,6 +201,7 @@ void StepSampler::finish(TrajectorySample& out) {
       auto between = cartesian_source([&](double t, CartesianState& state) {
         linear_move_at(plan, t, move_between_);
         state = move_state(move_between_);
+        apply_roll(plan.roll.get(), state);
         return true;
       });
       tracker_->follow(x, between, out.joints, kSampleContinuation);

@@ -316,6 +316,28 @@ ValidRobot with_default_jerk(const ValidRobot& robot, double ramp_s) {
   return ValidRobot(std::make_shared<const RobotModel>(with_default_jerk(robot.model(), ramp_s)));
 }
 
+ValidRobot with_tool_roll(const ValidRobot& robot) {
+  GEOTRAJ_CHECK(robot->dof() < kMaxJoints);
+  RobotModel model = robot.model();
+  Joint roll;
+  roll.name = std::string(kToolRollJoint);
+  roll.type = JointType::kContinuous;
+  roll.origin = model.flange * model.tool;
+  roll.axis = Eigen::Vector3d::UnitZ();
+  model.joints.push_back(std::move(roll));
+  JointLimits limits;
+  limits.min_position = -std::numbers::pi;  // not read (continuous)
+  limits.max_position = std::numbers::pi;
+  limits.max_velocity = kMaxJointLimit;
+  limits.max_acceleration = kMaxJointLimit;
+  model.limits.push_back(limits);
+  model.flange = Eigen::Isometry3d::Identity();
+  model.tool = Eigen::Isometry3d::Identity();
+  if (!model.home.empty()) model.home.push_back(0.0);
+  model.dh.reset();
+  return ValidRobot(std::make_shared<const RobotModel>(std::move(model)));
+}
+
 Expected<ValidRobot> ValidRobot::check(RobotModel model) {
   if (Violations v = validate_robot(model); !v.empty()) return tl::make_unexpected(std::move(v));
   return ValidRobot(std::make_shared<const RobotModel>(std::move(model)));

@@ -187,6 +187,7 @@ class ValidRobot {
  private:
   explicit ValidRobot(std::shared_ptr<const RobotModel> model) : model_(std::move(model)) {}
   friend ValidRobot with_default_jerk(const ValidRobot& robot, double ramp_s);
+  friend ValidRobot with_tool_roll(const ValidRobot& robot);
   std::shared_ptr<const RobotModel> model_;
 };
 
@@ -233,5 +234,19 @@ RobotModel with_default_jerk(RobotModel model, double ramp_s = kDefaultJerkRampS
 /// [kMinJointLimit, kMaxJointLimit] for 0 < ramp_s <= 1 (checked). `robot` itself when every
 /// joint has a max_jerk already.
 ValidRobot with_default_jerk(const ValidRobot& robot, double ramp_s = kDefaultJerkRampS);
+
+/// The name of the joint with_tool_roll appends.
+inline constexpr std::string_view kToolRollJoint = "tool roll";
+
+/// `robot` with the roll of its tool about the tool's z axis as one more joint
+/// (RobotSpec.toolAxisFree: a tool symmetric about its axis): a continuous joint about z at
+/// the tool frame, appended after the last (origin flange * tool; the new flange and tool the
+/// identity), so X_WT'(q, phi) = X_WT(q) RotZ(phi): the pose of the augmented arm is the
+/// real arm's tool turned by phi, and a pose it holds is held by the real joints q with the
+/// tool's axis and position and its roll off by phi. Limits of the roll: kMaxJointLimit
+/// (velocity and acceleration; it costs nothing, the real joints carry it), no jerk; home 0.
+/// Valid by construction (one joint more than `robot`, which must have fewer than kMaxJoints:
+/// checked); not a DH table.
+ValidRobot with_tool_roll(const ValidRobot& robot);
 
 }  // namespace geotraj::core

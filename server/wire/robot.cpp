@@ -229,6 +229,7 @@ planner::RobotSpec wire_detail::robot_spec_from_proto(const v1::RobotSpec& spec,
   if (spec.has_base()) s.base = pose(spec.base(), "robot.base");
   if (spec.has_tool()) s.tool = pose(spec.tool(), "robot.tool");
   s.report_only = spec.report_only();
+  s.tool_axis_free = spec.tool_axis_free();
   if (spec.has_branch_tolerance()) s.branch_tolerance = spec.branch_tolerance();
   if (spec.has_start_position_tolerance()) s.start_position_tolerance = spec.start_position_tolerance();
   if (spec.has_start_orientation_tolerance()) s.start_orientation_tolerance = spec.start_orientation_tolerance();

@@ -63,6 +63,22 @@ TEST(Cli, OptimizeRedundancyChoosesThePa10sSelfMotion) {
   EXPECT_NE(bad.out.find("unknown criterion \"speed\""), std::string::npos) << bad.out;
 }
 
+// --tool-axis-free: the UR5e's weld seam with the torch's roll chosen with the joints (the
+// redundancy optimiser's report comes with the plan); without a robot, refused by the CLI.
+TEST(Cli, ToolAxisFreeChoosesTheTorchsRoll) {
+  const CliRun run = run_cli("plan --json --tool-axis-free " + example_path("plan_seam_ur5e.json"));
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto response = from_json<v1::PlanResponse>(run.out);
+  EXPECT_TRUE(response.robot().feasible());
+  const auto& report = response.optimization().redundancy();
+  EXPECT_NE(report.status(), v1::OPTIMIZER_STATUS_UNSPECIFIED);
+  EXPECT_NE(report.status(), v1::OPTIMIZER_STATUS_FAILED) << report.message();
+  const CliRun bad = run_cli("plan --tool-axis-free " + example_path("plan_demo_path_a.json"), true);
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.out.find("--tool-axis-free frees a robot's tool roll: the request has no robot"), std::string::npos)
+      << bad.out;
+}
+
 TEST(Cli, ConvertReadsStdin) {
   const CliRun run = run_cli("convert - < " + example_path("convert_table_5_10.json"));
   ASSERT_EQ(run.exit_code, 0) << run.out;

@@ -7,7 +7,7 @@ Cases: every request file under --requests (client/grpcurl/*.json) that parses a
 PlanRequest and has a motion, in two modes: "fixed" (a durationS: the file's own, or
 FIXED_DURATION_S's where the file has durationS 0) and "fastest" (durationS 0, as fast as
 the limits allow; only where a robot is given). Beside the files, the move kinds they do
-not hold, built as test_python_moves.py builds them. Today's list (33 cases):
+not hold, built as test_python_moves.py builds them. Today's list (35 cases):
   analyze_demo_path_a.json, plan_demo_path_a/b/c.json   path, no robot    fixed 10 s
   plan_pa10_path_c.json (reportOnly)                     path, PA-10       fixed 10 s, fastest
   plan_pa10_path_c.json, durationS 20                    path, PA-10       fixed 20 s (the file's
@@ -17,6 +17,8 @@ not hold, built as test_python_moves.py builds them. Today's list (33 cases):
   plan_helix.json                                        path of pieces, no robot   fixed 8 s
   plan_seam_ur5e.json                                    path of pieces with transitions, UR5e
                                                                            fixed 3 s, fastest
+  plan_seam_roll_ur5e.json                               path, UR5e, robot.toolAxisFree
+                                                                           fixed 1.5 s, fastest
   plan_panda_path_c.json                                 path + robot.approach joint, Panda
                                                                            fixed 8 s, fastest
   plan_panda_path_c.json, robot.approach linear          path + approach linear     fixed 8 s, fastest

@@ -107,5 +107,65 @@ TEST(JointReference, ATrackerFollowsTheJointsChosenAhead) {
   EXPECT_GT(apart, 0.05);
 }
 
+// The tool turned about its own axis (robot.toolAxisFree): the angular velocity and
+// acceleration roll_about_tool_axis gives are the derivatives of the orientation it gives
+// (central differences), the axis and the translational state untouched.
+TEST(ToolRoll, TheTurnedStateIsItsOwnDerivative) {
+  const Eigen::Vector3d a = Eigen::Vector3d(0.3, -0.5, 0.8).normalized();  // the planned turn's axis in W
+  const auto planned = [&](double t) {  // R(t) = RotZ0 RotA(theta(t)): omega = theta_dot a, alpha = theta_ddot a
+    CartesianState x;
+    x.t = t;
+    const double theta = 0.7 * t + 0.4 * t * t;
+    x.X_WT.linear() = Eigen::AngleAxisd(theta, a).toRotationMatrix() * Eigen::AngleAxisd(0.9, Eigen::Vector3d::UnitX());
+    x.X_WT.translation() = Eigen::Vector3d(0.1, 0.2, 0.3 * t);
+    x.v_WT = Eigen::Vector3d(0.0, 0.0, 0.3);
+    x.omega_WT = (0.7 + 0.8 * t) * a;
+    x.alpha_WT = 0.8 * a;
+    return x;
+  };
+  const auto turned = [&](double t) {
+    CartesianState x = planned(t);
+    roll_about_tool_axis(x, std::sin(2.0 * t), 2.0 * std::cos(2.0 * t), -4.0 * std::sin(2.0 * t));
+    return x;
+  };
+  const auto vee = [](const Eigen::Matrix3d& S) { return Eigen::Vector3d(S(2, 1), S(0, 2), S(1, 0)); };
+  const double h = 1e-5;
+  for (const double t : {0.0, 0.3, 1.1, 2.5}) {
+    const CartesianState x = turned(t), p = planned(t);
+    EXPECT_LT((x.X_WT.linear().col(2) - p.X_WT.linear().col(2)).norm(), 1e-15) << "the axis as planned";
+    EXPECT_EQ(x.X_WT.translation(), p.X_WT.translation());
+    EXPECT_EQ(x.v_WT, p.v_WT);
+    const Eigen::Matrix3d R_dot = (turned(t + h).X_WT.linear() - turned(t - h).X_WT.linear()) / (2.0 * h);
+    EXPECT_LT((vee(R_dot * x.X_WT.linear().transpose()) - x.omega_WT).norm(), 1e-8) << t;
+    EXPECT_LT(((turned(t + h).omega_WT - turned(t - h).omega_WT) / (2.0 * h) - x.alpha_WT).norm(), 1e-8) << t;
+    const Eigen::AngleAxisd roll(p.X_WT.linear().transpose() * x.X_WT.linear());
+    EXPECT_NEAR(roll.angle() * roll.axis().z(), std::sin(2.0 * t), 1e-12) << "R' = R RotZ(phi)";
+  }
+}
+
+// The arm with its tool's roll as one joint more: its pose is the real arm's turned by the
+// roll about the tool's z axis, on every built-in arm and random joints.
+TEST(ToolRoll, TheArmWithTheRollIsTheArmTurnedAboutItsToolAxis) {
+  for (const RobotModel& builtin : builtin_robots()) {
+    SCOPED_TRACE(builtin.name);
+    RobotModel model = builtin;
+    model.tool = Eigen::Translation3d(0.01, -0.02, 0.15) * Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY());
+    const ValidRobot tooled = *ValidRobot::check(model);
+    const ValidRobot rolled = with_tool_roll(tooled);
+    ASSERT_EQ(rolled->dof(), model.dof() + 1);
+    EXPECT_EQ(rolled->joints.back().name, kToolRollJoint);
+    EXPECT_TRUE(validate_robot(rolled).empty());
+    for (int trial = 0; trial < 5; ++trial) {
+      const JointVector q = JointVector::Random(static_cast<Eigen::Index>(model.dof()));
+      const double phi = 3.0 * Eigen::Matrix<double, 1, 1>::Random()(0);
+      JointVector q_rolled(q.size() + 1);
+      q_rolled << q, phi;
+      const Eigen::Isometry3d expected = forward_kinematics(tooled, q) * Eigen::AngleAxisd(phi, Eigen::Vector3d::UnitZ());
+      const Eigen::Isometry3d X = forward_kinematics(rolled, q_rolled);
+      EXPECT_LT((X.matrix() - expected.matrix()).norm(), 1e-12);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace geotraj::core

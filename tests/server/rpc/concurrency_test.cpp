@@ -196,6 +196,11 @@ class Concurrency : public ::testing::Test {
         status = stub.PlanTrajectory(ctx.get(), request, &plan);
         break;
       }
+      case 21: {  // the UR5e's seam with the torch's roll chosen with the joints (Ceres), streamed
+        std::size_t samples = 0;
+        status = read_stream(stub, example<v1::PlanRequest>("plan_seam_roll_ur5e.json"), samples, *ctx);
+        break;
+      }
       default: {  // a health watch, read until cancelled or its deadline
         auto health_stub = grpc::health::v1::Health::NewStub(channel_for(stub));
         grpc::health::v1::HealthCheckRequest request;
@@ -241,7 +246,7 @@ class Concurrency : public ::testing::Test {
   server::RunningServer running_;
 };
 
-constexpr int kKinds = 22;
+constexpr int kKinds = 23;
 
 TEST_F(Concurrency, EveryRpcManyAtOnceSomeCancelledMidway) {
   constexpr int kClients = 6;

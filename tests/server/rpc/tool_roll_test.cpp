@@ -1,0 +1,201 @@
+// robot.toolAxisFree through the real service: a seam whose plan turns the torch 2.6 rad
+// about its own axis in 1.5 s (ORIENTATION_MODE_CUSTOM, eased) while it moves 0.2 m, on the
+// UR5e (6 joints) and the Panda (7). As planned the wrist cannot follow (refused); with the
+// roll free the plan is accepted, and the streamed joints, by an independent forward
+// kinematics, hold the planned position and tool axis at every sample while their
+// differences at 1 kHz stay within every limit. A line to goal joints with the roll free
+// ends at them; bad requests name the field.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+
+#include "tests/server/support/dh_reference.hpp"
+#include "tests/server/support/test_server.hpp"
+
+namespace geotraj::testing {
+namespace {
+
+using ::testing::HasSubstr;
+
+class ToolRollTest : public ServerTest {};
+
+constexpr double kPlannedRoll = 2.6;  // [rad] about the tool's z axis
+constexpr double kSeamLength = 0.2;   // [m] along W's y
+
+void set(v1::Vec3* out, const Eigen::Vector3d& v) {
+  out->set_x(v.x());
+  out->set_y(v.y());
+  out->set_z(v.z());
+}
+
+// The seam from the tool's pose at the robot's home, the torch turning about its axis.
+v1::PlanRequest seam(const v1::RobotModel& model, bool free) {
+  const std::string& robot = model.name();
+  const Eigen::Isometry3d X0 = forward_kinematics(model, model.home());
+  const Eigen::Quaterniond q1(X0.linear() * Eigen::AngleAxisd(kPlannedRoll, Eigen::Vector3d::UnitZ()).toRotationMatrix());
+  v1::PlanRequest request;
+  auto* f0 = request.mutable_path()->add_frames();
+  set(f0->mutable_position(), X0.translation());
+  set(f0->mutable_tangent(), Eigen::Vector3d::UnitY());
+  f0->set_orientation_mode(v1::ORIENTATION_MODE_CUSTOM);
+  f0->mutable_orientation()->set_w(q1.w());
+  f0->mutable_orientation()->set_x(q1.x());
+  f0->mutable_orientation()->set_y(q1.y());
+  f0->mutable_orientation()->set_z(q1.z());
+  f0->set_ease_orientation(true);
+  auto* f1 = request.mutable_path()->add_frames();
+  set(f1->mutable_position(), X0.translation() + kSeamLength * Eigen::Vector3d::UnitY());
+  set(f1->mutable_tangent(), Eigen::Vector3d::UnitY());
+  request.mutable_robot()->set_name(robot);
+  request.mutable_robot()->set_tool_axis_free(free);
+  request.mutable_motion()->set_duration_s(1.5);
+  request.mutable_motion()->set_profile(v1::MOTION_PROFILE_S_CURVE);
+  request.mutable_motion()->set_cycle_rate_hz(1000.0);
+  return request;
+}
+
+// The largest usage of the streamed joints' limits by differences: velocity, acceleration.
+std::pair<double, double> streamed_usage(const std::vector<v1::Sample>& samples, const v1::RobotModel& model) {
+  double velocity = 0.0, acceleration = 0.0;
+  for (std::size_t k = 0; k + 1 < samples.size(); ++k) {
+    const double h1 = samples[k + 1].t() - samples[k].t();
+    for (int j = 0; j < samples[k].joints_size(); ++j) {
+      const double v1 = (samples[k + 1].joints(j) - samples[k].joints(j)) / h1;
+      velocity = std::max(velocity, std::abs(v1) / model.limits(j).max_velocity());
+      if (k == 0) continue;
+      const double h0 = samples[k].t() - samples[k - 1].t();
+      const double v0 = (samples[k].joints(j) - samples[k - 1].joints(j)) / h0;
+      acceleration = std::max(acceleration, std::abs(2.0 * (v1 - v0) / (h0 + h1)) / model.limits(j).max_acceleration());
+    }
+  }
+  return {velocity, acceleration};
+}
+
+TEST_F(ToolRollTest, ASeamsTorchRollIsChosenAndItsAxisKept) {
+  for (const char* name : {"ur5e", "panda"}) {
+    SCOPED_TRACE(name);
+    const auto model = robot_model(name);
+    const Eigen::Isometry3d X0 = forward_kinematics(model, model.home());
+    const Eigen::Vector3d axis = X0.linear().col(2);
+
+    v1::PlanResponse fixed, free;
+    EXPECT_EQ(plan(seam(model, false), fixed).error_code(), grpc::StatusCode::FAILED_PRECONDITION)
+        << "the planned roll is beyond the wrist";
+    auto reported = seam(model, false);
+    reported.mutable_robot()->set_report_only(true);
+    fixed = plan_ok(reported);
+    double fixed_velocity = 0.0, fixed_acceleration = 0.0;
+    for (const auto& j : fixed.robot().joints()) {
+      fixed_velocity = std::max(fixed_velocity, j.velocity_usage());
+      fixed_acceleration = std::max(fixed_acceleration, j.acceleration_usage());
+    }
+    std::printf("[ measured ] %s seam, roll as planned: peak joint usage velocity %.3f, acceleration %.3f (robot "
+                "report)\n", name, fixed_velocity, fixed_acceleration);
+    EXPECT_GT(std::max(fixed_velocity, fixed_acceleration), 1.0);
+    const auto status = plan(seam(model, true), free);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    EXPECT_TRUE(free.robot().feasible());
+    const auto& report = free.optimization().redundancy();
+    EXPECT_EQ(report.status(), v1::OPTIMIZER_STATUS_CONVERGED) << report.message();
+    EXPECT_LT(report.objective_after(), 0.1 * report.objective_before());
+
+    grpc::Status stream_status;
+    const auto samples = stream_all(seam(model, true), stream_status);
+    ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+    ASSERT_EQ(samples.size(), 1501u);
+    double position = 0.0, tilt = 0.0, orientation = 0.0, off_seam = 0.0, turned = 0.0;
+    for (const auto& sample : samples) {
+      const Eigen::Isometry3d X = forward_kinematics(model, sample.joints());
+      position = std::max(position, (X.translation() - vec(sample.position())).norm());
+      orientation = std::max(orientation, quat(sample.orientation()).angularDistance(Eigen::Quaterniond(X.linear())));
+      const Eigen::Vector3d z = X.linear().col(2);  // the angle to the axis by its sine (acos loses 1e-8 near 0)
+      tilt = std::max(tilt, z.dot(axis) > 0.0 ? z.cross(axis).norm() : 1.0);
+      const Eigen::Vector3d d = X.translation() - X0.translation();
+      off_seam = std::max(off_seam, (d - d.y() * Eigen::Vector3d::UnitY()).norm());
+      // The tool's turn about its axis from the start's: the angle of X0^T X about z.
+      const Eigen::Matrix3d R = X0.linear().transpose() * X.linear();
+      turned = std::max(turned, std::abs(std::atan2(R(1, 0), R(0, 0))));
+    }
+    const auto [velocity, acceleration] = streamed_usage(samples, model);
+    std::printf("[ measured ] %s seam, roll free: objective %.4g -> %.4g (%d iterations, %.3f s); tool from FK of the "
+                "streamed joints: %.1e m off the samples, %.1e m off the seam, axis within %.1e rad; turned at most "
+                "%.3f rad about it (planned %.1f); joints by differences at 1 kHz: velocity %.3f, acceleration %.3f\n",
+                name, report.objective_before(), report.objective_after(), report.iterations(), report.seconds(),
+                position, off_seam, tilt, turned, kPlannedRoll, velocity, acceleration);
+    EXPECT_LT(position, 1e-9);
+    EXPECT_LT(off_seam, 1e-9);
+    EXPECT_LT(tilt, 1e-9) << "the tool's axis as planned";
+    EXPECT_LT(orientation, 1e-8) << "Sample.orientation is the pose the joints reach";
+    EXPECT_LT(turned, 0.5 * kPlannedRoll) << "the roll is spent where the joints need it, not as planned";
+    EXPECT_LE(velocity, 1.0);
+    EXPECT_LE(acceleration, 1.02);
+    // The first sample is the robot where it stands.
+    for (int j = 0; j < samples.front().joints_size(); ++j) EXPECT_NEAR(samples.front().joints(j), model.home(j), 1e-12);
+  }
+}
+
+// A straight line to goal joints with the roll free ends at them (the roll back to 0 there).
+TEST_F(ToolRollTest, ALineToGoalJointsEndsAtThem) {
+  const auto model = robot_model("ur5e");
+  std::vector<double> goal(model.home().begin(), model.home().end());
+  const double offsets[6] = {0.3, -0.2, 0.25, 0.2, -0.25, 0.4};
+  for (std::size_t j = 0; j < 6; ++j) goal[j] += offsets[j];
+  v1::PlanRequest request;
+  for (const double q : goal) request.mutable_linear_move()->add_goal_joints(q);
+  request.mutable_robot()->set_name("ur5e");
+  request.mutable_robot()->set_tool_axis_free(true);
+  request.mutable_motion()->set_duration_s(3.0);
+  request.mutable_motion()->set_cycle_rate_hz(1000.0);
+  request.mutable_motion()->set_profile(v1::MOTION_PROFILE_S_CURVE);
+  grpc::Status status;
+  const auto samples = stream_all(request, status);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  double worst = 0.0;
+  for (std::size_t j = 0; j < 6; ++j) worst = std::max(worst, std::abs(samples.back().joints(static_cast<int>(j)) - goal[j]));
+  EXPECT_LT(worst, 1e-9);
+  const auto [velocity, acceleration] = streamed_usage(samples, model);
+  EXPECT_LE(velocity, 1.0);
+  EXPECT_LE(acceleration, 1.02);
+  v1::PlanResponse response;
+  ASSERT_TRUE(plan(request, response).ok());
+  EXPECT_NE(response.optimization().redundancy().status(), v1::OPTIMIZER_STATUS_FAILED)
+      << response.optimization().redundancy().message();
+}
+
+TEST_F(ToolRollTest, BadRequestsNameTheField) {
+  auto described = [&](const v1::PlanRequest& request) {
+    v1::PlanResponse response;
+    const auto status = plan(request, response);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    return describe(bad_request_violations(status));
+  };
+  v1::PlanRequest joint_move;
+  joint_move.mutable_robot()->set_name("ur5e");
+  joint_move.mutable_robot()->set_tool_axis_free(true);
+  for (int j = 0; j < 6; ++j) joint_move.mutable_joint_move()->add_goal(0.1 * j);
+  joint_move.mutable_motion()->set_duration_s(1.0);
+  EXPECT_THAT(described(joint_move), HasSubstr("robot.toolAxisFree: frees the tool's roll along a Cartesian path or "
+                                               "line; a jointMove gives the joints"));
+  auto sequence = seam(robot_model("ur5e"), true);
+  *sequence.add_sequence()->mutable_path() = sequence.path();
+  sequence.clear_path();
+  EXPECT_THAT(described(sequence), HasSubstr("robot.toolAxisFree: frees the tool's roll along a single path or line; "
+                                             "not yet in a sequence"));
+
+  v1::ForwardKinematicsRequest fk;
+  fk.mutable_robot()->set_name("ur5e");
+  fk.mutable_robot()->set_tool_axis_free(true);
+  for (int j = 0; j < 6; ++j) fk.add_joints(0.0);
+  v1::ForwardKinematicsResponse fk_response;
+  const auto status = stub_->ComputeForwardKinematics(context().get(), fk, &fk_response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(describe(bad_request_violations(status)), HasSubstr("robot.toolAxisFree: frees the tool's roll along a "
+                                                                  "planned motion"));
+}
+
+}  // namespace
+}  // namespace geotraj::testing

@@ -246,11 +246,6 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
                               "`jointPath`"
                             : "give exactly one of `path`, `jointMove`, `linearMove` and `jointPath`"}});
   }
-  if (robot && robot->tool_axis_free && (geometry.joint_move || geometry.joint_path)) {
-    violations.push_back({"robot.toolAxisFree", std::string("frees the tool's roll along a Cartesian path or line; a ") +
-                                                    (geometry.joint_move ? "jointMove" : "jointPath") +
-                                                    " gives the joints, and the tool turns as they take it: drop it"});
-  }
   if (optimize && geometry.joint_move) {
     violations.push_back({"optimize", "applies to a `path` or a linearMove's timing: a jointMove is timed by its "
                                       "slowest joint already"});
@@ -376,6 +371,11 @@ core::Expected<Request> admit_single(const RequestInput& input, const RobotCatal
     } else {
       violations = std::move(r.error());
     }
+  }
+  if (robot && robot->tool_axis_free && (input.geometry.joint_move || input.geometry.joint_path)) {
+    violations.push_back({"robot.toolAxisFree", std::string("frees the tool's roll along a Cartesian path or line; a ") +
+                                                    (input.geometry.joint_move ? "jointMove" : "jointPath") +
+                                                    " gives the joints, and the tool turns as they take it: drop it"});
   }
   auto out = admit_motion(input.geometry, *input.motion, input.robot ? &*input.robot : nullptr, std::move(robot),
                           input.optimize, false);
@@ -503,11 +503,18 @@ core::Expected<Request> admit_sequence(const RequestInput& input, const RobotCat
     out.sequence.push_back(Step{std::move(admitted->geometry), *admitted->motion, step.motion.has_value(), own_fields,
                                 start_given, step.blend_tolerance.value_or(0.0), {}});
   }
-  if (input.optimize && input.optimize->values.redundancy)
-    violations.push_back({"optimize.redundancy", "chooses the joints along a single path; not yet in a sequence"});
-  if (robot && robot->tool_axis_free)
-    violations.push_back({"robot.toolAxisFree", "frees the tool's roll along a single path or line; not yet in a "
-                                                "sequence"});
+  // optimize.redundancy and robot.toolAxisFree choose the joints along each path and line of
+  // the sequence (its joint moves and joint paths give theirs).
+  if (input.optimize && input.optimize->values.redundancy) {
+    append(violations, redundancy_violations(*input.optimize->values.redundancy, GeometryInput{}, robot.get()));
+    if (!any_path && !any_line)
+      violations.push_back({"optimize.redundancy", "chooses the joints along the paths and lines of a sequence, and "
+                                                   "this one has none"});
+    if (out.optimize) out.optimize->redundancy = input.optimize->values.redundancy;
+  }
+  if (robot && robot->tool_axis_free && !any_path && !any_line)
+    violations.push_back({"robot.toolAxisFree", "frees the tool's roll along the paths and lines of a sequence, and "
+                                                "this one has none"});
   // optimize.timing times the paths, lines and joint paths (a blended chain of lines
   // included); the shape optimisers need a path.
   if (input.optimize && !any_path && !any_line && !any_joint_path) {

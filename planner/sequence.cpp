@@ -329,14 +329,20 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
     if (i == 0 && robot) {
       if (auto refused = starts_at_robot(*trajectory, *robot)) return tl::unexpected(std::move(*refused));
     }
-    // A straight line to goal joints on a redundant arm ends at them only with its self-motion
-    // chosen for the whole line (as a request of its own: plan_request).
-    if (const auto* to_joints = std::get_if<LinearMoveToJoints>(&sub.geometry);
-        to_joints != nullptr && last == i && robot && robot->model->dof() > 6) {
+    // A path or a line has its joints chosen for the whole step, as a request of its own
+    // (plan_request): asked (optimize.redundancy), with the tool's roll free, or a straight
+    // line to goal joints on a redundant arm, which ends at them only so. Each step starts
+    // where the one before ended (its seed, and its orientation: a roll chosen there is kept).
+    const auto* to_joints = std::get_if<LinearMoveToJoints>(&sub.geometry);
+    const bool along_tool = path || to_joints != nullptr || std::holds_alternative<core::LinearMoveSpec>(sub.geometry);
+    const bool asked = request.optimize && request.optimize->redundancy;
+    const bool held = to_joints != nullptr && robot && (robot->model->dof() > 6 || robot->tool_axis_free);
+    if (along_tool && robot && (asked || held || robot->tool_axis_free)) {
       optim::RedundancyWeights weights;
       weights.acceleration = 1.0;
-      if (auto refused = optimize_joints(*trajectory, *sub.robot, weights, &to_joints->goal, budget, deadline,
-                                         report.optimizers))
+      if (asked) weights = *request.optimize->redundancy;
+      if (auto refused = optimize_joints(*trajectory, *sub.robot, weights, held ? &to_joints->goal : nullptr, budget,
+                                         deadline, report.optimizers))
         return tl::unexpected(in_step(std::move(*refused), i, step));
       if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
     }
@@ -451,11 +457,6 @@ std::optional<Expected<Request>> with_approach(const Request& request) {
   const double dp = (start.p_WT - X.translation()).norm();
   const double dr = rotation_angle(start.q_WT, Eigen::Quaterniond(X.linear()));
   if (dp <= robot->start_position_tolerance && dr <= robot->start_orientation_tolerance) return std::nullopt;
-  if (robot->tool_axis_free) {
-    return tl::unexpected(invalid(core::Violations{
-        {"robot.toolAxisFree", "frees the tool's roll along a single path; with robot.approach the plan is a sequence "
-                               "(the approach, then the path), where it is not yet: start the path at the robot"}}));
-  }
   Request out = request;
   Step approach;
   approach.name = "robot.approach";

@@ -230,6 +230,48 @@ TEST_F(RedundancyTest, LinesToGoalJointsInASequenceEndAtThem) {
         << step.optimization().redundancy().message();
 }
 
+// optimize.redundancy in a sequence: path A on the PA-10 in its 10 s, then a straight line
+// back to the home pose in 3 s, each step's self-motion chosen for it: accepted without
+// reportOnly (path A alone, sample by sample, is refused), within the limits as streamed.
+TEST_F(RedundancyTest, EveryPathAndLineOfASequenceHasItsJointsChosen) {
+  const auto model = robot_model("pa10");
+  auto request = pa10_demo('a', 100.0, true);
+  request.mutable_robot()->set_report_only(false);
+  *request.add_sequence()->mutable_path() = request.path();
+  request.clear_path();
+  auto* back = request.add_sequence();
+  const Eigen::Isometry3d home = forward_kinematics(model, model.home());
+  const Eigen::Quaterniond q(home.linear());
+  auto* goal = back->mutable_linear_move()->mutable_goal();
+  goal->mutable_position()->set_x(home.translation().x());
+  goal->mutable_position()->set_y(home.translation().y());
+  goal->mutable_position()->set_z(home.translation().z());
+  goal->mutable_orientation()->set_w(q.w());
+  goal->mutable_orientation()->set_x(q.x());
+  goal->mutable_orientation()->set_y(q.y());
+  goal->mutable_orientation()->set_z(q.z());
+  back->mutable_motion()->set_duration_s(3.0);
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_EQ(response.steps_size(), 2);
+  for (const auto& step : response.steps()) {
+    const auto& report = step.optimization().redundancy();
+    EXPECT_NE(report.status(), v1::OPTIMIZER_STATUS_UNSPECIFIED);
+    EXPECT_NE(report.status(), v1::OPTIMIZER_STATUS_FAILED) << report.message();
+  }
+  EXPECT_TRUE(response.robot().feasible());
+  grpc::Status stream_status;
+  const auto samples = stream_all(request, stream_status);
+  ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+  const double acceleration = streamed_acceleration_usage(samples, model);
+  std::printf("[ measured ] PA-10, path A then a line home, self-motion chosen per step: streamed at 100 Hz, "
+              "acceleration %.4f, velocity %.4f of the limits\n", acceleration, streamed_velocity_usage(samples, model));
+  EXPECT_LE(acceleration, 1.0);
+  EXPECT_LE(streamed_velocity_usage(samples, model), 1.0);
+  EXPECT_LT((forward_kinematics(model, samples.back().joints()).translation() - home.translation()).norm(), 1e-9);
+}
+
 TEST_F(RedundancyTest, BadRequestsNameTheirField) {
   auto field_of = [&](const v1::PlanRequest& request) {
     v1::PlanResponse response;

@@ -4,7 +4,7 @@
 // roll free the plan is accepted, and the streamed joints, by an independent forward
 // kinematics, hold the planned position and tool axis at every sample while their
 // differences at 1 kHz stay within every limit. A line to goal joints with the roll free
-// ends at them; bad requests name the field.
+// ends at them; in a sequence every path and line has its own; bad requests name the field.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -166,6 +166,51 @@ TEST_F(ToolRollTest, ALineToGoalJointsEndsAtThem) {
       << response.optimization().redundancy().message();
 }
 
+// The seam as the first step of a sequence and a straight line back to its start as the
+// second: each step's roll chosen for it, the line starting where the seam's roll left the
+// tool; the tool's axis kept and the joints within their limits across the junction.
+TEST_F(ToolRollTest, EveryStepOfASequenceHasItsRollChosen) {
+  const auto model = robot_model("ur5e");
+  const Eigen::Isometry3d X0 = forward_kinematics(model, model.home());
+  const Eigen::Vector3d axis = X0.linear().col(2);
+  auto request = seam(model, true);
+  *request.add_sequence()->mutable_path() = request.path();
+  request.clear_path();
+  auto* back = request.add_sequence()->mutable_linear_move()->mutable_goal();
+  set(back->mutable_position(), X0.translation());
+  const Eigen::Quaterniond q0(X0.linear());
+  back->mutable_orientation()->set_w(q0.w());
+  back->mutable_orientation()->set_x(q0.x());
+  back->mutable_orientation()->set_y(q0.y());
+  back->mutable_orientation()->set_z(q0.z());
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  ASSERT_EQ(response.steps_size(), 2);
+  for (const auto& step : response.steps())
+    EXPECT_EQ(step.optimization().redundancy().status(), v1::OPTIMIZER_STATUS_CONVERGED)
+        << step.optimization().redundancy().message();
+  grpc::Status stream_status;
+  const auto samples = stream_all(request, stream_status);
+  ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+  ASSERT_EQ(samples.size(), 3001u);
+  double position = 0.0, tilt = 0.0;
+  for (const auto& sample : samples) {
+    const Eigen::Isometry3d X = forward_kinematics(model, sample.joints());
+    position = std::max(position, (X.translation() - vec(sample.position())).norm());
+    const Eigen::Vector3d z = X.linear().col(2);
+    tilt = std::max(tilt, z.dot(axis) > 0.0 ? z.cross(axis).norm() : 1.0);
+  }
+  EXPECT_LT(position, 1e-9);
+  EXPECT_LT(tilt, 1e-9);
+  EXPECT_LT((vec(samples.back().position()) - X0.translation()).norm(), 1e-9) << "back at the start";
+  const auto [velocity, acceleration] = streamed_usage(samples, model);
+  std::printf("[ measured ] ur5e seam and line back, roll free: joints by differences at 1 kHz: velocity %.3f, "
+              "acceleration %.3f\n", velocity, acceleration);
+  EXPECT_LE(velocity, 1.0);
+  EXPECT_LE(acceleration, 1.02);
+}
+
 TEST_F(ToolRollTest, BadRequestsNameTheField) {
   auto described = [&](const v1::PlanRequest& request) {
     v1::PlanResponse response;
@@ -180,11 +225,11 @@ TEST_F(ToolRollTest, BadRequestsNameTheField) {
   joint_move.mutable_motion()->set_duration_s(1.0);
   EXPECT_THAT(described(joint_move), HasSubstr("robot.toolAxisFree: frees the tool's roll along a Cartesian path or "
                                                "line; a jointMove gives the joints"));
-  auto sequence = seam(robot_model("ur5e"), true);
-  *sequence.add_sequence()->mutable_path() = sequence.path();
-  sequence.clear_path();
-  EXPECT_THAT(described(sequence), HasSubstr("robot.toolAxisFree: frees the tool's roll along a single path or line; "
-                                             "not yet in a sequence"));
+  auto sequence = joint_move;
+  *sequence.add_sequence()->mutable_joint_move() = joint_move.joint_move();
+  sequence.clear_joint_move();
+  EXPECT_THAT(described(sequence), HasSubstr("robot.toolAxisFree: frees the tool's roll along the paths and lines of a "
+                                             "sequence, and this one has none"));
 
   v1::ForwardKinematicsRequest fk;
   fk.mutable_robot()->set_name("ur5e");

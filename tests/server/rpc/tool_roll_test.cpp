@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -32,15 +34,19 @@ void set(v1::Vec3* out, const Eigen::Vector3d& v) {
   out->set_z(v.z());
 }
 
-// The seam from the tool's pose at the robot's home, the torch turning about its axis.
-v1::PlanRequest seam(const v1::RobotModel& model, bool free) {
+// A seam from the tool's pose at `start` (the robot's home when empty), `length` [m] along
+// `direction`, the torch turning `roll` [rad] about its axis, in `duration` [s].
+v1::PlanRequest seam(const v1::RobotModel& model, bool free, std::vector<double> start = {},
+                     const Eigen::Vector3d& direction = Eigen::Vector3d::UnitY(), double length = kSeamLength,
+                     double roll = kPlannedRoll, double duration = 1.5) {
   const std::string& robot = model.name();
-  const Eigen::Isometry3d X0 = forward_kinematics(model, model.home());
-  const Eigen::Quaterniond q1(X0.linear() * Eigen::AngleAxisd(kPlannedRoll, Eigen::Vector3d::UnitZ()).toRotationMatrix());
+  if (start.empty()) start.assign(model.home().begin(), model.home().end());
+  const Eigen::Isometry3d X0 = forward_kinematics(model, start);
+  const Eigen::Quaterniond q1(X0.linear() * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ()).toRotationMatrix());
   v1::PlanRequest request;
   auto* f0 = request.mutable_path()->add_frames();
   set(f0->mutable_position(), X0.translation());
-  set(f0->mutable_tangent(), Eigen::Vector3d::UnitY());
+  set(f0->mutable_tangent(), direction);
   f0->set_orientation_mode(v1::ORIENTATION_MODE_CUSTOM);
   f0->mutable_orientation()->set_w(q1.w());
   f0->mutable_orientation()->set_x(q1.x());
@@ -48,11 +54,12 @@ v1::PlanRequest seam(const v1::RobotModel& model, bool free) {
   f0->mutable_orientation()->set_z(q1.z());
   f0->set_ease_orientation(true);
   auto* f1 = request.mutable_path()->add_frames();
-  set(f1->mutable_position(), X0.translation() + kSeamLength * Eigen::Vector3d::UnitY());
-  set(f1->mutable_tangent(), Eigen::Vector3d::UnitY());
+  set(f1->mutable_position(), X0.translation() + length * direction);
+  set(f1->mutable_tangent(), direction);
   request.mutable_robot()->set_name(robot);
   request.mutable_robot()->set_tool_axis_free(free);
-  request.mutable_motion()->set_duration_s(1.5);
+  for (const double q : start) request.mutable_robot()->add_initial_joints(q);
+  request.mutable_motion()->set_duration_s(duration);
   request.mutable_motion()->set_profile(v1::MOTION_PROFILE_S_CURVE);
   request.mutable_motion()->set_cycle_rate_hz(1000.0);
   return request;
@@ -73,6 +80,25 @@ std::pair<double, double> streamed_usage(const std::vector<v1::Sample>& samples,
     }
   }
   return {velocity, acceleration};
+}
+
+// How far the tool of the streamed joints (an independent forward kinematics) is from the
+// samples' positions [m] and from the planned axis (the sine of the angle: acos loses 1e-8
+// near 0; 1 for an axis turned beyond 90 degrees).
+struct ToolOffPlan {
+  double position = 0.0;
+  double tilt = 0.0;
+};
+ToolOffPlan tool_off_plan(const std::vector<v1::Sample>& samples, const v1::RobotModel& model,
+                          const Eigen::Vector3d& axis) {
+  ToolOffPlan off;
+  for (const auto& sample : samples) {
+    const Eigen::Isometry3d X = forward_kinematics(model, sample.joints());
+    off.position = std::max(off.position, (X.translation() - vec(sample.position())).norm());
+    const Eigen::Vector3d z = X.linear().col(2);
+    off.tilt = std::max(off.tilt, z.dot(axis) > 0.0 ? z.cross(axis).norm() : 1.0);
+  }
+  return off;
 }
 
 TEST_F(ToolRollTest, ASeamsTorchRollIsChosenAndItsAxisKept) {
@@ -107,13 +133,11 @@ TEST_F(ToolRollTest, ASeamsTorchRollIsChosenAndItsAxisKept) {
     const auto samples = stream_all(seam(model, true), stream_status);
     ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
     ASSERT_EQ(samples.size(), 1501u);
-    double position = 0.0, tilt = 0.0, orientation = 0.0, off_seam = 0.0, turned = 0.0;
+    const auto [position, tilt] = tool_off_plan(samples, model, axis);
+    double orientation = 0.0, off_seam = 0.0, turned = 0.0;
     for (const auto& sample : samples) {
       const Eigen::Isometry3d X = forward_kinematics(model, sample.joints());
-      position = std::max(position, (X.translation() - vec(sample.position())).norm());
       orientation = std::max(orientation, quat(sample.orientation()).angularDistance(Eigen::Quaterniond(X.linear())));
-      const Eigen::Vector3d z = X.linear().col(2);  // the angle to the axis by its sine (acos loses 1e-8 near 0)
-      tilt = std::max(tilt, z.dot(axis) > 0.0 ? z.cross(axis).norm() : 1.0);
       const Eigen::Vector3d d = X.translation() - X0.translation();
       off_seam = std::max(off_seam, (d - d.y() * Eigen::Vector3d::UnitY()).norm());
       // The tool's turn about its axis from the start's: the angle of X0^T X about z.
@@ -136,6 +160,59 @@ TEST_F(ToolRollTest, ASeamsTorchRollIsChosenAndItsAxisKept) {
     // The first sample is the robot where it stands.
     for (int j = 0; j < samples.front().joints_size(); ++j) EXPECT_NEAR(samples.front().joints(j), model.home(j), 1e-12);
   }
+}
+
+double peak_usage(const v1::PlanResponse& response) {
+  double worst = 0.0;
+  for (const auto& j : response.robot().joints()) worst = std::max({worst, j.velocity_usage(), j.acceleration_usage()});
+  return worst;
+}
+
+// Random seams (start joints, direction, length, planned roll, duration) on the UR5e and the
+// Panda, with reportOnly: with the roll free the tool stays on the planned positions and axis
+// (by an independent forward kinematics of the streamed joints), and the peak usage of the
+// joints' limits never ends above both the limits and the planned roll's.
+TEST_F(ToolRollTest, RandomSeamsKeepTheirAxisAndNeverUseMoreOfTheLimits) {
+  std::mt19937 random(33);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  int improved = 0, cases = 0;
+  for (const char* name : {"ur5e", "panda"}) {
+    const auto model = robot_model(name);
+    for (int trial = 0; trial < 6; ++trial) {
+      SCOPED_TRACE(std::string(name) + " trial " + std::to_string(trial));
+      std::vector<double> start(model.home().begin(), model.home().end());
+      for (std::size_t j = 0; j < start.size(); ++j) start[j] += 0.3 * unit(random);
+      const double heading = std::numbers::pi * unit(random);
+      const Eigen::Vector3d direction(std::cos(heading), std::sin(heading), 0.2 * unit(random));
+      const double length = 0.1 + 0.05 * unit(random);
+      const double roll = 1.5 * unit(random);
+      const double duration = 1.5 + 0.5 * unit(random);
+      auto planned = seam(model, false, start, direction.normalized(), length, roll, duration);
+      planned.mutable_robot()->set_report_only(true);
+      auto free = planned;
+      free.mutable_robot()->set_tool_axis_free(true);
+      v1::PlanResponse as_planned, chosen;
+      const auto status = plan(planned, as_planned);
+      if (!status.ok()) continue;  // a random seam the arm cannot follow at all (IK): nothing to compare
+      ASSERT_TRUE(plan(free, chosen).ok());
+      ++cases;
+      const double before = peak_usage(as_planned), after = peak_usage(chosen);
+      std::printf("[ measured ] %s seam %d: peak joint usage %.3f as planned, %.3f with the roll free (%s)\n", name,
+                  trial, before, after, chosen.optimization().redundancy().message().c_str());
+      EXPECT_LE(after, std::max(1.0, before) + 1e-6);
+      improved += after < before ? 1 : 0;
+      grpc::Status stream_status;
+      const auto samples = stream_all(free, stream_status);
+      if (!chosen.robot().feasible()) continue;
+      ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
+      const Eigen::Vector3d axis = forward_kinematics(model, start).linear().col(2);
+      const ToolOffPlan off = tool_off_plan(samples, model, axis);
+      EXPECT_LT(off.position, 1e-9);
+      EXPECT_LT(off.tilt, 1e-9);
+    }
+  }
+  EXPECT_GE(cases, 8) << "most random seams are within reach";
+  EXPECT_GE(improved, cases - 2) << "the roll is a free choice worth having";
 }
 
 // A straight line to goal joints with the roll free ends at them (the roll back to 0 there).
@@ -194,15 +271,9 @@ TEST_F(ToolRollTest, EveryStepOfASequenceHasItsRollChosen) {
   const auto samples = stream_all(request, stream_status);
   ASSERT_TRUE(stream_status.ok()) << stream_status.error_message();
   ASSERT_EQ(samples.size(), 3001u);
-  double position = 0.0, tilt = 0.0;
-  for (const auto& sample : samples) {
-    const Eigen::Isometry3d X = forward_kinematics(model, sample.joints());
-    position = std::max(position, (X.translation() - vec(sample.position())).norm());
-    const Eigen::Vector3d z = X.linear().col(2);
-    tilt = std::max(tilt, z.dot(axis) > 0.0 ? z.cross(axis).norm() : 1.0);
-  }
-  EXPECT_LT(position, 1e-9);
-  EXPECT_LT(tilt, 1e-9);
+  const ToolOffPlan off = tool_off_plan(samples, model, axis);
+  EXPECT_LT(off.position, 1e-9);
+  EXPECT_LT(off.tilt, 1e-9);
   EXPECT_LT((vec(samples.back().position()) - X0.translation()).norm(), 1e-9) << "back at the start";
   const auto [velocity, acceleration] = streamed_usage(samples, model);
   std::printf("[ measured ] ur5e seam and line back, roll free: joints by differences at 1 kHz: velocity %.3f, "

@@ -413,8 +413,11 @@ Expected<OrientationPlan> plan_orientation(const Path& path, const Eigen::Quater
   return plan;
 }
 
-OrientationSample orientation_at(const OrientationPlan& plan, const Path& path, std::size_t segment, double u_local,
-                                 double s, double s_dot, double s_ddot) {
+namespace {
+
+// The orientation as planned (the modes of Table 6.3), without the chosen roll.
+OrientationSample planned_at(const OrientationPlan& plan, const Path& path, std::size_t segment, double u_local,
+                             double s, double s_dot, double s_ddot) {
   GEOTRAJ_CHECK(plan.segments.size() == path.segment_count() && segment < plan.segments.size());
   const SegmentOrientation& so = plan.segments[segment];
   const double u = std::clamp(u_local, 0.0, 1.0);
@@ -503,6 +506,77 @@ OrientationSample orientation_at(const OrientationPlan& plan, const Path& path, 
     out.alpha_W = (s_dot * s_dot) * jet[1].cross(jet[3]) / v4;
   }
   return out;
+}
+
+}  // namespace
+
+OrientationSample orientation_at(const OrientationPlan& plan, const Path& path, std::size_t segment, double u_local,
+                                 double s, double s_dot, double s_ddot) {
+  OrientationSample out = planned_at(plan, path, segment, u_local, s, s_dot, s_ddot);
+  if (plan.roll == nullptr) return out;
+  double phi = 0.0, phi_s = 0.0, phi_ss = 0.0;
+  plan.roll->at(s, phi, phi_s, phi_ss);
+  Matrix3d R = out.q_WT.toRotationMatrix();
+  turn_about_tool_axis(R, out.omega_W, out.alpha_W, phi, phi_s * s_dot, phi_ss * s_dot * s_dot + phi_s * s_ddot);
+  out.q_WT = Quaterniond(R).normalized();
+  return out;
+}
+
+void turn_about_tool_axis(Matrix3d& R, Vector3d& omega, Vector3d& alpha, double phi, double phi_dot,
+                          double phi_ddot) {
+  const Vector3d z = R.col(2);
+  R = R * Eigen::AngleAxisd(phi, Vector3d::UnitZ()).toRotationMatrix();
+  alpha += phi_ddot * z + phi_dot * omega.cross(z);
+  omega += phi_dot * z;
+}
+
+RollProfile::RollProfile(std::vector<double> phi, double length) : phi_(std::move(phi)) {
+  GEOTRAJ_CHECK(phi_.size() >= 2 && length > 0.0 && std::isfinite(length));
+  for (const double x : phi_) GEOTRAJ_CHECK(std::isfinite(x));
+  const std::size_t M = phi_.size() - 1;
+  h_ = length / static_cast<double>(M);
+  // Natural spline, uniform knots: m_{k-1} + 4 m_k + m_{k+1} = 6 (phi_{k+1} - 2 phi_k + phi_{k-1}) / h^2,
+  // m_0 = m_M = 0 (Thomas algorithm).
+  m_.assign(M + 1, 0.0);
+  if (M >= 2) {
+    std::vector<double> c(M, 0.0), d(M, 0.0);
+    for (std::size_t k = 1; k < M; ++k) {
+      const double rhs = 6.0 * (phi_[k + 1] - 2.0 * phi_[k] + phi_[k - 1]) / (h_ * h_);
+      const double denom = 4.0 - (k > 1 ? c[k - 1] : 0.0);
+      c[k] = 1.0 / denom;
+      d[k] = (rhs - (k > 1 ? d[k - 1] : 0.0)) / denom;
+    }
+    for (std::size_t k = M - 1; k >= 1; --k) {
+      m_[k] = d[k] - c[k] * m_[k + 1];
+      if (k == 1) break;
+    }
+  }
+}
+
+void RollProfile::at(double s, double& phi, double& phi_s, double& phi_ss) const {
+  const std::size_t M = phi_.size() - 1;
+  if (!(s > 0.0)) {
+    phi = phi_.front(), phi_s = 0.0, phi_ss = 0.0;
+    if (s == 0.0) {
+      phi_s = (phi_[1] - phi_[0]) / h_ - h_ * (2.0 * m_[0] + m_[1]) / 6.0;
+      phi_ss = m_[0];
+    }
+    return;
+  }
+  if (s >= length()) {
+    phi = phi_.back(), phi_s = 0.0, phi_ss = 0.0;
+    if (s == length()) {
+      phi_s = (phi_[M] - phi_[M - 1]) / h_ + h_ * (m_[M - 1] + 2.0 * m_[M]) / 6.0;
+      phi_ss = m_[M];
+    }
+    return;
+  }
+  const std::size_t k = std::min(static_cast<std::size_t>(s / h_), M - 1);
+  const double a = (static_cast<double>(k + 1) * h_ - s) / h_;  // weight of knot k
+  const double b = 1.0 - a;
+  phi = a * phi_[k] + b * phi_[k + 1] + ((a * a * a - a) * m_[k] + (b * b * b - b) * m_[k + 1]) * h_ * h_ / 6.0;
+  phi_s = (phi_[k + 1] - phi_[k]) / h_ - (3.0 * a * a - 1.0) * h_ / 6.0 * m_[k] + (3.0 * b * b - 1.0) * h_ / 6.0 * m_[k + 1];
+  phi_ss = a * m_[k] + b * m_[k + 1];
 }
 
 }  // namespace geotraj::core

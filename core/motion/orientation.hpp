@@ -84,6 +84,7 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -122,10 +123,41 @@ struct SegmentOrientation {
   std::vector<Eigen::Vector3d> grid_T;
 };
 
+/// The tool's roll about its own z axis along the path, phi(s) [rad] a function of the arc
+/// length s [m] from the path's start (RobotSpec.toolAxisFree: a tool symmetric about its
+/// axis; chosen by the planner): the natural cubic spline through phi_m at s_m = m L / M,
+/// m = 0 .. M (phi'' = 0 at both ends), constant beyond [0, L]. A function of s, so the
+/// timings see it: at s_dot, s_ddot the roll's rate is phi_s s_dot and its acceleration
+/// phi_ss s_dot^2 + phi_s s_ddot.
+class RollProfile {
+ public:
+  /// At least 2 finite values, length L > 0 [m] (preconditions, checked).
+  RollProfile(std::vector<double> phi, double length);
+  /// phi [rad], dphi/ds [rad/m], d2phi/ds2 [rad/m^2] at s [m]. No heap allocation.
+  void at(double s, double& phi, double& phi_s, double& phi_ss) const;
+  double length() const { return h_ * static_cast<double>(phi_.size() - 1); }
+
+ private:
+  std::vector<double> phi_;
+  std::vector<double> m_;  // second derivatives at the knots
+  double h_;
+};
+
 /// The orientation of a whole path, one entry per segment of the path it was planned for.
 struct OrientationPlan {
   std::vector<SegmentOrientation> segments;
+  /// The roll chosen about the tool's z axis, or null (the orientation as planned):
+  /// orientation_at turns the planned R_WT to R_WT RotZ(phi(s)) (turn_about_tool_axis).
+  std::shared_ptr<const RollProfile> roll = nullptr;
 };
+
+/// R turned about its own z axis by phi(t) [rad], phi_dot [rad/s], phi_ddot [rad/s^2], with
+/// its angular velocity omega and acceleration alpha in W: R' = R RotZ(phi), so the axis
+/// z = R e_z = R' e_z is kept; omega' = omega + phi_dot z (d/dt R RotZ(phi) = [omega] R' +
+/// R [e_z] phi_dot RotZ(phi) = [omega + phi_dot z] R'), alpha' = alpha + phi_ddot z +
+/// phi_dot (omega x z). No heap allocation.
+void turn_about_tool_axis(Eigen::Matrix3d& R, Eigen::Vector3d& omega, Eigen::Vector3d& alpha, double phi,
+                          double phi_dot, double phi_ddot);
 
 /// The tool orientation at one point of the motion.
 struct OrientationSample {
@@ -151,7 +183,7 @@ Expected<OrientationPlan> plan_orientation(const Path& path,
 /// acceleration s_ddot = d2s/dt2 [m/s^2] (the tangential acceleration a_W . T of the
 /// motion sample, see cartesian_state in joint_motion.hpp).
 /// q_WT is R_WT (unit); omega_W [rad/s] and alpha_W [rad/s^2] in W, analytic (above; never
-/// finite differences). No heap allocation.
+/// finite differences); with plan.roll, turned by it at s. No heap allocation.
 /// Preconditions (checked): `plan` was planned for `path`, segment < path.segment_count().
 OrientationSample orientation_at(const OrientationPlan& plan, const Path& path, std::size_t segment,
                                  double u_local, double s, double s_dot, double s_ddot);

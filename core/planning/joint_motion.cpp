@@ -32,15 +32,13 @@ bool PathMotionSource::state_at(double t, CartesianState& x) {
   scratch_ = sampler_;
   scratch_.at(t, sample_);
   x = cartesian_state(*path_, *orientation_, sample_);
-  apply_roll(roll_, x);
   return true;
 }
 
 void roll_about_tool_axis(CartesianState& x, double phi, double phi_dot, double phi_ddot) {
-  const Vector3d z = x.X_WT.linear().col(2);
-  x.X_WT.linear() = x.X_WT.linear() * Eigen::AngleAxisd(phi, Vector3d::UnitZ()).toRotationMatrix();
-  x.alpha_WT += phi_ddot * z + phi_dot * x.omega_WT.cross(z);
-  x.omega_WT += phi_dot * z;
+  Matrix3d R = x.X_WT.linear();
+  turn_about_tool_axis(R, x.omega_WT, x.alpha_WT, phi, phi_dot, phi_ddot);
+  x.X_WT.linear() = R;
 }
 
 void apply_roll(const JointReference* roll, CartesianState& x) {

@@ -71,15 +71,14 @@ CartesianState cartesian_state(const Path& path, const OrientationPlan& orientat
 
 /// The tool's state turned about its own z axis by phi(t) [rad], phi_dot [rad/s], phi_ddot
 /// [rad/s^2] (RobotSpec.toolAxisFree: the roll that a tool symmetric about its axis leaves
-/// free), in W: R' = R RotZ(phi), so the axis z = R e_z = R' e_z and the position, velocity
-/// and acceleration are unchanged; omega' = omega + phi_dot z (d/dt R RotZ(phi) = [omega] R'
-/// + R [e_z] phi_dot RotZ(phi) = [omega + phi_dot z] R'), alpha' = alpha + phi_ddot z +
-/// phi_dot (omega x z). No heap allocation.
+/// free; turn_about_tool_axis, orientation.hpp), in W: the position, velocity and
+/// acceleration unchanged. No heap allocation.
 void roll_about_tool_axis(CartesianState& x, double phi, double phi_dot, double phi_ddot);
 
-/// The tool's roll chosen ahead for a whole motion (JointReference of one coordinate [rad],
-/// RobotSpec.toolAxisFree) applied to x at x.t; nothing when `roll` is null. Scratch vectors
-/// of one entry: no heap allocation.
+/// The tool's roll chosen ahead for a whole straight line (JointReference of one coordinate
+/// [rad] in time, LinearMovePlan::roll) applied to x at x.t; nothing when `roll` is null. (A
+/// path's roll is a function of its arc length, in its OrientationPlan.) Scratch vectors of
+/// one entry: no heap allocation.
 void apply_roll(const JointReference* roll, CartesianState& x);
 
 /// One joint-space sample.
@@ -137,10 +136,8 @@ CallableSource<F> cartesian_source(F f) {
 /// small (no heap); `path` and `orientation` must outlive it.
 class PathMotionSource final : public CartesianSource {
  public:
-  /// `roll`: the tool's roll chosen ahead (apply_roll), or null; it must outlive the source.
-  PathMotionSource(const Path& path, const OrientationPlan& orientation, const MotionSampler& sampler,
-                   const JointReference* roll = nullptr)
-      : path_(&path), orientation_(&orientation), roll_(roll), sampler_(sampler), scratch_(sampler) {}
+  PathMotionSource(const Path& path, const OrientationPlan& orientation, const MotionSampler& sampler)
+      : path_(&path), orientation_(&orientation), sampler_(sampler), scratch_(sampler) {}
   /// The sampler has just written the last good sample.
   void mark(const MotionSampler& sampler) { sampler_ = sampler; }
   bool state_at(double t, CartesianState& x) override;
@@ -148,7 +145,6 @@ class PathMotionSource final : public CartesianSource {
  private:
   const Path* path_;
   const OrientationPlan* orientation_;
-  const JointReference* roll_;
   MotionSampler sampler_, scratch_;
   MotionSample sample_;
 };

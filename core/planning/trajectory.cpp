@@ -99,7 +99,7 @@ StepSampler::StepSampler(StepRef step, const RobotModel* robot, const JointVecto
   };
   if (tracker_ && path_sampler_) {
     const PathMotion& m = *std::get<const PathMotion*>(step_);
-    path_between_.emplace(m.path, m.orientation, *path_sampler_, m.roll.get());
+    path_between_.emplace(m.path, m.orientation, *path_sampler_);
     follow(m.joints);
   }
   if (tracker_ && linear_sampler_) follow(std::get<const LinearMovePlan*>(step_)->joints);
@@ -153,7 +153,6 @@ void StepSampler::finish(TrajectorySample& out) {
     const PathMotion& m = *std::get<const PathMotion*>(step_);
     const MotionSample& ms = motion_sample_;
     x = cartesian_state(m.path, m.orientation, ms);
-    apply_roll(m.roll.get(), x);
     out.t = ms.t;
     out.u = ms.u;
     out.s = ms.s;

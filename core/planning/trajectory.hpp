@@ -30,11 +30,8 @@ struct PathMotion {
   /// With a robot: the joints chosen ahead for the whole motion (optim/redundancy), which
   /// the samplers' tracker follows (JointTracker::set_reference); null: sample by sample.
   std::shared_ptr<const JointReference> joints = nullptr;
-  /// With a robot whose tool's roll is free (RobotSpec.toolAxisFree): the roll phi(t) [rad]
-  /// about the tool's z axis chosen ahead (one coordinate), applied to every sample's tool
-  /// state (roll_about_tool_axis) before the tracker follows it; null: the orientation as
-  /// planned.
-  std::shared_ptr<const JointReference> roll = nullptr;
+  // (A roll of the tool chosen ahead, RobotSpec.toolAxisFree, is in orientation.roll: a
+  // function of the arc length, which the timings see.)
 };
 
 /// One rest-to-rest motion: along a path, a joint move, a straight-line move or a joint path

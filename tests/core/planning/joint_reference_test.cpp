@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/motion/orientation.hpp"
 #include "core/planning/joint_motion.hpp"
 #include "core/planning/joint_reference.hpp"
 #include "core/robot/ik.hpp"
@@ -140,6 +141,30 @@ TEST(ToolRoll, TheTurnedStateIsItsOwnDerivative) {
     EXPECT_LT(((turned(t + h).omega_WT - turned(t - h).omega_WT) / (2.0 * h) - x.alpha_WT).norm(), 1e-8) << t;
     const Eigen::AngleAxisd roll(p.X_WT.linear().transpose() * x.X_WT.linear());
     EXPECT_NEAR(roll.angle() * roll.axis().z(), std::sin(2.0 * t), 1e-12) << "R' = R RotZ(phi)";
+  }
+}
+
+// A path's roll as a function of its arc length: the natural spline passes through its
+// values, and its derivatives are those of its values (central differences).
+TEST(ToolRoll, TheRollAlongAPathIsItsOwnDerivative) {
+  std::vector<double> phi;
+  for (int m = 0; m <= 40; ++m) phi.push_back(std::sin(0.2 * m) + 0.01 * m * m);
+  const RollProfile roll(phi, 0.8);
+  double p = 0.0, p_s = 0.0, p_ss = 0.0;
+  for (int m = 0; m <= 40; ++m) {
+    roll.at(0.02 * m, p, p_s, p_ss);
+    EXPECT_NEAR(p, phi[static_cast<std::size_t>(m)], 1e-12) << m;
+  }
+  roll.at(0.0, p, p_s, p_ss);
+  EXPECT_NEAR(p_ss, 0.0, 1e-12) << "natural at its ends";
+  const double h = 1e-6;
+  for (const double s : {0.013, 0.251, 0.51, 0.777}) {  // inside intervals: one cubic
+    double a = 0.0, a_s = 0.0, a_ss = 0.0, b = 0.0, b_s = 0.0, b_ss = 0.0;
+    roll.at(s, p, p_s, p_ss);
+    roll.at(s - h, a, a_s, a_ss);
+    roll.at(s + h, b, b_s, b_ss);
+    EXPECT_NEAR((b - a) / (2.0 * h), p_s, 1e-7) << s;
+    EXPECT_NEAR((b_s - a_s) / (2.0 * h), p_ss, 1e-6) << s;
   }
 }
 

@@ -482,10 +482,11 @@ std::shared_ptr<const core::RollProfile> roll_along_path(const core::JointRefere
 // whole motion (a line to goal joints ends at them exactly: `goal`, held), attached to the
 // motion as the reference its samples follow. With robot.toolAxisFree the optimiser works on
 // the arm with the tool's roll as one more joint (core::with_tool_roll; from 0, the planned
-// orientation, and back to 0 at a held goal), and the roll it chooses is attached too: every
-// sample's tool turned by it (core::apply_roll), which the real joints then follow. A report
-// whatever happens; the motion is left as it was when the optimiser finds nothing better or
-// fails.
+// orientation, and back to 0 at a held goal), and the roll it chooses is attached too: a
+// path's as a function of its arc length in its orientation plan (roll_along_path), a line's
+// in time (core::apply_roll); every sample's tool is turned by it and the real joints follow.
+// A report whatever happens; the motion is left as it was when the optimiser finds nothing
+// better or fails.
 std::optional<Error> optimize_joints(core::Trajectory& trajectory, const Robot& robot,
                                      const optim::RedundancyWeights& weights, const std::vector<double>* goal,
                                      const Budget& budget, Clock::time_point deadline, OptimizerReports& reports) {

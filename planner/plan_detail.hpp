@@ -93,9 +93,12 @@ bool joint_geometry(const Geometry& geometry);
 /// A redundant arm's joints along a path motion or a straight line chosen for the whole
 /// motion (optim/redundancy) and attached to it; `goal`: joints the motion ends at, held.
 /// The report in `reports.redundancy`; an error only for a request the optimiser refuses.
-std::optional<Error> optimize_joints(core::Trajectory& trajectory, const Robot& robot,
-                                     const optim::RedundancyWeights& weights, const std::vector<double>* goal,
-                                     const Budget& budget, Clock::time_point deadline, OptimizerReports& reports);
+/// A path timed by the limits (`request`'s motion and optimize) is timed again along the
+/// choices (the tool's roll, a redundant arm's joints as a function of the arc length), kept
+/// when faster.
+std::optional<Error> choose_joints(core::Trajectory& trajectory, const Request& request,
+                                   const optim::RedundancyWeights& weights, const std::vector<double>* goal,
+                                   const Budget& budget, Clock::time_point deadline, OptimizerReports& reports);
 
 /// A line to joint values ends at them (the tracked branch is the goal's).
 std::optional<Error> ends_at_goal(const Geometry& geometry, const core::JointVector& last);

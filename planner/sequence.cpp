@@ -341,8 +341,8 @@ Expected<Plan> plan_sequence(const Request& request, const Budget& budget, const
       optim::RedundancyWeights weights;
       weights.acceleration = 1.0;
       if (asked) weights = *request.optimize->redundancy;
-      if (auto refused = optimize_joints(*trajectory, *sub.robot, weights, held ? &to_joints->goal : nullptr, budget,
-                                         deadline, report.optimizers))
+      if (auto refused = choose_joints(*trajectory, sub, weights, held ? &to_joints->goal : nullptr, budget, deadline,
+                                       report.optimizers))
         return tl::unexpected(in_step(std::move(*refused), i, step));
       if (auto stop = check(budget)) return tl::unexpected(std::move(*stop));
     }

@@ -19,6 +19,9 @@ CartesianState cartesian_state(const Path& path, const OrientationPlan& orientat
       orientation_at(orientation, path, sample.segment, u_local, sample.s, sample.speed, sample.s_ddot);
   CartesianState x;
   x.t = sample.t;
+  x.s = sample.s;
+  x.s_dot = sample.speed;
+  x.s_ddot = sample.s_ddot;
   x.X_WT.linear() = o.q_WT.toRotationMatrix();
   x.X_WT.translation() = sample.p_W;
   x.v_WT = sample.v_W;
@@ -218,7 +221,15 @@ bool JointTracker::attempt(const CartesianState& x, JointSample& out) {
   } else {
     const double dt = x.t - st.t_prev;  // [s]
     if (st.reference) {
-      st.reference->at(x.t, st.ref_q, st.ref_qd, st.ref_qdd);
+      if (st.reference->over() == ReferenceParameter::kArcLength) {
+        // q_dot = q_s s_dot, q_ddot = q_ss s_dot^2 + q_s s_ddot (ref_qd holds q_s first).
+        st.reference->at(x.s, st.ref_q, st.ref_qd, st.ref_qdd);
+        st.ref_qdd *= x.s_dot * x.s_dot;
+        st.ref_qdd += x.s_ddot * st.ref_qd;
+        st.ref_qd *= x.s_dot;
+      } else {
+        st.reference->at(x.t, st.ref_q, st.ref_qd, st.ref_qdd);
+      }
       st.q_guess = st.ref_q;
     } else {
       st.q_guess = st.q_prev + st.q_dot_prev * dt + st.q_ddot_prev * (0.5 * dt * dt);

@@ -56,6 +56,12 @@ namespace geotraj::core {
 /// its origin [m/s, m/s^2], angular velocity and acceleration [rad/s, rad/s^2].
 struct CartesianState {
   double t = 0.0;  ///< [s]
+  /// Along a path: the arc length from its start s [m], s_dot [m/s] and s_ddot [m/s^2] (what
+  /// a joint reference in arc length needs: JointReference, ReferenceParameter::kArcLength);
+  /// 0 elsewhere.
+  double s = 0.0;
+  double s_dot = 0.0;
+  double s_ddot = 0.0;
   Eigen::Isometry3d X_WT = Eigen::Isometry3d::Identity();
   Eigen::Vector3d v_WT = Eigen::Vector3d::Zero();
   Eigen::Vector3d omega_WT = Eigen::Vector3d::Zero();
@@ -237,10 +243,11 @@ class JointTracker {
   void reset(const JointVector& q_seed);
   /// Joints chosen ahead for the whole motion (optim/redundancy), or none (null): each
   /// sample after the first is then the Newton projection of the reference's joints at its
-  /// time (x.t, from the motion's start) instead of the predictor, and the null-space term
-  /// is the reference's velocity, z = q_ref_dot(t), z_dot = q_ref_ddot(t), instead of the
-  /// joint-limit avoidance: the self-motion follows the reference, which at its own samples
-  /// holds the pose already (no correction). The reference must outlive its use.
+  /// time (x.t, from the motion's start) or arc length (x.s, from the path's start) instead of
+  /// the predictor, and the null-space term is the reference's velocity, z = q_ref_dot(t) or
+  /// q_s(s) x.s_dot, z_dot = q_ref_ddot(t) or q_ss(s) x.s_dot^2 + q_s(s) x.s_ddot, instead of
+  /// the joint-limit avoidance: the self-motion follows the reference, which at its own
+  /// samples holds the pose already (no correction). The reference must outlive its use.
   void set_reference(const JointReference* reference);
 
  private:

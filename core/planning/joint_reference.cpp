@@ -9,13 +9,15 @@
 
 namespace geotraj::core {
 
-// The clamped cubic spline (end slopes 0): with h = dt and M_k = q''(t_k), the conditions
-// of C2 continuity are, per joint,
-//   2 h M_0 + h M_1 = 6 (q_1 - q_0) / h                                    (q'(0) = 0)
+// The cubic spline: with h the step and M_k = q''(x_k), the conditions of C2 continuity
+// are, per joint,
 //   h M_{k-1} + 4 h M_k + h M_{k+1} = 6 (q_{k+1} - 2 q_k + q_{k-1}) / h   (0 < k < K)
-//   h M_{K-1} + 2 h M_K = -6 (q_K - q_{K-1}) / h                           (q'(T) = 0)
-// a tridiagonal system solved by the Thomas algorithm, every joint at once.
-JointReference::JointReference(std::vector<JointVector> q, double dt) : q_(std::move(q)), dt_(dt) {
+// and at the ends either (in time, clamped: q'(0) = q'(T) = 0)
+//   2 h M_0 + h M_1 = 6 (q_1 - q_0) / h,   h M_{K-1} + 2 h M_K = -6 (q_K - q_{K-1}) / h
+// or (in arc length, natural) M_0 = M_K = 0: a tridiagonal system solved by the Thomas
+// algorithm, every joint at once.
+JointReference::JointReference(std::vector<JointVector> q, double dt, ReferenceParameter over)
+    : q_(std::move(q)), dt_(dt), over_(over) {
   GEOTRAJ_CHECK(q_.size() >= 2 && dt > 0.0 && std::isfinite(dt));
   const std::size_t K = q_.size() - 1;
   const Eigen::Index n = q_[0].size();
@@ -23,16 +25,21 @@ JointReference::JointReference(std::vector<JointVector> q, double dt) : q_(std::
   std::vector<double> diag(K + 1), upper(K + 1);
   std::vector<JointVector> rhs(K + 1, JointVector::Zero(n));
   const double h = dt;
+  const bool natural = over == ReferenceParameter::kArcLength;
+  std::vector<double> lower(K + 1, h);
   for (std::size_t k = 0; k <= K; ++k) {
-    diag[k] = (k == 0 || k == K) ? 2.0 * h : 4.0 * h;
-    upper[k] = h;
+    const bool end = k == 0 || k == K;
+    diag[k] = !end ? 4.0 * h : natural ? 1.0 : 2.0 * h;
+    upper[k] = k == 0 && natural ? 0.0 : h;
+    if (k == K && natural) lower[k] = 0.0;
+    if (end && natural) continue;  // M = 0
     if (k == 0) rhs[k] = 6.0 * (q_[1] - q_[0]) / h;
     else if (k == K) rhs[k] = -6.0 * (q_[K] - q_[K - 1]) / h;
     else rhs[k] = 6.0 * (q_[k + 1] - 2.0 * q_[k] + q_[k - 1]) / h;
   }
-  // Forward elimination (lower = h everywhere), then back substitution.
+  // Forward elimination, then back substitution.
   for (std::size_t k = 1; k <= K; ++k) {
-    const double f = h / diag[k - 1];
+    const double f = lower[k] / diag[k - 1];
     diag[k] -= f * upper[k - 1];
     rhs[k] -= f * rhs[k - 1];
   }

@@ -63,11 +63,16 @@ TimeOptimalLimits time_optimal_limits(const MotionSpec& spec, const RobotModel* 
 Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& path, const OrientationPlan& orientation,
                                                                  const std::vector<MotionPortion>& portions,
                                                                  const RobotModel* robot, const JointVector& seed,
-                                                                 std::size_t grid_intervals, const IkOptions& ik) {
+                                                                 std::size_t grid_intervals, const IkOptions& ik,
+                                                                 const JointReference* joints) {
   GEOTRAJ_CHECK(grid_intervals >= 2);
+  GEOTRAJ_CHECK(joints == nullptr || joints->over() == ReferenceParameter::kArcLength);
   std::vector<std::vector<GridPoint>> grids;
   std::optional<JointTracker> tracker;
-  if (robot) tracker.emplace(*robot, seed, ik);
+  if (robot) {
+    tracker.emplace(*robot, seed, ik);
+    tracker->set_reference(joints);
+  }
   JointSample js;
   Jet jet{};
   // The tool's angular rates need the orientation planned for this path (a Cartesian-only
@@ -200,7 +205,10 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
   const bool path_jerk = limits.jerk < kInf;
   const bool angular = limits.angular_speed < kInf || limits.angular_acceleration < kInf;
   std::optional<JointTracker> tracker;
-  if (robot) tracker.emplace(*robot, seed, options.ik);
+  if (robot) {
+    tracker.emplace(*robot, seed, options.ik);
+    tracker->set_reference(options.joints.get());
+  }
   MotionSample ms;
   JointSample js;
   JointVector q_ddot_prev;
@@ -326,8 +334,10 @@ Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationP
   auto portions_plan = plan_motion(path, any_time);
   if (!portions_plan) return tl::make_unexpected(portions_plan.error());
 
+  GEOTRAJ_CHECK(!options.joints || (robot != nullptr && options.joints->over() == ReferenceParameter::kArcLength &&
+                                     options.joints->samples().front().size() == seed.size()));
   auto grids = time_optimal_grids(path, orientation, portions_plan->portions, robot, seed, options.grid_intervals,
-                                  options.ik);
+                                  options.ik, options.joints.get());
   if (!grids) return tl::make_unexpected(grids.error());
 
   TimeOptimalPlan out;

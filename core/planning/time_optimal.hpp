@@ -30,6 +30,7 @@
 
 #include <cstddef>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <stop_token>
 #include <string>
@@ -40,6 +41,7 @@
 #include "core/motion/motion.hpp"
 #include "core/motion/orientation.hpp"
 #include "core/planning/binding.hpp"
+#include "core/planning/joint_reference.hpp"
 #include "core/robot/ik.hpp"
 #include "core/robot/robot.hpp"
 
@@ -138,6 +140,10 @@ struct TimeOptimalOptions {
   /// most this many samples: a minute of motion at 10 kHz is 600,000 IK solutions.
   std::size_t max_check_samples = 200'000;
   IkOptions ik;
+  /// A redundant arm's joints chosen along the path (ReferenceParameter::kArcLength, the
+  /// robot's joints; optim/redundancy's, planner): the grids' and the sample checks' tracker
+  /// follows them as the streamed samples will (null: the self-motion chosen sample by sample).
+  std::shared_ptr<const JointReference> joints = nullptr;
   /// Cancellation (a cancelled call, or its deadline): the sweeps and the sample checks stop
   /// at their next check (every 256 samples, every refinement) with a `motion` error.
   std::stop_token stop;
@@ -170,13 +176,15 @@ struct TimeOptimalPlan {
 /// chord (midpoint deviation above 1 mm) or needs a Newton correction of its predictor above
 /// 0.01 rad is not kept and the interval walked in halved steps (down to 1/4096 of it), so a
 /// path that streams at a fixed duration times here too
-/// (tests/core/planning/grid_ik_property_test.cpp). `robot` null: kappa only.
+/// (tests/core/planning/grid_ik_property_test.cpp). `robot` null: kappa only. `joints`
+/// (optional, in arc length): the tracker follows them (JointTracker::set_reference).
 /// Errors (field `motion`): the IK fails at a grid point (s and u named).
 Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& path, const OrientationPlan& orientation,
                                                                  const std::vector<MotionPortion>& portions,
                                                                  const RobotModel* robot, const JointVector& seed,
                                                                  std::size_t grid_intervals,
-                                                                 const IkOptions& ik = {});
+                                                                 const IkOptions& ik = {},
+                                                                 const JointReference* joints = nullptr);
 
 /// The limits of `spec` (maxSpeed, maxAcceleration both tangential and centripetal, each
 /// optional) and of `robot` (velocity, acceleration; may be null), scaled by speedScale

@@ -448,6 +448,8 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   else if (std::all_of(std::begin(weights), std::end(weights), [](double x) { return x == 0.0; }))
     v.push_back({"weights", "at least one weight must be > 0"});
   if (!std::isfinite(dt) || !(dt > 0.0)) v.push_back({"dt", "must be a finite time > 0 s, got " + core::number(dt)});
+  if (!(options.limit_scale > 0.0 && options.limit_scale <= 1.0))
+    v.push_back({"limit_scale", "must be in (0, 1], got " + core::number(options.limit_scale)});
   if (poses.size() < 2 || initial.size() != poses.size())
     v.push_back({"initial", "needs one joint vector per pose, at least 2 (got " + std::to_string(initial.size()) +
                                 " for " + std::to_string(poses.size()) + " poses)"});
@@ -522,7 +524,11 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   }
   // The derivative criteria (the stencils are kept: the rounds below add the limits' terms).
   const Differences d = differences(K);
-  const Units units = units_of(model, dt);
+  Units units = units_of(model, dt);
+  const double c = options.limit_scale;  // the limits held: velocity x c, acceleration x c^2, jerk x c^3
+  units.velocity /= c;
+  units.acceleration /= c * c;
+  units.jerk /= c * c * c;
   const Derivative derivatives[3] = {{&d.velocity, s.velocity, units.velocity},
                                      {&d.acceleration, s.acceleration, units.acceleration},
                                      {&d.jerk, s.jerk, units.jerk}};
@@ -651,9 +657,12 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   const double excess_before = std::max(0.0, peaks_before.worst() - 1.0);
   const double excess_after = std::max(0.0, peaks_after.worst() - 1.0);
   // With the goal held, the given joints break that constraint: the optimum is the answer.
+  // Without the limits as constraints, a lower objective is better (the caller times the
+  // motion again along the joints chosen: planner's retime_along_choices).
   const bool better = std::isfinite(after) &&
-                      (options.hold_goal || excess_after < excess_before - 1e-9 ||
-                       (excess_after <= excess_before + 1e-9 && after < report.objective_before));
+                      (options.hold_goal || options.take_optimum || excess_after < excess_before - 1e-9 ||
+                       ((excess_after <= excess_before + 1e-9 || !options.within_limits) &&
+                        after < report.objective_before));
   if (!better) {
     report.status = OptimizerStatus::kNoImprovement;
     report.objective_after = report.objective_before;
@@ -662,16 +671,19 @@ core::Expected<RedundancyResult> optimize_redundancy(const core::ValidRobot& rob
   report.objective_after = after;
   result.q = std::move(q);
   result.peaks = peaks_after;
-  if (result.rounds > 0 && peaks_after.worst() > 1.0) {
+  if (result.rounds > 0 && peaks_after.worst() > 1.0 && !options.take_optimum) {
     // Ceres's status is the penalised problem's: say plainly that the limits are not kept.
-    report.message = "the joints' limits stay broken: peak usage " + core::number(peaks_after.worst(), 4) +
-                     " of a limit (from " + core::number(peaks_before.worst(), 4) + ") after " +
+    const std::string of = c == 1.0 ? " of a limit" : " of the limits held (x " + core::number(c, 4) + ")";
+    report.message = "the joints' limits stay broken: peak usage " + core::number(peaks_after.worst(), 4) + of +
+                     " (from " + core::number(peaks_before.worst(), 4) + ") after " +
                      std::to_string(result.rounds) +
                      " rounds weighing the peaks; beyond the self-motion's reach at this timing: slow the motion (" +
                      summary.message + ")";
   } else if (result.rounds > 0) {
-    report.message += "; " + std::to_string(result.rounds) + " rounds weighing the peaks beyond the limits, " +
-                      "peak usage " + core::number(peaks_after.worst(), 4);
+    // (An optimum taken whatever its peaks: its caller times the motion again along it.)
+    report.message += "; " + std::to_string(result.rounds) + " rounds weighing the peaks beyond the limits" +
+                      (c == 1.0 ? std::string() : " held (x " + core::number(c, 4) + ")") + ", peak usage " +
+                      core::number(peaks_after.worst(), 4);
   }
   if (stop.fired() || summary.termination_type == ceres::USER_SUCCESS) {
     report.status = OptimizerStatus::kTimeLimit;

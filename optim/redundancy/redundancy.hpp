@@ -28,7 +28,8 @@
 // round, until every usage is within 0.98, or 8 rounds, or 2 rounds in a row that lower the
 // peak by less than 0.1 % (limits the motion's timing puts beyond the self-motion's reach:
 // the report's message says so). An optimum is taken over the start when it breaks the limits
-// by less, or as little with a lower objective.
+// by less, or as little with a lower objective (without the limits as constraints: when its
+// objective is lower).
 // Solved by Levenberg-Marquardt with a sparse normal-equations Cholesky: the Jacobian is
 // banded (a sample couples with its three neighbours at most).
 #pragma once
@@ -70,8 +71,17 @@ struct RedundancyOptions {
   /// the optimum is taken whenever it reaches every pose.
   bool hold_goal = false;
   /// The joints' velocity, acceleration and jerk limits as constraints (the penalty
-  /// rounds above); false: the least-squares optimum alone.
+  /// rounds above; an optimum that breaks them more than the start is not taken); false: the
+  /// least-squares optimum alone, taken when its objective is lower (for a caller that times
+  /// the motion again along it).
   bool within_limits = true;
+  /// The limits held, in (0, 1]: velocity x c, acceleration x c^2, jerk x c^3 (the limits of
+  /// the same path 1 / c times faster: a caller that times the motion again along the joints
+  /// chosen asks for room to speed up). The peaks reported are usages of these.
+  double limit_scale = 1.0;
+  /// The optimum is taken whenever it reaches every pose (a caller that judges it itself:
+  /// the planner times the motion again along it and keeps the faster).
+  bool take_optimum = false;
   int max_iterations = 400;
   double time_budget_s = 10.0;
   /// Asked between iterations: true ends the solve there (deadline, cancellation).

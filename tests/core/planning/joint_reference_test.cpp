@@ -55,6 +55,18 @@ TEST(JointReference, PassesThroughItsSamplesRestsAtItsEndsAndIsItsOwnDerivative)
   }
 }
 
+// A 7-joint arm's self-motion direction at q: the unit vector of J(q)'s null space (its first
+// coordinate >= 0).
+JointVector self_motion(const RobotModel& model, const JointVector& q) {
+  Eigen::Isometry3d X;
+  JointJacobian J;
+  forward_kinematics(model, q, X, J);
+  const Eigen::MatrixXd dense = J;
+  const Eigen::FullPivLU<Eigen::MatrixXd> lu(dense);
+  const Eigen::VectorXd kernel = lu.kernel().col(0).normalized();
+  return kernel(0) < 0.0 ? JointVector(-kernel) : JointVector(kernel);
+}
+
 TEST(JointReference, ATrackerFollowsTheJointsChosenAhead) {
   const RobotModel& model = *find_builtin_robot("pa10");
   JointVector a(7), b(7);
@@ -74,14 +86,8 @@ TEST(JointReference, ATrackerFollowsTheJointsChosenAhead) {
     x.X_WT = forward_kinematics(model, q);
     states.push_back(x);
     // The same pose with the self-motion turned by 0.2 sin(pi t) rad (0 at both ends).
-    Eigen::Isometry3d X;
-    JointJacobian J;
-    forward_kinematics(model, q, X, J);
-    const Eigen::MatrixXd dense = J;
-    const Eigen::FullPivLU<Eigen::MatrixXd> lu(dense);
-    const Eigen::VectorXd kernel = lu.kernel().col(0).normalized();
-    const JointVector n = kernel(0) < 0.0 ? JointVector(-kernel) : JointVector(kernel);
-    const IkResult ik = solve_ik(model, x.X_WT, q + 0.2 * std::sin(std::numbers::pi * t) * n, precise);
+    const IkResult ik =
+        solve_ik(model, x.X_WT, q + 0.2 * std::sin(std::numbers::pi * t) * self_motion(model, q), precise);
     ASSERT_TRUE(ik.converged);
     chosen.push_back(k == 0 ? q : ik.q);
   }
@@ -106,6 +112,71 @@ TEST(JointReference, ATrackerFollowsTheJointsChosenAhead) {
     apart = std::max(apart, (s.q - chosen[static_cast<std::size_t>(k)]).cwiseAbs().maxCoeff());
   }
   EXPECT_GT(apart, 0.05);
+}
+
+// In arc length (a redundant arm's joints chosen along a path, to be timed along them): the
+// natural spline (q_ss = 0 at both ends) through its samples; a tracker following it lands on
+// the samples whatever the timing (the samples reached at other times), and its null-space
+// velocity is q_s(s) s_dot: with the tool's twist J q_s s_dot, the joint velocity is exactly
+// the reference's.
+TEST(JointReference, InArcLengthAnyTimingOfThePathFollowsIt) {
+  const RobotModel& model = *find_builtin_robot("pa10");
+  JointVector a(7), b(7);
+  a << 0.1, 0.5, 0.2, 1.2, -0.3, 0.6, 0.1;
+  b << 0.5, 0.3, -0.1, 1.5, 0.2, 0.3, -0.3;
+  const int K = 200;
+  const double L = 0.8;  // [m]
+  IkOptions precise;
+  precise.position_tolerance = precise.orientation_tolerance = 1e-12;
+  std::vector<JointVector> chosen;
+  std::vector<Eigen::Isometry3d> poses;
+  for (int k = 0; k <= K; ++k) {
+    const double f = static_cast<double>(k) / K;
+    const JointVector q = a + (f * f * (3 - 2 * f)) * (b - a);
+    poses.push_back(forward_kinematics(model, q));
+    const IkResult ik =
+        solve_ik(model, poses.back(), q + 0.2 * std::sin(std::numbers::pi * f) * self_motion(model, q), precise);
+    ASSERT_TRUE(ik.converged);
+    chosen.push_back(k == 0 ? q : ik.q);
+  }
+  const JointReference ref(chosen, L / K, ReferenceParameter::kArcLength);
+  EXPECT_EQ(ref.over(), ReferenceParameter::kArcLength);
+  EXPECT_NEAR(ref.duration(), L, 1e-15);
+  JointVector p, v, acc;
+  for (const double s : {0.0, L}) {
+    ref.at(s, p, v, acc);
+    EXPECT_LT(acc.norm(), 1e-12) << "natural at s = " << s;
+    EXPECT_GT(v.norm(), 1e-3) << "not at rest in s";
+  }
+  // Two timings of the same path: constant speed over 2 s, and s = L (t / 3)^2 (from rest).
+  for (const int timing : {0, 1}) {
+    SCOPED_TRACE(timing);
+    JointTracker tracker(model, a);
+    tracker.set_reference(&ref);
+    JointSample js;
+    double worst = 0.0, worst_rate = 0.0;
+    for (int k = 0; k <= K; ++k) {
+      const double s = L * k / K;
+      CartesianState x;
+      x.t = timing == 0 ? 2.0 * k / K : 3.0 * std::sqrt(static_cast<double>(k) / K);
+      x.s = s;
+      x.s_dot = timing == 0 ? L / 2.0 : 2.0 * L * x.t / 9.0;
+      x.s_ddot = timing == 0 ? 0.0 : 2.0 * L / 9.0;
+      x.X_WT = poses[static_cast<std::size_t>(k)];
+      ref.at(s, p, v, acc);
+      Eigen::Isometry3d X;
+      JointJacobian J;
+      forward_kinematics(model, chosen[static_cast<std::size_t>(k)], X, J);
+      const Eigen::Matrix<double, 6, 1> twist = J * (v * x.s_dot);
+      x.v_WT = twist.head<3>();
+      x.omega_WT = twist.tail<3>();
+      ASSERT_TRUE(tracker.track(x, js)) << k;
+      worst = std::max(worst, (js.q - chosen[static_cast<std::size_t>(k)]).cwiseAbs().maxCoeff());
+      if (k > 0) worst_rate = std::max(worst_rate, (js.q_dot - v * x.s_dot).cwiseAbs().maxCoeff());
+    }
+    EXPECT_LT(worst, 1e-9) << "on the joints chosen at their arc lengths";
+    EXPECT_LT(worst_rate, 1e-9) << "the joint velocity is q_s s_dot";
+  }
 }
 
 // The tool turned about its own axis (robot.toolAxisFree): the angular velocity and

@@ -245,6 +245,13 @@ DefaultJerk default_jerk_of(const core::RobotModel& model) {
   return used;
 }
 
+// Whether the limits time the request's motion on a robot (no durationS, timeOptimal or
+// jerkLimited): the timings a free choice can serve.
+bool timed_by_limits(const Request& request) {
+  return request.motion && time_optimally_timed(*request.motion, true, request.optimize && request.optimize->time_optimal,
+                                                request.optimize && request.optimize->jerk_limited);
+}
+
 // How the limits time a motion of `request` (a joint move or path: `joint`): the robot whose
 // limits time it when the model's missing jerk limits are defaulted (`defaulted`, with
 // `default_jerk`), and whether a path or a line is timed jerk-limited. Shared by
@@ -267,7 +274,7 @@ LimitsTiming limits_timing(const Request& request, bool joint) {
   // tool's angular limits are asked of a path or a line (the jerk-limited NLP has no angular
   // rows: the time-optimal sweep imposes them) nor under an explicit timeOptimal (the sweep
   // the request asks for, thesis 6.4).
-  const bool by_limits = robot != nullptr && time_optimally_timed(motion, true, time_optimal, asked_jerk);
+  const bool by_limits = robot != nullptr && timed_by_limits(request);
   const bool angular = motion.max_angular_speed || motion.max_angular_acceleration;
   if (by_limits && !core::jerk_limited(robot->model) && !(angular && !joint) && (!time_optimal || asked_jerk)) {
     out.default_jerk = default_jerk_of(robot->model);
@@ -775,16 +782,13 @@ constexpr double kTimingGain = 5e-3;
 // along them, while it gets faster by kTimingGain (at most kTimingRounds rounds). Where no
 // timing is faster, joints chosen to serve the timing (taken whatever their peaks on the first
 // timing) are dropped for the sample-by-sample ones the first timing was made for
-// (`as_timed`); a roll alone stays (chosen within the limits).
+// (`as_timed`, given with them); a roll alone stays (chosen within the limits).
 std::optional<Error> retime_along_choices(core::Trajectory& trajectory, const Request& request,
                                           const optim::RedundancyWeights& weights, Serve serve,
-                                          const core::Trajectory& as_timed, const Budget& budget,
+                                          const core::Trajectory* as_timed, const Budget& budget,
                                           Clock::time_point deadline, OptimizerReports& reports) {
   auto* motion = std::get_if<core::PathMotion>(&trajectory);
-  if (motion == nullptr || !reports.redundancy ||
-      !time_optimally_timed(*request.motion, true, request.optimize && request.optimize->time_optimal,
-                            request.optimize && request.optimize->jerk_limited))
-    return std::nullopt;
+  if (motion == nullptr || !reports.redundancy || !timed_by_limits(request)) return std::nullopt;
   // Timed as the first timing was: jerk-limited where the model's (or the defaulted) jerk
   // limits time it.
   const LimitsTiming timed = limits_timing(request, false);
@@ -824,18 +828,13 @@ std::optional<Error> retime_along_choices(core::Trajectory& trajectory, const Re
     const auto status = reports.redundancy->status;
     if (status == optim::OptimizerStatus::kFailed || status == optim::OptimizerStatus::kNoImprovement) break;
   }
-  const std::string what = serve == Serve::kNo                    ? "the roll"
-                           : motion->orientation.roll ? "the roll and joints"
-                                                      : "the joints";
+  // (The self-motion serves the timing only with the roll fixed: choose_joints.)
+  const std::string what = serve == Serve::kNo ? "the roll" : "the joints";
   const std::string how = serve == Serve::kPeaks          ? " (the peaks weighed)"
                           : serve == Serve::kLeastSquares ? " (the criteria alone)"
                                                           : "";
   if (!kept) {
-    if (serve != Serve::kNo) {
-      trajectory = as_timed;
-      reports.redundancy->message += "; " + what + " chosen" + how +
-                                     " do not make the motion faster: the sample-by-sample joints are kept";
-    }
+    if (as_timed != nullptr) trajectory = *as_timed;  // choose_joints says so
     return std::nullopt;
   }
   trajectory = std::move(*kept);
@@ -859,17 +858,15 @@ std::optional<Error> detail::choose_joints(core::Trajectory& trajectory, const R
   // (A line to goal joints keeps the joints that end at them, chosen on its first timing; with
   // the tool's roll free too, the roll alone is timed again: the self-motion chosen with it
   // took the Panda's seam from 1.5 s to 4.6 s.)
-  const bool serve_timing =
-      std::holds_alternative<core::PathMotion>(trajectory) && request.robot->model->dof() > 6 && goal == nullptr &&
-      !request.robot->tool_axis_free &&
-      time_optimally_timed(*request.motion, true, request.optimize && request.optimize->time_optimal,
-                           request.optimize && request.optimize->jerk_limited);
+  const bool serve_timing = std::holds_alternative<core::PathMotion>(trajectory) &&
+                            request.robot->model->dof() > 6 && goal == nullptr && !request.robot->tool_axis_free &&
+                            timed_by_limits(request);
   if (!serve_timing) {
     if (auto refused = optimize_joints(trajectory, *request.robot, weights, goal, budget, deadline, reports, Serve::kNo))
       return refused;
     if (auto stop = check(budget)) return stop;
     if (!request.robot->tool_axis_free) return std::nullopt;
-    return retime_along_choices(trajectory, request, weights, Serve::kNo, trajectory, budget, deadline, reports);
+    return retime_along_choices(trajectory, request, weights, Serve::kNo, nullptr, budget, deadline, reports);
   }
   const core::Trajectory as_timed = trajectory;
   std::optional<core::Trajectory> best;
@@ -881,7 +878,7 @@ std::optional<Error> detail::choose_joints(core::Trajectory& trajectory, const R
             optimize_joints(candidate, *request.robot, weights, goal, budget, deadline, candidate_reports, serve))
       return refused;
     if (auto stop = check(budget)) return stop;
-    if (auto refused = retime_along_choices(candidate, request, weights, serve, as_timed, budget, deadline,
+    if (auto refused = retime_along_choices(candidate, request, weights, serve, &as_timed, budget, deadline,
                                             candidate_reports))
       return refused;
     if (!best || core::duration(candidate) < core::duration(*best)) {
@@ -889,6 +886,10 @@ std::optional<Error> detail::choose_joints(core::Trajectory& trajectory, const R
       best_reports = std::move(candidate_reports);
     }
   }
+  if (!(core::duration(*best) < core::duration(as_timed)) && best_reports.redundancy)
+    best_reports.redundancy->message +=
+        "; the joints chosen (the peaks weighed, and the criteria alone) do not make the motion faster: the "
+        "sample-by-sample joints are kept";
   trajectory = std::move(*best);
   reports = std::move(best_reports);
   return std::nullopt;
@@ -951,10 +952,7 @@ Expected<Plan> plan_request(const Request& request, const Budget& budget, const 
     // a velocity, acceleration or jerk limit, the motion is timed again, slower by what the
     // worst of them needs (and the joints chosen again on the new timing).
     const bool chosen = (request.optimize && request.optimize->redundancy) || redundant_line || free_roll;
-    const bool timed_by_limits =
-        time_optimally_timed(*request.motion, true, request.optimize && request.optimize->time_optimal,
-                             request.optimize && request.optimize->jerk_limited);
-    if (chosen && timed_by_limits && !joints.feasible() && retimes_left > 0 && result.optimizers.redundancy &&
+    if (chosen && timed_by_limits(request) && !joints.feasible() && retimes_left > 0 && result.optimizers.redundancy &&
         (result.optimizers.redundancy->status == optim::OptimizerStatus::kConverged ||
          result.optimizers.redundancy->status == optim::OptimizerStatus::kIterationLimit)) {
       if (const double f = stretch_for(joints.violations); f > 1.0) {

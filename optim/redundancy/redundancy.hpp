@@ -21,15 +21,16 @@
 // Weights are the user's (RedundancyWeights); the
 // objective reported is 1/2 the sum of the squared criteria residuals.
 // The joints' velocity, acceleration and jerk limits are constraints: a least-squares optimum
-// spreads the usage but keeps peaks, so where it breaks a limit (the usage u of a derivative,
-// measured on the C2 spline the samples follow, above 0.98), every difference of a limited
-// derivative gets the term lambda (u / 0.95)^8 (nothing well below 0.95, steep above) and the
-// problem is solved again from the lower peak of the optimum and the start; lambda x4 a
-// round, until every usage is within 0.98, or 8 rounds, or 2 rounds in a row that lower the
-// peak by less than 0.1 % (limits the motion's timing puts beyond the self-motion's reach:
-// the report's message says so). An optimum is taken over the start when it breaks the limits
-// by less, or as little with a lower objective (without the limits as constraints: when its
-// objective is lower).
+// spreads the usage but keeps peaks, so where the joints break a limit (the usage u of a
+// derivative, measured on the C2 spline the samples follow, above 0.98), every difference of
+// a derivative used beyond 0.8 gets the term lambda (u / 0.93)^8 (nothing well below 0.93,
+// steep above): from the first solve where the given joints break a limit by less than 2x,
+// else on the least-squares optimum that does, solved again from the lower peak of the optimum and the
+// start. lambda x4 a round, until every usage is within 0.98, or 8 rounds, or a round that
+// lowers the peak by less than 0.5 % (limits the motion's timing puts beyond the self-motion's
+// reach: the report's message says so); the rounds' lowest peak is kept. An optimum is taken
+// over the start when it breaks the limits by less, or as little with a lower objective
+// (without the limits as constraints: when its objective is lower).
 // Solved by Levenberg-Marquardt with a sparse normal-equations Cholesky: the Jacobian is
 // banded (a sample couples with its three neighbours at most).
 #pragma once

@@ -18,6 +18,7 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include "core/format.hpp"
+#include "core/robot/dynamics.hpp"
 #include "planner/urdf_detail.hpp"
 
 namespace geotraj::planner {
@@ -297,6 +298,22 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
   m.name = model->getName();
   Eigen::Isometry3d pending = Eigen::Isometry3d::Identity();  // fixed joints since the last moving one
   std::vector<const TiXmlElement*> elements;                  // each moving joint's element
+  // Mass properties: each moving joint's child link with the links fixed to it (their frames
+  // in it: `pending`), in the joint's frame after its motion; links before the first moving
+  // joint stand with the base, links off the chain (a hand's fingers) are not counted. A link
+  // without <inertial> has none (URDF: zero mass).
+  std::vector<core::Inertial> bodies;
+  std::vector<std::string> body_links;  // each body's moving link, for messages
+  bool any_inertial = false;
+  const auto add_link = [&](const std::string& name, const Eigen::Isometry3d& X_body_link) {
+    const urdf::LinkConstSharedPtr link = model->getLink(name);
+    if (bodies.empty() || !link || !link->inertial) return;
+    any_inertial = true;
+    const urdf::Inertial& in = *link->inertial;
+    core::Inertial body{in.mass, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero()};
+    body.inertia << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
+    bodies.back() = core::combined(bodies.back(), core::in_frame(body, X_body_link * isometry(in.origin)));
+  };
   for (const auto& j : path) {
     const auto found = joint_elements.find(j->name);
     const TiXmlElement* e = found == joint_elements.end() ? nullptr : found->second;
@@ -304,6 +321,7 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
     const Eigen::Isometry3d origin = isometry(j->parent_to_joint_origin_transform);
     if (j->type == urdf::Joint::FIXED) {
       pending = pending * origin;
+      add_link(j->child_link_name, pending);
       continue;
     }
     if (j->type != urdf::Joint::REVOLUTE && j->type != urdf::Joint::CONTINUOUS &&
@@ -347,11 +365,29 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
         }
       }
     }
+    if (j->limits && j->limits->effort > 0.0) limits.max_torque = j->limits->effort;
     m.joints.push_back(std::move(joint));
     m.limits.push_back(limits);
     elements.push_back(e);
+    bodies.push_back(core::Inertial{0.0, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero()});
+    body_links.push_back(j->child_link_name);
+    add_link(j->child_link_name, Eigen::Isometry3d::Identity());
   }
   m.flange = pending;
+  // Mass properties that no body has (CAD exports and placeholders often break the triangle
+  // inequality) leave the model without dynamics rather than refuse its kinematics: its
+  // description says why.
+  std::string no_dynamics;
+  if (any_inertial && bodies.size() == m.joints.size()) {
+    Violations unphysical;
+    for (std::size_t i = 0; i < bodies.size(); ++i)
+      core::check_inertial("link '" + body_links[i] + "' <inertial>", bodies[i], unphysical);
+    if (unphysical.empty()) {
+      for (std::size_t i = 0; i < bodies.size(); ++i) m.joints[i].inertial = bodies[i];
+    } else {
+      no_dynamics = " (no dynamics: " + unphysical.front().field + " " + unphysical.front().description + ")";
+    }
+  }
   if (m.joints.empty() && v.empty()) {
     v.push_back({"urdf", "the chain from '" + base->name + "' to '" + tip->name + "' has no moving joint"});
   }
@@ -380,6 +416,7 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
     }
   }
   if (m.description.empty()) m.description = "URDF robot '" + m.name + "'";
+  m.description += no_dynamics;
   m.home.assign(m.joints.size(), 0.0);
   for (std::size_t i = 0; i < m.joints.size(); ++i) {
     const std::string& name = m.joints[i].name;

@@ -9,6 +9,8 @@
 #include <numbers>
 #include <string>
 
+#include <Eigen/Eigenvalues>
+
 #include "core/format.hpp"
 
 namespace geotraj::core {
@@ -137,13 +139,21 @@ void set_dh(RobotModel& model, DhTable table) {
   };
   for (std::size_t i = 0; i < n; ++i) {
     Joint& j = model.joints[i];
-    j.name = table.links[i].name;
-    j.type = table.links[i].type;
+    const DhLink& link = table.links[i];
+    j.name = link.name;
+    j.type = link.type;
     j.axis = Eigen::Vector3d::UnitZ();
     if (modified) {
-      j.origin = fixed(table.links[i], true);
+      j.origin = fixed(link, true);
     } else {
       j.origin = i == 0 ? Eigen::Isometry3d::Identity() : fixed(table.links[i - 1], false);
+    }
+    if (link.inertial) {
+      // Standard form: frame i = (the joint's frame after its motion) * F_i.
+      const Eigen::Isometry3d F = modified ? Eigen::Isometry3d::Identity() : fixed(link, false);
+      const Eigen::Matrix3d R = F.linear();
+      j.inertial = Inertial{link.inertial->mass, F * link.inertial->center_of_mass,
+                            R * link.inertial->inertia * R.transpose()};
     }
   }
   model.flange = !modified && n > 0 ? fixed(table.links[n - 1], false) : Eigen::Isometry3d::Identity();
@@ -184,6 +194,30 @@ void check_transform(const Field& field, const Eigen::Isometry3d& X, Violations&
 
 }  // namespace
 
+void check_inertial(const std::string& field, const Inertial& in, Violations& out) {
+  if (!std::isfinite(in.mass) || in.mass < 0.0 || in.mass > kMaxModelMagnitude)
+    out.push_back({field + ".mass", "must be in [0, " + number(kMaxModelMagnitude) + "] kg, got " + number(in.mass)});
+  if (!in.center_of_mass.allFinite() || in.center_of_mass.cwiseAbs().maxCoeff() > kMaxModelMagnitude)
+    out.push_back({field + ".centerOfMass", "must be finite, within " + number(kMaxModelMagnitude) + " m"});
+  const Eigen::Matrix3d& I = in.inertia;
+  if (!I.allFinite() || I.cwiseAbs().maxCoeff() > kMaxModelMagnitude) {
+    out.push_back({field + ".inertia", "must be finite, each entry within " + number(kMaxModelMagnitude) + " kg m^2"});
+    return;
+  }
+  const double tolerance = 1e-9 * std::max(1.0, I.cwiseAbs().maxCoeff());
+  if ((I - I.transpose()).cwiseAbs().maxCoeff() > tolerance) {
+    out.push_back({field + ".inertia", "must be symmetric"});
+    return;
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
+  const Eigen::Vector3d moments = solver.computeDirect(I, Eigen::EigenvaluesOnly).eigenvalues();  // ascending
+  if (moments(0) < -tolerance)
+    out.push_back({field + ".inertia", "must be positive semi-definite, has a principal moment " + number(moments(0))});
+  else if (moments(0) + moments(1) < moments(2) - tolerance)
+    out.push_back({field + ".inertia", "principal moments " + number(moments(0)) + ", " + number(moments(1)) + ", " +
+                                           number(moments(2)) + " break the triangle inequality: no body has them"});
+}
+
 Violations validate_robot(const RobotModel& model) {
   Violations out;
   const char* joints_field = model.dh ? "links" : "joints";
@@ -203,6 +237,7 @@ Violations validate_robot(const RobotModel& model) {
           {"a", l.a}, {"alpha", l.alpha}, {"d", l.d}, {"theta", l.theta}, {"offset", l.offset}};
       for (const auto& [name, v] : values) check_magnitude({"links", i, name}, v, out);
       check_name({"links", i, "name"}, l.name, out);
+      if (l.inertial) check_inertial(idx("links", i, "inertial"), *l.inertial, out);
     }
   } else {
     for (std::size_t i = 0; i < model.joints.size(); ++i) {
@@ -212,6 +247,7 @@ Violations validate_robot(const RobotModel& model) {
         out.push_back({idx("joints", i, "axis"), "must be a unit vector, got length " + number(j.axis.norm())});
       }
       check_name({"joints", i, "name"}, j.name, out);
+      if (j.inertial) check_inertial(idx("joints", i, "inertial"), *j.inertial, out);
     }
     check_transform({"flange"}, model.flange, out);
   }
@@ -238,6 +274,7 @@ Violations validate_robot(const RobotModel& model) {
     rate("maxVelocity", l.max_velocity, "rad/s", "m/s");
     rate("maxAcceleration", l.max_acceleration, "rad/s^2", "m/s^2");
     if (l.max_jerk) rate("maxJerk", *l.max_jerk, "rad/s^3", "m/s^3");
+    if (l.max_torque) rate("maxTorque", *l.max_torque, "N m", "N");
   }
   check_rotation(model.base, "base", out);
   check_rotation(model.tool, "tool", out);

@@ -59,6 +59,16 @@ enum class JointType { kRevolute, kPrismatic, kContinuous };
 /// Whether the joint turns (revolute or continuous) rather than slides.
 constexpr bool turns(JointType type) { return type != JointType::kPrismatic; }
 
+/// The mass properties of a rigid body (proto Inertial, URDF `<inertial>`): its mass [kg],
+/// its centre of mass c [m] and its rotational inertia I [kg m^2] about c, both in the body's
+/// frame. I is symmetric and positive semi-definite, its principal moments obey the triangle
+/// inequality (validate_robot).
+struct Inertial {
+  double mass = 0.0;
+  Eigen::Vector3d center_of_mass = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
+};
+
 /// One joint of a general chain (see the top of this file). Lengths [m].
 struct Joint {
   /// The joint's name for people ("panda_joint1"); joints are numbered from 0 at the base
@@ -70,6 +80,10 @@ struct Joint {
   Eigen::Isometry3d origin = Eigen::Isometry3d::Identity();
   /// a_i: the unit axis the joint turns about or slides along, in its frame.
   Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+  /// The link the joint moves, in the joint's frame after its motion (O_i M_i(q_i) ends
+  /// there); for the last joint the flange and tool are on that link. None: the model gives
+  /// no dynamics (core/robot/dynamics.hpp needs every joint's).
+  std::optional<Inertial> inertial{};
 };
 
 /// One row of the DH table (proto DhLink). Lengths [m], angles [rad].
@@ -83,6 +97,10 @@ struct DhLink {
   /// The joint's name for people ("S1", "shoulder_pan"); joints are numbered from 0 at the
   /// base everywhere, the name says which one that is. Empty: none. At most kMaxJointName bytes.
   std::string name{};
+  /// The link the joint moves, in the table's frame i (set_dh moves it to Joint::inertial's
+  /// frame: the same in the modified form; standard: frame i is that frame times the row's
+  /// fixed part).
+  std::optional<Inertial> inertial{};
 };
 
 /// The longest joint name [bytes].
@@ -112,6 +130,8 @@ struct JointLimits {
   double max_velocity = 0.0;   ///< [rad/s or m/s], in [kMinJointLimit, kMaxJointLimit]
   double max_acceleration = 0.0;  ///< [rad/s^2 or m/s^2], in [kMinJointLimit, kMaxJointLimit]
   std::optional<double> max_jerk;  ///< [rad/s^3 or m/s^3], in that range; absent: unlimited
+  /// [N m or N] (URDF's <limit effort>), in that range; absent: none given.
+  std::optional<double> max_torque{};
 };
 
 /// Whether joint value q is within the joint's position limits (always, for a continuous
@@ -168,6 +188,13 @@ void set_dh(RobotModel& model, DhTable table);
 /// beyond kMaxModelMagnitude, `home` of the wrong size or outside the limits.
 /// Empty when the model is usable.
 Violations validate_robot(const RobotModel& model);
+
+/// Appends to `out` what makes `in` no body's, named `field`.mass, .centerOfMass, .inertia:
+/// a mass outside [0, kMaxModelMagnitude] kg or not finite, a centre of mass not finite or
+/// beyond kMaxModelMagnitude m, an inertia not finite, not symmetric, not positive
+/// semi-definite or whose principal moments break the triangle inequality (to 1e-9 of its
+/// size). What validate_robot applies to every link's.
+void check_inertial(const std::string& field, const Inertial& in, Violations& out);
 
 /// A model that validate_robot accepted: immutable and shared, the proof that it was checked.
 /// Made once where a model enters (a catalogue, a request, a URDF document) and copied for the

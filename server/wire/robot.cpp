@@ -86,6 +86,29 @@ v1::JointType to_proto(core::JointType type) {
   return v1::JOINT_TYPE_REVOLUTE;
 }
 
+// A link's mass properties; an inertia of other than 6 values named at `at`.inertia.
+core::Inertial inertial_from_proto(const v1::Inertial& in, const std::string& at, core::Violations& out) {
+  core::Inertial inertial;
+  inertial.mass = in.mass();
+  if (in.has_center_of_mass()) inertial.center_of_mass = to_core(in.center_of_mass());
+  inertial.inertia.setZero();
+  if (in.inertia_size() == 6) {
+    const auto& I = in.inertia();  // ixx, ixy, ixz, iyy, iyz, izz
+    inertial.inertia << I[0], I[1], I[2], I[1], I[3], I[4], I[2], I[4], I[5];
+  } else if (in.inertia_size() != 0) {
+    out.push_back({at + ".inertia", "needs 6 values (ixx, ixy, ixz, iyy, iyz, izz) or none, got " +
+                                        std::to_string(in.inertia_size())});
+  }
+  return inertial;
+}
+
+void to_proto(const core::Inertial& in, v1::Inertial& out) {
+  out.set_mass(in.mass);
+  set(out.mutable_center_of_mass(), in.center_of_mass);
+  const Eigen::Matrix3d& I = in.inertia;
+  for (const double x : {I(0, 0), I(0, 1), I(0, 2), I(1, 1), I(1, 2), I(2, 2)}) out.add_inertia(x);
+}
+
 }  // namespace
 
 core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& model, const std::string& prefix) {
@@ -110,6 +133,7 @@ core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& mo
       joint.type = joint_type_from_proto(j.joint_type());
       if (j.has_origin()) joint.origin = pose_from_proto(j.origin(), at + ".origin", poses);
       if (j.has_axis()) joint.axis = to_core(j.axis());
+      if (j.has_inertial()) joint.inertial = inertial_from_proto(j.inertial(), at + ".inertial", check.violations);
       m.joints.push_back(std::move(joint));
     }
     if (model.has_flange()) m.flange = pose_from_proto(model.flange(), prefix + "flange", poses);
@@ -127,6 +151,9 @@ core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& mo
                  v1::JointType_descriptor());
       table.links.push_back(
           {l.a(), l.alpha(), l.d(), l.theta(), joint_type_from_proto(l.joint_type()), l.offset(), l.name()});
+      if (l.has_inertial())
+        table.links.back().inertial = inertial_from_proto(
+            l.inertial(), prefix + "links[" + std::to_string(i) + "].inertial", check.violations);
     }
     core::set_dh(m, std::move(table));
   }
@@ -134,6 +161,7 @@ core::Expected<core::RobotModel> robot_model_from_proto(const v1::RobotModel& mo
     core::JointLimits limits{l.min_position(), l.max_position(), l.max_velocity(), l.max_acceleration(),
                              std::nullopt};
     if (l.has_max_jerk()) limits.max_jerk = l.max_jerk();
+    if (l.has_max_torque()) limits.max_torque = l.max_torque();
     m.limits.push_back(limits);
   }
   m.home.assign(model.home().begin(), model.home().end());
@@ -169,6 +197,7 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
       link->set_joint_type(to_proto(l.type));
       link->set_offset(l.offset);
       link->set_name(l.name);
+      if (l.inertial) to_proto(*l.inertial, *link->mutable_inertial());
     }
   } else {
     for (const auto& j : model.joints) {
@@ -177,6 +206,7 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
       joint->set_joint_type(to_proto(j.type));
       to_proto(j.origin, *joint->mutable_origin());
       to_proto(Vector3d(j.axis), *joint->mutable_axis());
+      if (j.inertial) to_proto(*j.inertial, *joint->mutable_inertial());
     }
     to_proto(model.flange, *out.mutable_flange());
   }
@@ -187,6 +217,7 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
     limits->set_max_velocity(l.max_velocity);
     limits->set_max_acceleration(l.max_acceleration);
     if (l.max_jerk) limits->set_max_jerk(*l.max_jerk);
+    if (l.max_torque) limits->set_max_torque(*l.max_torque);
   }
   to_proto(model.base, *out.mutable_base());
   to_proto(model.tool, *out.mutable_tool());

@@ -19,6 +19,7 @@
 #include <gtest/gtest.h>
 #include <tinyxml.h>
 
+#include "core/robot/dynamics.hpp"
 #include "core/robot/ik.hpp"
 #include "core/robot/kinematics.hpp"
 #include "planner/robots.hpp"
@@ -240,6 +241,145 @@ TEST(Urdf, FixedJointsFoldAndContinuousJointsAreUnbounded) {
   const core::IkResult r = core::solve_ik(gen3, target, q - JointVector::Constant(7, 0.05));
   EXPECT_TRUE(r.converged);
   EXPECT_NEAR(r.q(6), q(6), 0.2);  // near the seed (7 joints: self-motion), not wrapped by 2 pi
+}
+
+// Mass properties and efforts: every link of the SCARA-like fixture given an <inertial>
+// (its own origin and rotation) is read into the joint that moves it, a fixed link's (the
+// elbow block, the tool) folded into the moving link it hangs on; <limit effort> is the
+// torque limit. Checked against the document read here: the gravity torques at rest against
+// the derivatives of the potential energy of every link's centre of mass (each link's pose by
+// the independent forward kinematics above), and the inertia seen by the prismatic and the
+// last, continuous joint (the mass matrix's diagonal) against the bodies beyond them.
+TEST(Urdf, InertialsAndEffortsAreRead) {
+  struct Body {
+    const char* link;
+    int joints;  // moving joints from the base to the link
+    double mass;
+    Eigen::Vector3d xyz, rpy, diagonal;  // the <inertial> origin and principal moments
+  };
+  const std::vector<Body> bodies = {
+      {"link1", 1, 4.0, {0.1, 0.0, 0.05}, {0.0, 0.0, 0.3}, {0.02, 0.03, 0.04}},
+      {"link2", 2, 3.0, {0.15, 0.01, 0.0}, {0.1, -0.2, 0.0}, {0.01, 0.02, 0.025}},
+      {"elbow_block", 2, 0.8, {0.0, 0.0, 0.02}, {0.0, 0.4, 0.0}, {0.002, 0.003, 0.004}},
+      {"link3", 3, 2.0, {0.0, 0.02, -0.03}, {0.5, 0.0, -0.1}, {0.006, 0.007, 0.008}},
+      {"link4", 4, 1.0, {0.0, 0.0, 0.04}, {0.0, 0.0, 0.0}, {0.003, 0.003, 0.001}},
+      {"link5", 5, 0.5, {0.01, 0.0, 0.02}, {0.2, 0.3, 0.1}, {0.001, 0.0012, 0.0015}},
+      {"tool", 5, 0.7, {0.0, 0.03, 0.05}, {-0.3, 0.0, 0.6}, {0.0015, 0.002, 0.0025}}};
+  const auto document = [&](const std::vector<Body>& with) {
+    std::string text = fixture("scara_like.urdf");
+    for (const Body& b : with) {
+      const std::string empty = std::string("<link name=\"") + b.link + "\"/>";
+      const auto at = text.find(empty);
+      EXPECT_NE(at, std::string::npos) << b.link;
+      if (at == std::string::npos) continue;
+      char inertial[512];
+      std::snprintf(inertial, sizeof inertial,
+                    "<link name=\"%s\"><inertial><origin xyz=\"%.17g %.17g %.17g\" rpy=\"%.17g %.17g %.17g\"/>"
+                    "<mass value=\"%.17g\"/><inertia ixx=\"%.17g\" ixy=\"0\" ixz=\"0\" iyy=\"%.17g\" iyz=\"0\" "
+                    "izz=\"%.17g\"/></inertial></link>",
+                    b.link, b.xyz.x(), b.xyz.y(), b.xyz.z(), b.rpy.x(), b.rpy.y(), b.rpy.z(), b.mass, b.diagonal.x(),
+                    b.diagonal.y(), b.diagonal.z());
+      text.replace(at, empty.size(), inertial);
+    }
+    return text;
+  };
+  const std::string text = document(bodies);
+  const auto rotation = [](const Eigen::Vector3d& rpy) {
+    return Eigen::Matrix3d(Eigen::AngleAxisd(rpy.z(), Eigen::Vector3d::UnitZ()) *
+                           Eigen::AngleAxisd(rpy.y(), Eigen::Vector3d::UnitY()) *
+                           Eigen::AngleAxisd(rpy.x(), Eigen::Vector3d::UnitX()));
+  };
+  const RobotModel m = load(text);
+  ASSERT_TRUE(core::has_dynamics(m));
+  ASSERT_TRUE(core::validate_robot(m).empty()) << listed(core::validate_robot(m));
+  const double efforts[] = {50, 30, 10, 200, 5};
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_EQ(m.limits[i].max_torque, efforts[i]) << i;
+  double total = 0.0;
+  for (const auto& j : m.joints) total += j.inertial->mass;
+  EXPECT_NEAR(total, 12.0, 1e-12);
+
+  std::mt19937_64 rng(35);
+  for (int trial = 0; trial < 5; ++trial) {
+    const JointVector q = random_q(m, rng), zero = JointVector::Zero(5);
+    // Every body's centre of mass, axes and frame in the base link's frame (the model's base is
+    // the identity), read from the document.
+    const auto frame = [&](const Body& b, const JointVector& x) {
+      return Eigen::Isometry3d(independent_fk(text, "base_link", b.link, x.head(b.joints)));
+    };
+    const Eigen::Vector3d g(0.0, 0.0, -core::kStandardGravity);
+    const auto potential = [&](const JointVector& x) {
+      double V = 0.0;
+      for (const Body& b : bodies) V -= b.mass * g.dot(frame(b, x) * b.xyz);
+      return V;
+    };
+    JointVector tau;
+    core::inverse_dynamics(m, q, zero, zero, core::DynamicsOptions{}, tau);
+    for (Eigen::Index i = 0; i < 5; ++i) {
+      JointVector up = q, down = q;
+      up(i) += 1e-6;
+      down(i) -= 1e-6;
+      EXPECT_NEAR(tau(i), (potential(up) - potential(down)) / 2e-6, 1e-6) << "joint " << i;
+    }
+    // The diagonal of the mass matrix at the prismatic joint 3 (the mass it carries) and the
+    // continuous joint 4 (the bodies about its axis).
+    core::DynamicsOptions no_gravity;
+    no_gravity.gravity.setZero();
+    core::inverse_dynamics(m, q, zero, JointVector::Unit(5, 3), no_gravity, tau);
+    EXPECT_NEAR(tau(3), 0.5 + 0.7 + 1.0, 1e-12);
+    core::inverse_dynamics(m, q, zero, JointVector::Unit(5, 4), no_gravity, tau);
+    const Eigen::Isometry3d X5 = frame(bodies[5], q);
+    const Eigen::Vector3d axis = X5.linear().col(2), on_axis = X5.translation();  // j5 turns about link5's z
+    double expected = 0.0;
+    for (const Body& b : {bodies[5], bodies[6]}) {
+      const Eigen::Isometry3d X = frame(b, q);
+      const Eigen::Matrix3d R = X.linear() * rotation(b.rpy);
+      const Eigen::Matrix3d I = R * b.diagonal.asDiagonal() * R.transpose();
+      expected += axis.dot(I * axis) + b.mass * axis.cross(X * b.xyz - on_axis).squaredNorm();
+    }
+    EXPECT_NEAR(tau(4), expected, 1e-12);
+  }
+  // Without any <inertial> the model gives no dynamics.
+  EXPECT_FALSE(core::has_dynamics(load(fixture("scara_like.urdf"))));
+  // Nor with an inertia no body has; its kinematics still load, and its description says why.
+  std::vector<Body> rod = bodies;
+  rod[0].diagonal.x() = 0.09;  // link1: 0.09 > 0.03 + 0.04
+  const RobotModel kinematics_only = load(document(rod));
+  EXPECT_FALSE(core::has_dynamics(kinematics_only));
+  EXPECT_THAT(kinematics_only.description,
+              HasSubstr("(no dynamics: link 'link1' <inertial>.inertia principal moments"));
+}
+
+// The built-in Panda carries identified mass properties (Gaz et al. 2019, panda.urdf): at rest
+// anywhere within its joint limits with its rated 3 kg payload at the flange, gravity needs
+// less than its torque limits (tau_j_max), as the maker's rating promises; without the payload
+// less again. The other built-in arms give no dynamics yet.
+TEST(Urdf, ThePandaHoldsItsRatedPayloadAnywhereWithinItsTorques) {
+  const auto& panda = *planner::find_builtin_robot("panda");
+  ASSERT_TRUE(core::has_dynamics(panda));
+  double mass = 0.0;
+  for (const auto& j : panda.joints) mass += j.inertial->mass;
+  EXPECT_NEAR(mass, 16.0, 0.1) << "links 1-7";
+  for (const char* name : {"pa10", "ur5", "ur5e", "iiwa14"})
+    EXPECT_FALSE(core::has_dynamics(*planner::find_builtin_robot(name))) << name;
+  std::mt19937_64 rng(34);
+  core::DynamicsOptions rated, bare;
+  rated.payload.mass = 3.0;
+  double worst = 0.0, worst_bare = 0.0;
+  JointVector tau;
+  for (int k = 0; k < 5000; ++k) {
+    const JointVector q = random_q(panda, rng), zero = JointVector::Zero(7);
+    core::inverse_dynamics(panda, q, zero, zero, rated, tau);
+    for (Eigen::Index i = 0; i < 7; ++i)
+      worst = std::max(worst, std::abs(tau(i)) / *panda.limits[static_cast<std::size_t>(i)].max_torque);
+    core::inverse_dynamics(panda, q, zero, zero, bare, tau);
+    for (Eigen::Index i = 0; i < 7; ++i)
+      worst_bare = std::max(worst_bare, std::abs(tau(i)) / *panda.limits[static_cast<std::size_t>(i)].max_torque);
+  }
+  std::printf("[ measured ] Panda at rest, 5,000 random poses: gravity uses at most %.3f of a torque limit with 3 kg "
+              "at the flange, %.3f without\n", worst, worst_bare);
+  EXPECT_LT(worst, 1.0);
+  EXPECT_LT(worst_bare, worst);
+  EXPECT_GT(worst, 0.3) << "the arm's weight is felt";
 }
 
 TEST(Urdf, BaseAndTipChooseTheChain) {

@@ -15,6 +15,7 @@
 // takes joint.pose(0)^-1 * f_tip), so a joint offset would cancel out.
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include <Eigen/Core>
@@ -23,6 +24,8 @@
 #include <kdl/frames.hpp>
 #include <kdl/jacobian.hpp>
 #include <kdl/jntarray.hpp>
+#include <kdl/rigidbodyinertia.hpp>
+#include <kdl/rotationalinertia.hpp>
 #include <kdl/joint.hpp>
 #include <kdl/segment.hpp>
 
@@ -44,6 +47,16 @@ inline Eigen::Isometry3d from_kdl(const KDL::Frame& F) {
     X.translation()(r) = F.p(r);
   }
   return X;
+}
+
+// KDL holds a segment's inertia in the segment's tip frame, about the centre of mass.
+inline KDL::RigidBodyInertia to_kdl(const core::Inertial& in) {
+  const Eigen::Matrix3d& I = in.inertia;
+  return KDL::RigidBodyInertia(in.mass, KDL::Vector(in.center_of_mass.x(), in.center_of_mass.y(), in.center_of_mass.z()),
+                               KDL::RotationalInertia(I(0, 0), I(1, 1), I(2, 2), I(0, 1), I(0, 2), I(1, 2)));
+}
+inline KDL::RigidBodyInertia inertia_of(const std::optional<core::Inertial>& in) {
+  return in ? to_kdl(*in) : KDL::RigidBodyInertia::Zero();
 }
 
 inline KDL::JntArray to_kdl(const core::JointVector& q) {
@@ -75,8 +88,10 @@ inline KDL::Chain dh_to_kdl_chain(const core::RobotModel& m) {
       chain.addSegment(KDL::Segment("joint" + std::to_string(i + 1), joint(table.links[i]), next));
     }
   } else {
+    // Standard form: the segment's tip is frame i, where DhLink::inertial is given.
     for (std::size_t i = 0; i < n; ++i)
-      chain.addSegment(KDL::Segment("joint" + std::to_string(i + 1), joint(table.links[i]), link_frame(table.links[i])));
+      chain.addSegment(KDL::Segment("joint" + std::to_string(i + 1), joint(table.links[i]), link_frame(table.links[i]),
+                                    inertia_of(table.links[i].inertial)));
   }
   chain.addSegment(KDL::Segment("tool", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.tool)));
   return chain;
@@ -84,8 +99,10 @@ inline KDL::Chain dh_to_kdl_chain(const core::RobotModel& m) {
 
 // A general chain as KDL builds one from URDF: per joint a fixed segment to the joint's
 // frame, then a segment whose joint turns about (slides along) the axis through its origin;
-// the flange and the tool as fixed segments.
-inline KDL::Chain general_to_kdl_chain(const core::RobotModel& m) {
+// the flange and the tool as fixed segments. A link's inertia (Joint::inertial) on the
+// segment whose tip is the joint's frame after its motion; `payload` (mass, centre of mass in
+// the tool frame) on the tool's segment.
+inline KDL::Chain general_to_kdl_chain(const core::RobotModel& m, const core::Inertial& payload = {}) {
   KDL::Chain chain;
   chain.addSegment(KDL::Segment("base", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.base)));
   for (std::size_t i = 0; i < m.joints.size(); ++i) {
@@ -93,10 +110,10 @@ inline KDL::Chain general_to_kdl_chain(const core::RobotModel& m) {
     chain.addSegment(KDL::Segment("origin" + std::to_string(i), KDL::Joint(KDL::Joint::Fixed), to_kdl(j.origin)));
     const KDL::Joint moving("joint" + std::to_string(i), KDL::Vector::Zero(), KDL::Vector(j.axis.x(), j.axis.y(), j.axis.z()),
                             j.type == core::JointType::kPrismatic ? KDL::Joint::TransAxis : KDL::Joint::RotAxis);
-    chain.addSegment(KDL::Segment("link" + std::to_string(i), moving, KDL::Frame::Identity()));
+    chain.addSegment(KDL::Segment("link" + std::to_string(i), moving, KDL::Frame::Identity(), inertia_of(j.inertial)));
   }
   chain.addSegment(KDL::Segment("flange", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.flange)));
-  chain.addSegment(KDL::Segment("tool", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.tool)));
+  chain.addSegment(KDL::Segment("tool", KDL::Joint(KDL::Joint::Fixed), to_kdl(m.tool), to_kdl(payload)));
   return chain;
 }
 

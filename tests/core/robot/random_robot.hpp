@@ -133,6 +133,31 @@ inline core::RobotModel random_general_robot(std::mt19937_64& rng) {
   return m;
 }
 
+/// Random mass properties of a link: mass in [0.2, 5] kg, centre of mass within 0.2 m of
+/// the link's origin, principal moments in [0.005, 0.1] kg m^2 (drawn again until they obey
+/// the triangle inequality) about random principal axes.
+inline core::Inertial random_inertial(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> unit(-1.0, 1.0), mass(0.2, 5.0), moment(0.005, 0.1);
+  core::Inertial in;
+  in.mass = mass(rng);
+  in.center_of_mass = 0.2 * Eigen::Vector3d(unit(rng), unit(rng), unit(rng));
+  Eigen::Vector3d m;
+  do {
+    m = Eigen::Vector3d(moment(rng), moment(rng), moment(rng));
+  } while (m.sum() < 2.0 * m.maxCoeff());  // the triangle inequality
+  const Eigen::Matrix3d R =
+      Eigen::Quaterniond(Eigen::Vector4d(unit(rng), unit(rng), unit(rng), unit(rng)).normalized()).toRotationMatrix();
+  in.inertia = R * m.asDiagonal() * R.transpose();
+  in.inertia = 0.5 * (in.inertia + in.inertia.transpose()).eval();
+  return in;
+}
+
+/// The model with every joint's link given random mass properties (random_inertial).
+inline core::RobotModel with_random_inertials(core::RobotModel m, std::mt19937_64& rng) {
+  for (core::Joint& j : m.joints) j.inertial = random_inertial(rng);
+  return m;
+}
+
 /// Random joint values within the limits and velocities in [-2, 2] per second.
 inline core::JointVector random_joints(const core::RobotModel& m, std::mt19937_64& rng) {
   core::JointVector q(static_cast<Eigen::Index>(m.dof()));

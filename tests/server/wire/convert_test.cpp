@@ -171,6 +171,42 @@ TEST(WireRequest, AModelsWireFormRoundTrips) {
   }
 }
 
+// Mass properties and torque limits cross the wire: a general chain's on its joints, a DH
+// table's on its rows (in frame i, moved by set_dh the same way on both sides); an inertia
+// of other than six values is refused by field.
+TEST(WireRequest, MassPropertiesAndTorqueLimitsRoundTrip) {
+  for (const char* name : {"panda", "ur5"}) {
+    core::RobotModel model = *catalog().find(name);
+    for (std::size_t i = 0; i < model.dof(); ++i) {
+      const double k = static_cast<double>(i + 1);
+      const core::Inertial in{2.0 * k, Eigen::Vector3d(0.01 * k, -0.02, 0.03), Eigen::Matrix3d::Identity() * 0.01 * k};
+      if (model.dh) model.dh->links[i].inertial = in; else model.joints[i].inertial = in;
+      model.limits[i].max_torque = 10.0 * k;
+    }
+    if (model.dh) core::set_dh(model, *model.dh);
+    v1::RobotModel wire;
+    server::to_proto(model, wire);
+    const auto back = server::robot_model_from_proto(wire, "robot.model.");
+    ASSERT_TRUE(back.has_value()) << name;
+    for (std::size_t i = 0; i < model.dof(); ++i) {
+      ASSERT_TRUE(back->joints[i].inertial.has_value()) << name << " " << i;
+      EXPECT_EQ(back->joints[i].inertial->mass, model.joints[i].inertial->mass);
+      EXPECT_TRUE(back->joints[i].inertial->center_of_mass.isApprox(model.joints[i].inertial->center_of_mass, 1e-15));
+      EXPECT_TRUE(back->joints[i].inertial->inertia.isApprox(model.joints[i].inertial->inertia, 1e-15));
+      EXPECT_EQ(back->limits[i].max_torque, model.limits[i].max_torque);
+    }
+    v1::RobotModel bad = wire;
+    auto* inertia = bad.joints_size() > 0 ? bad.mutable_joints(2)->mutable_inertial()->mutable_inertia()
+                                          : bad.mutable_links(2)->mutable_inertial()->mutable_inertia();
+    inertia->RemoveLast();
+    const auto refused = server::robot_model_from_proto(bad, "robot.model.");
+    ASSERT_FALSE(refused.has_value());
+    EXPECT_EQ(refused.error().front().field,
+              std::string("robot.model.") + (bad.joints_size() > 0 ? "joints" : "links") + "[2].inertial.inertia");
+    EXPECT_THAT(refused.error().front().description, HasSubstr("needs 6 values"));
+  }
+}
+
 // A model file is read as written (its JSON and wire form refused here, named by field) and
 // checked where it enters the catalogue (core::ValidRobot::check, geotrajd's start).
 TEST(WireRequest, AModelFileIsReadAsWrittenAndCheckedWhereItEnters) {

@@ -18,7 +18,6 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include "core/format.hpp"
-#include "core/robot/dynamics.hpp"
 #include "planner/urdf_detail.hpp"
 
 namespace geotraj::planner {

@@ -8,22 +8,6 @@
 
 namespace geotraj::core {
 
-Inertial in_frame(const Inertial& body, const Eigen::Isometry3d& X_ab) {
-  const Eigen::Matrix3d R = X_ab.linear();
-  return Inertial{body.mass, X_ab * body.center_of_mass, R * body.inertia * R.transpose()};
-}
-
-Inertial combined(const Inertial& a, const Inertial& b) {
-  const double mass = a.mass + b.mass;
-  if (!(mass > 0.0)) return Inertial{0.0, a.center_of_mass, a.inertia + b.inertia};
-  const Eigen::Vector3d c = (a.mass * a.center_of_mass + b.mass * b.center_of_mass) / mass;
-  const auto moved = [&](const Inertial& body) {
-    const Eigen::Vector3d r = body.center_of_mass - c;
-    return Eigen::Matrix3d(body.inertia + body.mass * (r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose()));
-  };
-  return Inertial{mass, c, moved(a) + moved(b)};
-}
-
 bool has_dynamics(const RobotModel& model) {
   return !model.joints.empty() &&
          std::all_of(model.joints.begin(), model.joints.end(), [](const Joint& j) { return j.inertial.has_value(); });

@@ -27,7 +27,6 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "core/robot/robot.hpp"
 
@@ -48,14 +47,6 @@ struct DynamicsOptions {
   Eigen::Vector3d gravity = Eigen::Vector3d(0.0, 0.0, -kStandardGravity);  ///< [m/s^2] in W
   Payload payload;
 };
-
-/// Mass properties given in frame b, in frame a (X_ab: frame b in frame a): the centre of
-/// mass moved, the inertia turned (R I R^T).
-Inertial in_frame(const Inertial& body, const Eigen::Isometry3d& X_ab);
-
-/// Two bodies in one frame as one rigid body: the total mass at the combined centre of mass,
-/// each inertia moved there by the parallel-axis theorem (I + m (|r|^2 1 - r r^T)).
-Inertial combined(const Inertial& a, const Inertial& b);
 
 /// Whether every joint of the model gives the mass properties of the link it moves.
 bool has_dynamics(const RobotModel& model);

@@ -126,6 +126,22 @@ RobotModel ur5() {
 
 }  // namespace
 
+Inertial in_frame(const Inertial& body, const Eigen::Isometry3d& X_ab) {
+  const Eigen::Matrix3d R = X_ab.linear();
+  return Inertial{body.mass, X_ab * body.center_of_mass, R * body.inertia * R.transpose()};
+}
+
+Inertial combined(const Inertial& a, const Inertial& b) {
+  const double mass = a.mass + b.mass;
+  if (!(mass > 0.0)) return Inertial{0.0, a.center_of_mass, a.inertia + b.inertia};
+  const Eigen::Vector3d c = (a.mass * a.center_of_mass + b.mass * b.center_of_mass) / mass;
+  const auto moved = [&](const Inertial& body) {
+    const Eigen::Vector3d r = body.center_of_mass - c;
+    return Eigen::Matrix3d(body.inertia + body.mass * (r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose()));
+  };
+  return Inertial{mass, c, moved(a) + moved(b)};
+}
+
 void set_dh(RobotModel& model, DhTable table) {
   const bool modified = table.convention == DhConvention::kModified;
   const std::size_t n = table.links.size();
@@ -148,13 +164,8 @@ void set_dh(RobotModel& model, DhTable table) {
     } else {
       j.origin = i == 0 ? Eigen::Isometry3d::Identity() : fixed(table.links[i - 1], false);
     }
-    if (link.inertial) {
-      // Standard form: frame i = (the joint's frame after its motion) * F_i.
-      const Eigen::Isometry3d F = modified ? Eigen::Isometry3d::Identity() : fixed(link, false);
-      const Eigen::Matrix3d R = F.linear();
-      j.inertial = Inertial{link.inertial->mass, F * link.inertial->center_of_mass,
-                            R * link.inertial->inertia * R.transpose()};
-    }
+    if (link.inertial)  // standard form: frame i = (the joint's frame after its motion) * F_i
+      j.inertial = modified ? *link.inertial : in_frame(*link.inertial, fixed(link, false));
   }
   model.flange = !modified && n > 0 ? fixed(table.links[n - 1], false) : Eigen::Isometry3d::Identity();
   model.dh = std::move(table);

@@ -69,6 +69,14 @@ struct Inertial {
   Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
 };
 
+/// Mass properties given in frame b, in frame a (X_ab: frame b in frame a): the centre of
+/// mass moved, the inertia turned (R I R^T).
+Inertial in_frame(const Inertial& body, const Eigen::Isometry3d& X_ab);
+
+/// Two bodies in one frame as one rigid body: the total mass at the combined centre of mass,
+/// each inertia moved there by the parallel-axis theorem (I + m (|r|^2 1 - r r^T)).
+Inertial combined(const Inertial& a, const Inertial& b);
+
 /// One joint of a general chain (see the top of this file). Lengths [m].
 struct Joint {
   /// The joint's name for people ("panda_joint1"); joints are numbered from 0 at the base

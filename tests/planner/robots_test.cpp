@@ -14,6 +14,7 @@
 #include <sstream>
 #include <stop_token>
 #include <string>
+#include <tuple>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -349,37 +350,78 @@ TEST(Urdf, InertialsAndEffortsAreRead) {
               HasSubstr("(no dynamics: link 'link1' <inertial>.inertia principal moments"));
 }
 
-// The built-in Panda carries identified mass properties (Gaz et al. 2019, panda.urdf): at rest
-// anywhere within its joint limits with its rated 3 kg payload at the flange, gravity needs
-// less than its torque limits (tau_j_max), as the maker's rating promises; without the payload
-// less again. The other built-in arms give no dynamics yet.
-TEST(Urdf, ThePandaHoldsItsRatedPayloadAnywhereWithinItsTorques) {
-  const auto& panda = *planner::find_builtin_robot("panda");
-  ASSERT_TRUE(core::has_dynamics(panda));
-  double mass = 0.0;
-  for (const auto& j : panda.joints) mass += j.inertial->mass;
-  EXPECT_NEAR(mass, 16.0, 0.1) << "links 1-7";
-  for (const char* name : {"pa10", "ur5", "ur5e", "iiwa14"})
-    EXPECT_FALSE(core::has_dynamics(*planner::find_builtin_robot(name))) << name;
-  std::mt19937_64 rng(34);
-  core::DynamicsOptions rated, bare;
-  rated.payload.mass = 3.0;
-  double worst = 0.0, worst_bare = 0.0;
-  JointVector tau;
-  for (int k = 0; k < 5000; ++k) {
-    const JointVector q = random_q(panda, rng), zero = JointVector::Zero(7);
-    core::inverse_dynamics(panda, q, zero, zero, rated, tau);
-    for (Eigen::Index i = 0; i < 7; ++i)
-      worst = std::max(worst, std::abs(tau(i)) / *panda.limits[static_cast<std::size_t>(i)].max_torque);
-    core::inverse_dynamics(panda, q, zero, zero, bare, tau);
-    for (Eigen::Index i = 0; i < 7; ++i)
-      worst_bare = std::max(worst_bare, std::abs(tau(i)) / *panda.limits[static_cast<std::size_t>(i)].max_torque);
+// The built-in Panda (Gaz et al. 2019's identified parameters) and UR5e (UR's published
+// masses, centres of mass and tensors) carry mass properties (panda.urdf, ur5e.urdf): at rest
+// anywhere within their joint limits with their rated payload at the flange (3 kg, 5 kg),
+// gravity needs less than their torque limits, as the makers' ratings promise; without the
+// payload less again. The other built-in arms give no dynamics yet.
+TEST(Urdf, TheArmsWithMassPropertiesHoldTheirRatedPayloadAnywhereWithinTheirTorques) {
+  for (const auto& [name, arm_mass, rated_payload] :
+       {std::tuple{"panda", 16.0, 3.0}, std::tuple{"ur5e", 17.7, 5.0}}) {
+    SCOPED_TRACE(name);
+    const auto& m = *planner::find_builtin_robot(name);
+    ASSERT_TRUE(core::has_dynamics(m));
+    double mass = 0.0;
+    for (const auto& j : m.joints) mass += j.inertial->mass;
+    EXPECT_NEAR(mass, arm_mass, 0.1) << "the moving links";
+    std::mt19937_64 rng(34);
+    core::DynamicsOptions rated, bare;
+    rated.payload.mass = rated_payload;
+    double worst = 0.0, worst_bare = 0.0;
+    JointVector tau;
+    const auto n = static_cast<Eigen::Index>(m.dof());
+    for (int k = 0; k < 5000; ++k) {
+      const JointVector q = random_q(m, rng), zero = JointVector::Zero(n);
+      core::inverse_dynamics(m, q, zero, zero, rated, tau);
+      for (Eigen::Index i = 0; i < n; ++i)
+        worst = std::max(worst, std::abs(tau(i)) / *m.limits[static_cast<std::size_t>(i)].max_torque);
+      core::inverse_dynamics(m, q, zero, zero, bare, tau);
+      for (Eigen::Index i = 0; i < n; ++i)
+        worst_bare = std::max(worst_bare, std::abs(tau(i)) / *m.limits[static_cast<std::size_t>(i)].max_torque);
+    }
+    std::printf("[ measured ] %s at rest, 5,000 random poses: gravity uses at most %.3f of a torque limit with %.0f kg "
+                "at the flange, %.3f without\n", name, worst, rated_payload, worst_bare);
+    EXPECT_LT(worst, 1.0);
+    EXPECT_LT(worst_bare, worst);
+    EXPECT_GT(worst, 0.3) << "the arm's weight is felt";
   }
-  std::printf("[ measured ] Panda at rest, 5,000 random poses: gravity uses at most %.3f of a torque limit with 3 kg "
-              "at the flange, %.3f without\n", worst, worst_bare);
-  EXPECT_LT(worst, 1.0);
-  EXPECT_LT(worst_bare, worst);
-  EXPECT_GT(worst, 0.3) << "the arm's weight is felt";
+  for (const char* name : {"pa10", "ur5", "iiwa14"})
+    EXPECT_FALSE(core::has_dynamics(*planner::find_builtin_robot(name))) << name;
+}
+
+// UR gives the UR5e's centres of mass in its standard-DH frames; ur5e.urdf's links are DH frame
+// i-1 turned by q_i. The gravity torques of the model read from the URDF equal the derivatives
+// of the potential energy of UR's table computed here from the DH formulas alone.
+TEST(Urdf, TheUr5esCentresOfMassAreUrsInItsDhFrames) {
+  const auto& m = *planner::find_builtin_robot("ur5e");
+  const double a[] = {0, -0.425, -0.3922, 0, 0, 0}, d[] = {0.1625, 0, 0, 0.1333, 0.0997, 0.0996},
+               alpha[] = {std::numbers::pi / 2, 0, 0, std::numbers::pi / 2, -std::numbers::pi / 2, 0};
+  const double mass[] = {3.761, 8.058, 2.846, 1.37, 1.3, 0.365};
+  const Eigen::Vector3d com[] = {{0, -0.02561, 0.00193}, {0.2125, 0, 0.11336}, {0.15, 0, 0.0265},
+                                 {0, -0.0018, 0.01634},  {0, 0.0018, 0.01634}, {0, 0, -0.001159}};
+  const Eigen::Vector3d g(0.0, 0.0, -core::kStandardGravity);
+  const auto potential = [&](const JointVector& q) {
+    Eigen::Isometry3d T = m.base;
+    double V = 0.0;
+    for (int i = 0; i < 6; ++i) {
+      T = T * Eigen::AngleAxisd(q(i), Eigen::Vector3d::UnitZ()) * Eigen::Translation3d(a[i], 0.0, d[i]) *
+          Eigen::AngleAxisd(alpha[i], Eigen::Vector3d::UnitX());
+      V -= mass[i] * g.dot(T * com[i]);
+    }
+    return V;
+  };
+  std::mt19937_64 rng(36);
+  JointVector tau;
+  for (int k = 0; k < 20; ++k) {
+    const JointVector q = random_q(m, rng), zero = JointVector::Zero(6);
+    core::inverse_dynamics(m, q, zero, zero, core::DynamicsOptions{}, tau);
+    for (Eigen::Index i = 0; i < 6; ++i) {
+      JointVector up = q, down = q;
+      up(i) += 1e-6;
+      down(i) -= 1e-6;
+      EXPECT_NEAR(tau(i), (potential(up) - potential(down)) / 2e-6, 1e-6) << "joint " << i;
+    }
+  }
 }
 
 TEST(Urdf, BaseAndTipChooseTheChain) {

@@ -244,6 +244,20 @@ TEST(Urdf, FixedJointsFoldAndContinuousJointsAreUnbounded) {
   EXPECT_NEAR(r.q(6), q(6), 0.2);  // near the seed (7 joints: self-motion), not wrapped by 2 pi
 }
 
+// At rest at q the model's torques (standard gravity, no payload) are the derivatives of the
+// potential energy V(q) [J] computed by the test (central differences, 1e-6 rad).
+void expect_torques_hold_the_weights(const RobotModel& m, const JointVector& q,
+                                     const std::function<double(const JointVector&)>& potential) {
+  JointVector tau;
+  core::inverse_dynamics(m, q, JointVector::Zero(q.size()), JointVector::Zero(q.size()), core::DynamicsOptions{}, tau);
+  for (Eigen::Index i = 0; i < q.size(); ++i) {
+    JointVector up = q, down = q;
+    up(i) += 1e-6;
+    down(i) -= 1e-6;
+    EXPECT_NEAR(tau(i), (potential(up) - potential(down)) / 2e-6, 1e-6) << "joint " << i;
+  }
+}
+
 // Mass properties and efforts: every link of the SCARA-like fixture given an <inertial>
 // (its own origin and rotation) is read into the joint that moves it, a fixed link's (the
 // elbow block, the tool) folded into the moving link it hangs on; <limit effort> is the
@@ -313,14 +327,8 @@ TEST(Urdf, InertialsAndEffortsAreRead) {
       for (const Body& b : bodies) V -= b.mass * g.dot(frame(b, x) * b.xyz);
       return V;
     };
+    expect_torques_hold_the_weights(m, q, potential);
     JointVector tau;
-    core::inverse_dynamics(m, q, zero, zero, core::DynamicsOptions{}, tau);
-    for (Eigen::Index i = 0; i < 5; ++i) {
-      JointVector up = q, down = q;
-      up(i) += 1e-6;
-      down(i) -= 1e-6;
-      EXPECT_NEAR(tau(i), (potential(up) - potential(down)) / 2e-6, 1e-6) << "joint " << i;
-    }
     // The diagonal of the mass matrix at the prismatic joint 3 (the mass it carries) and the
     // continuous joint 4 (the bodies about its axis).
     core::DynamicsOptions no_gravity;
@@ -411,17 +419,7 @@ TEST(Urdf, TheUr5esCentresOfMassAreUrsInItsDhFrames) {
     return V;
   };
   std::mt19937_64 rng(36);
-  JointVector tau;
-  for (int k = 0; k < 20; ++k) {
-    const JointVector q = random_q(m, rng), zero = JointVector::Zero(6);
-    core::inverse_dynamics(m, q, zero, zero, core::DynamicsOptions{}, tau);
-    for (Eigen::Index i = 0; i < 6; ++i) {
-      JointVector up = q, down = q;
-      up(i) += 1e-6;
-      down(i) -= 1e-6;
-      EXPECT_NEAR(tau(i), (potential(up) - potential(down)) / 2e-6, 1e-6) << "joint " << i;
-    }
-  }
+  for (int k = 0; k < 20; ++k) expect_torques_hold_the_weights(m, random_q(m, rng), potential);
 }
 
 TEST(Urdf, BaseAndTipChooseTheChain) {

@@ -393,7 +393,7 @@ TEST(Urdf, TheArmsWithMassPropertiesHoldTheirRatedPayloadAnywhereWithinTheirTorq
     EXPECT_LT(worst_bare, worst);
     EXPECT_GT(worst, 0.3) << "the arm's weight is felt";
   }
-  for (const char* name : {"pa10", "ur5", "iiwa14"})
+  for (const char* name : {"pa10", "ur5"})
     EXPECT_FALSE(core::has_dynamics(*planner::find_builtin_robot(name))) << name;
 }
 
@@ -818,6 +818,170 @@ TEST(Urdf, ErrorsGiveTheLineOfTheElement) {
   auto m = planner::robot_from_urdf(spoiled);
   ASSERT_FALSE(m);
   EXPECT_THAT(m.error()[0].description, HasSubstr("line " + std::to_string(line) + ", joint 'j2'"));
+}
+
+// --- the iiwa 14's mass properties (iiwa14.urdf: the IFL-CAMP iiwa_stack description's) -------
+
+// One joint of a chain written out here: its origin in the parent link (URDF: Trans(xyz)
+// Rz(yaw) Ry(pitch) Rx(roll)) and its axis in the child link.
+struct ChainJoint {
+  Eigen::Vector3d xyz, rpy, axis;
+};
+
+// Every link's frame in W (link i is the body joint i moves), from the base's pose and the rows.
+std::vector<Eigen::Isometry3d> link_frames(const Eigen::Isometry3d& base, const std::vector<ChainJoint>& rows,
+                                           const JointVector& q) {
+  std::vector<Eigen::Isometry3d> frames;
+  Eigen::Isometry3d X = base;
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const ChainJoint& r = rows[i];
+    X = X * Eigen::Translation3d(r.xyz) * Eigen::AngleAxisd(r.rpy.z(), Eigen::Vector3d::UnitZ()) *
+        Eigen::AngleAxisd(r.rpy.y(), Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(r.rpy.x(), Eigen::Vector3d::UnitX()) *
+        Eigen::AngleAxisd(q(static_cast<Eigen::Index>(i)), r.axis);
+    frames.push_back(X);
+  }
+  return frames;
+}
+
+// The iiwa 14 read from iiwa14.urdf carries iiwa_stack's mass properties (masses 4, 4, 3, 2.7,
+// 1.7, 1.8, 0.3 kg; 17.5 kg) and KUKA's torques. Its gravity torques are the derivatives of the
+// potential energy of its links' centres of mass computed two ways, each link's pose written
+// out here: (1) from iiwa14.urdf's joint origins (translations along z, A2 and A6 about +y, A4
+// about -y, link 7 flipped by pi about x) with the centres of mass as iiwa14.urdf gives them;
+// (2) from iiwa_stack's own chain (iiwa_description/urdf/iiwa14.xacro: its joint origins with
+// their rpy, every joint about its child's z) with its centres of mass exactly as that file
+// gives them, which checks the move into iiwa14.urdf's link frames. Its mass matrix equals the
+// one of iiwa_stack's chain and diagonal inertias (sum of m J_v^T J_v + J_w^T R I R^T J_w),
+// which checks the inertias' move.
+TEST(Urdf, TheIiwa14sMassPropertiesAreIiwaStacksInItsLinkFrames) {
+  const auto& m = *planner::find_builtin_robot("iiwa14");
+  ASSERT_TRUE(core::has_dynamics(m));
+  ASSERT_EQ(m.dof(), 7u);
+  const double mass[] = {4.0, 4.0, 3.0, 2.7, 1.7, 1.8, 0.3};
+  double total = 0.0;
+  for (std::size_t i = 0; i < 7; ++i) {
+    EXPECT_DOUBLE_EQ(m.joints[i].inertial->mass, mass[i]) << "link " << i + 1;
+    total += m.joints[i].inertial->mass;
+  }
+  EXPECT_NEAR(total, 17.5, 1e-12);
+  const double efforts[] = {320, 320, 176, 176, 110, 40, 40};  // KUKA's, unchanged
+  for (std::size_t i = 0; i < 7; ++i) EXPECT_EQ(m.limits[i].max_torque, efforts[i]) << "A" << i + 1;
+
+  const double pi = std::numbers::pi, h = pi / 2;
+  const Eigen::Vector3d y = Eigen::Vector3d::UnitY(), z = Eigen::Vector3d::UnitZ(), o = Eigen::Vector3d::Zero();
+  // (1) iiwa14.urdf's joints and centres of mass.
+  const std::vector<ChainJoint> ours = {{{0, 0, 0.1575}, o, z}, {{0, 0, 0.2025}, o, y},  {{0, 0, 0.2045}, o, z},
+                                        {{0, 0, 0.2155}, o, -y}, {{0, 0, 0.1845}, o, z}, {{0, 0, 0.2155}, o, y},
+                                        {{0, 0, 0.081}, {pi, 0, 0}, -z}};
+  const Eigen::Vector3d our_com[] = {{0, -0.03, 0.12},  {-0.0003, 0.042, 0.059}, {0, 0.03, 0.13}, {0, -0.034, 0.067},
+                                     {-0.0001, -0.021, 0.076}, {0, 0.0004, 0.0006}, {0, 0, -0.02}};
+  // (2) iiwa_stack's joints (iiwa14.xacro: joint_1 .. joint_7), centres of mass and inertias.
+  const std::vector<ChainJoint> stack = {{{0, 0, 0.1575}, o, z},       {{0, 0, 0.2025}, {h, 0, pi}, z},
+                                         {{0, 0.2045, 0}, {h, 0, pi}, z}, {{0, 0, 0.2155}, {h, 0, 0}, z},
+                                         {{0, 0.1845, 0}, {-h, pi, 0}, z}, {{0, 0, 0.2155}, {h, 0, 0}, z},
+                                         {{0, 0.081, 0}, {-h, pi, 0}, z}};
+  const Eigen::Vector3d stack_com[] = {{0, -0.03, 0.12},       {0.0003, 0.059, 0.042}, {0, 0.03, 0.13},
+                                       {0, 0.067, 0.034},      {0.0001, 0.021, 0.076}, {0, 0.0006, 0.0004},
+                                       {0, 0, 0.02}};
+  const Eigen::Vector3d stack_inertia[] = {{0.1, 0.09, 0.02},     {0.05, 0.018, 0.044}, {0.08, 0.075, 0.01},
+                                           {0.03, 0.01, 0.029},   {0.02, 0.018, 0.005}, {0.005, 0.0036, 0.0047},
+                                           {0.001, 0.001, 0.001}};
+  const Eigen::Vector3d g(0.0, 0.0, -core::kStandardGravity);
+  const auto potential = [&](const std::vector<ChainJoint>& rows, const Eigen::Vector3d* com) {
+    return [&rows, com, &m, &mass, &g](const JointVector& q) {
+      const std::vector<Eigen::Isometry3d> X = link_frames(m.base, rows, q);
+      double V = 0.0;
+      for (std::size_t i = 0; i < 7; ++i) V -= mass[i] * g.dot(X[i] * com[i]);
+      return V;
+    };
+  };
+  std::mt19937_64 rng(37);
+  core::DynamicsOptions no_gravity;
+  no_gravity.gravity.setZero();
+  const JointVector zero = JointVector::Zero(7);
+  for (int k = 0; k < 20; ++k) {
+    const JointVector q = k == 0 ? zero : random_q(m, rng);
+    SCOPED_TRACE(::testing::Message() << "q = " << q.transpose());
+    expect_torques_hold_the_weights(m, q, potential(ours, our_com));
+    expect_torques_hold_the_weights(m, q, potential(stack, stack_com));
+    // The mass matrix of iiwa_stack's chain against the model's, column by column.
+    const std::vector<Eigen::Isometry3d> X = link_frames(m.base, stack, q);
+    Eigen::Matrix<double, 7, 7> M = Eigen::Matrix<double, 7, 7>::Zero();
+    for (std::size_t i = 0; i < 7; ++i) {
+      Eigen::Matrix<double, 3, 7> Jv = Eigen::Matrix<double, 3, 7>::Zero(), Jw = Jv;
+      const Eigen::Vector3d c = X[i] * stack_com[i];
+      for (std::size_t j = 0; j <= i; ++j) {
+        const Eigen::Vector3d axis = X[j].linear().col(2);  // every iiwa_stack joint turns about its child's z
+        Jw.col(static_cast<Eigen::Index>(j)) = axis;
+        Jv.col(static_cast<Eigen::Index>(j)) = axis.cross(c - X[j].translation());
+      }
+      const Eigen::Matrix3d I = X[i].linear() * stack_inertia[i].asDiagonal() * X[i].linear().transpose();
+      M += mass[i] * Jv.transpose() * Jv + Jw.transpose() * I * Jw;
+    }
+    JointVector tau;
+    for (Eigen::Index j = 0; j < 7; ++j) {
+      core::inverse_dynamics(m, q, zero, JointVector::Unit(7, j), no_gravity, tau);
+      EXPECT_LE((tau - M.col(j)).cwiseAbs().maxCoeff(), 1e-12) << "column " << j << ": " << tau.transpose()
+                                                                << "\n  iiwa_stack's: " << M.col(j).transpose();
+    }
+  }
+}
+
+// KUKA rates the LBR iiwa 14 R820 for 14 kg. With iiwa_stack's mass properties and KUKA's
+// torques, at rest anywhere within its joint limits with 14 kg at the flange (a point mass at
+// iiwa_link_ee's origin), gravity needs less than every torque limit; without the payload
+// less again. The outstretched arm (A2 at 90 deg, the rest 0) gives the payload its longest
+// lever about A2 (1.306 - 0.36 m); there A2's torque is the sum of every weight times its height
+// above A2 in the upright arm (iiwa14.urdf's centres of mass), and no random pose loads A2 more
+// than that but for the centres of mass' small sideways offsets (0.1 % allowed).
+TEST(Urdf, TheIiwa14HoldsItsRatedPayloadAnywhereWithinItsTorques) {
+  const auto& m = *planner::find_builtin_robot("iiwa14");
+  ASSERT_TRUE(core::has_dynamics(m));
+  ASSERT_TRUE(m.tool.matrix().isIdentity());
+  const double rated_payload = 14.0;
+  core::DynamicsOptions rated, bare;
+  rated.payload.mass = rated_payload;
+  const Eigen::Index n = 7;
+  const JointVector zero = JointVector::Zero(n);
+  JointVector tau;
+  std::mt19937_64 rng(34);
+  double worst = 0.0, worst_bare = 0.0;
+  JointVector per_joint = JointVector::Zero(n);
+  const auto usage = [&](Eigen::Index i) { return std::abs(tau(i)) / *m.limits[static_cast<std::size_t>(i)].max_torque; };
+  for (int k = 0; k < 5000; ++k) {
+    const JointVector q = random_q(m, rng);
+    core::inverse_dynamics(m, q, zero, zero, rated, tau);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      per_joint(i) = std::max(per_joint(i), usage(i));
+      worst = std::max(worst, usage(i));
+    }
+    core::inverse_dynamics(m, q, zero, zero, bare, tau);
+    for (Eigen::Index i = 0; i < n; ++i) worst_bare = std::max(worst_bare, usage(i));
+  }
+  // The outstretched arm: every centre of mass beyond A2 at its height above A2 in the upright
+  // arm, now a horizontal lever; the payload at 1.306 - 0.36 m. Links 2-7: A3 is 0.2045 m above
+  // A2, A4 0.42, A5 0.42 + 0.1845, A6 0.82, A7 0.82 + 0.081 (link 7 flipped: its z = -0.02 is
+  // 0.02 m further up).
+  JointVector out = zero;
+  out(1) = std::numbers::pi / 2;
+  core::inverse_dynamics(m, out, zero, zero, rated, tau);
+  const double above_a2[] = {0.059, 0.2045 + 0.13, 0.42 + 0.067, 0.42 + 0.1845 + 0.076, 0.82 + 0.0006,
+                             0.82 + 0.081 + 0.02};
+  double lever_sum = rated_payload * (1.306 - 0.36);
+  for (std::size_t i = 1; i < 7; ++i) lever_sum += m.joints[i].inertial->mass * above_a2[i - 1];
+  const double a2_outstretched = lever_sum * core::kStandardGravity;
+  EXPECT_NEAR(std::abs(tau(1)), a2_outstretched, 1e-9);
+  const double a2_worst = a2_outstretched / *m.limits[1].max_torque;
+  std::printf("[ measured ] iiwa14 at rest, 5,000 random poses: gravity uses at most %.3f of a torque limit with %.0f kg "
+              "at the flange (A1..A7: %.3f %.3f %.3f %.3f %.3f %.3f %.3f), %.3f without; outstretched, A2 %.1f N m = "
+              "%.3f of 320 N m\n",
+              worst, rated_payload, per_joint(0), per_joint(1), per_joint(2), per_joint(3), per_joint(4), per_joint(5),
+              per_joint(6), worst_bare, a2_outstretched, a2_worst);
+  EXPECT_LT(worst, 1.0);
+  EXPECT_LT(a2_worst, 1.0);
+  EXPECT_LE(per_joint(1), a2_worst * 1.001) << "no random pose loads A2 more than the outstretched arm";
+  EXPECT_LT(worst_bare, worst);
+  EXPECT_GT(worst, 0.3) << "the arm's weight and the payload are felt";
 }
 
 }  // namespace

@@ -18,10 +18,20 @@
 // off_polyline say how far it strays), and (2) on geotraj's own path, handed over as a
 // cubic Hermite spline through q(sigma) and q'(sigma) at the points of geotraj's grid, so
 // that both time the same path.
+//
+// Within joint torques (BM_GeotrajJointPathTorque, BM_ToppraGeotrajPathTorque): the Panda
+// carrying its rated 3 kg (5 cm out along the tool) with its shoulder (joint 1) limited
+// (shoulder_Nm) so that the torque binds; geotraj's sweep with its torque rows (three
+// inverse-dynamics calls per grid point) against TOPP-RA's JointTorque constraint (its
+// computeInverseDynamics given our recursive Newton-Euler on the same model, interpolated as
+// its acceleration constraint), on geotraj's path and grid as in (2). tau_usage: the largest
+// |tau| / maxTorque over samples at 1 kHz (inverse dynamics of each library's own q, q_dot,
+// q_ddot; above 1 is a limit exceeded).
 #include <algorithm>
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -29,6 +39,7 @@
 #include <benchmark/benchmark.h>
 
 #include "core/planning/joint_path.hpp"
+#include "core/robot/dynamics.hpp"
 #include "optim/timing/joint_path_jerk.hpp"
 #include "planner/robots.hpp"
 
@@ -46,6 +57,7 @@
 #include <string>
 
 #include <toppra/algorithm/toppra.hpp>
+#include <toppra/constraint/joint_torque.hpp>
 #include <toppra/constraint/linear_joint_acceleration.hpp>
 #include <toppra/constraint/linear_joint_velocity.hpp>
 #include <toppra/geometric_path/piecewise_poly_path.hpp>
@@ -61,6 +73,36 @@ using Waypoints = std::vector<std::vector<double>>;
 const core::ValidRobot& panda() {
   static const core::ValidRobot robot = *core::ValidRobot::check(*planner::find_builtin_robot("panda"));
   return robot;
+}
+
+// The Panda with its rated payload and its shoulder limited to `shoulder` N m (its own: 87),
+// so that the torque binds: 50 on set 0, 60 on set 1 (whose gravity load reaches 50.6).
+const core::ValidRobot& loaded_panda(long shoulder) {
+  static std::map<long, core::ValidRobot> robots;
+  auto it = robots.find(shoulder);
+  if (it == robots.end()) {
+    core::RobotModel m = panda().model();
+    m.payload.mass = 3.0;
+    m.payload.center_of_mass = Eigen::Vector3d(0.0, 0.0, 0.05);
+    m.limits[1].max_torque = static_cast<double>(shoulder);
+    it = robots.emplace(shoulder, *core::ValidRobot::check(std::move(m))).first;
+  }
+  return it->second;
+}
+
+// The largest |tau_j| / maxTorque of the loaded Panda `m` over a motion given by its joints,
+// velocities and accelerations at time t, sampled at 1 kHz.
+double torque_usage(const core::RobotModel& m, double duration,
+                    const std::function<void(double, core::JointVector&, core::JointVector&, core::JointVector&)>& state_at) {
+  core::JointVector q, qd, qdd, tau;
+  double usage = 0.0;
+  for (double t = 0.0; t <= duration; t += 1e-3) {
+    state_at(t, q, qd, qdd);
+    core::inverse_dynamics(m, q, qd, qdd, core::dynamics_options(m), tau);
+    for (std::size_t j = 0; j < m.dof(); ++j)
+      if (m.limits[j].max_torque) usage = std::max(usage, std::abs(tau(static_cast<Eigen::Index>(j))) / *m.limits[j].max_torque);
+  }
+  return usage;
 }
 
 // 0: nine waypoints of a pick and place (client/grpcurl/plan_joint_path_panda.json); 1:
@@ -187,6 +229,50 @@ void BM_GeotrajJointPathJerk(benchmark::State& state) {
     return std::move(timed->plan);
   });
 }
+// geotraj's time-optimal sweep within the loaded Panda's torques as well (geotraj's grid, the
+// grid-error sweep and the sample check at check_hz included: 2 kHz, the default, or 0, the
+// cycle rate's 1 kHz, the samples streamed; -1: no sample check, the timing alone, as
+// TOPP-RA's is measured).
+void BM_GeotrajJointPathTorque(benchmark::State& state) {
+  const core::JointPathSpec spec = spec_of(state.range(0), static_cast<double>(state.range(1)) / 100.0);
+  const core::ValidRobot& robot = loaded_panda(state.range(3));
+  const core::JointPath path = *core::build_joint_path(robot, spec);
+  core::JointPathOptions options;
+  options.check_rate_hz = static_cast<double>(std::max<long>(0, state.range(2)));
+  options.verify_samples = state.range(2) >= 0;
+  std::optional<core::JointPathPlan> plan;
+  for (auto _ : state) {
+    auto timed = core::plan_joint_path(robot, path, fastest(), options);
+    if (!timed) {
+      state.SkipWithError(timed.error().front().description.c_str());
+      return;
+    }
+    plan = std::move(*timed);
+    benchmark::DoNotOptimize(plan->duration_s);
+  }
+  state.counters["duration_s"] = plan->duration_s;
+  state.counters["refinements"] = plan->refinements;
+  state.counters["tau_usage"] = torque_usage(robot, plan->duration_s, [&](double t, core::JointVector& q,
+                                                                          core::JointVector& qd, core::JointVector& qdd) {
+    core::MoveSample s;
+    core::ProfileCursor cursor;
+    std::size_t hint = 0;
+    core::joint_path_at(*plan, t, cursor, hint, s);
+    q = s.q, qd = s.q_dot, qdd = s.q_ddot;
+  });
+  const auto free = core::plan_joint_path(panda(), path, fastest());
+  if (free) state.counters["free_s"] = free->duration_s;  // the same path without the payload and the limit
+}
+BENCHMARK(BM_GeotrajJointPathTorque)
+    ->ArgNames({"set", "dev_cm", "check_hz", "shoulder_Nm"})
+    ->Args({0, 5, 2000, 50})
+    ->Args({0, 5, 0, 50})
+    ->Args({0, 5, -1, 50})
+    ->Args({1, 5, 2000, 60})
+    ->Args({1, 5, 0, 60})
+    ->Args({1, 5, -1, 60})
+    ->Unit(benchmark::kMillisecond);
+
 BENCHMARK(BM_GeotrajJointPathJerk)
     ->ArgNames({"set", "dev_cm"})
     ->Args({0, 5})
@@ -276,8 +362,25 @@ using ToppraTrajectory = std::shared_ptr<toppra::parametrizer::ConstAccel>;
 // default), the seidel solver, at rest at both ends, then the constant-acceleration
 // parametrizer (the classical one, which their documentation says meets the constraints and
 // the boundary conditions). Empty with `error` set if it fails.
+// TOPP-RA's joint-torque constraint on the loaded Panda: our inverse dynamics (the same model
+// and payload; its own a, b, c from three calls per grid point, as ours).
+class PandaTorque final : public toppra::constraint::JointTorque {
+ public:
+  PandaTorque(const core::RobotModel& model, const toppra::Vector& limit)
+      : JointTorque(-limit, limit, toppra::Vector()), model_(&model) {}
+  void computeInverseDynamics(const toppra::Vector& q, const toppra::Vector& v, const toppra::Vector& a,
+                              toppra::Vector& tau) override {
+    core::inverse_dynamics(*model_, q, v, a, core::dynamics_options(*model_), tau_);
+    tau = Eigen::VectorXd(tau_);
+  }
+
+ private:
+  const core::RobotModel* model_;
+  core::JointVector tau_;
+};
+
 ToppraTrajectory toppra_timing(const toppra::GeometricPathPtr& path, const toppra::Vector& gridpoints,
-                               std::string& error) {
+                               std::string& error, const core::RobotModel* torques = nullptr) {
   toppra::Vector v(7), a(7);
   for (std::size_t j = 0; j < 7; ++j) {
     v(static_cast<Eigen::Index>(j)) = panda()->limits[j].max_velocity;
@@ -286,7 +389,15 @@ ToppraTrajectory toppra_timing(const toppra::GeometricPathPtr& path, const toppr
   auto velocity = std::make_shared<toppra::constraint::LinearJointVelocity>(-v, v);
   auto acceleration = std::make_shared<toppra::constraint::LinearJointAcceleration>(-a, a);
   acceleration->discretizationType(toppra::DiscretizationType::Interpolation);
-  toppra::algorithm::TOPPRA algorithm({velocity, acceleration}, path);
+  toppra::LinearConstraintPtrs constraints{velocity, acceleration};
+  if (torques) {
+    toppra::Vector limit(7);  // the Panda's own (87 and 12 N m), the shoulder's as loaded_panda sets it
+    for (std::size_t j = 0; j < 7; ++j) limit(static_cast<Eigen::Index>(j)) = *torques->limits[j].max_torque;
+    auto torque = std::make_shared<PandaTorque>(*torques, limit);
+    torque->discretizationType(toppra::DiscretizationType::Interpolation);
+    constraints.push_back(torque);
+  }
+  toppra::algorithm::TOPPRA algorithm(constraints, path);
   algorithm.solver(std::make_shared<toppra::solver::Seidel>());
   algorithm.setGridpoints(gridpoints);
   if (algorithm.computePathParametrization(0.0, 0.0) != toppra::ReturnCode::OK) {
@@ -413,6 +524,50 @@ std::vector<double> geotraj_grid(const core::JointPath& path) {
   return sigmas;
 }
 
+// geotraj's grid of `path` (geotraj_grid) with q and q' at each point: the data of the cubic
+// Hermite spline TOPP-RA times geotraj's path on.
+struct GridSpline {
+  std::vector<double> sigmas;
+  toppra::Vectors positions, tangents;
+};
+GridSpline grid_spline(const core::JointPath& path) {
+  GridSpline out;
+  out.sigmas = geotraj_grid(path);
+  core::JointPathPoint point;
+  std::size_t hint = 0;
+  for (const double sigma : out.sigmas) {
+    core::evaluate(path, sigma, point, hint);
+    out.positions.push_back(Eigen::VectorXd(point.q));
+    out.tangents.push_back(Eigen::VectorXd(point.q_s));
+  }
+  return out;
+}
+
+// TOPP-RA on the Hermite spline through `spline` on `gridpoints` (within the torques of
+// `torques` where given) at every iteration, the spline built in the timing; null, the
+// benchmark skipped with TOPP-RA's error, where it fails.
+ToppraTrajectory time_each_iteration(benchmark::State& state, const GridSpline& spline, const toppra::Vector& gridpoints,
+                                     const core::RobotModel* torques) {
+  ToppraTrajectory trajectory;
+  std::string error;
+  for (auto _ : state) {
+    trajectory.reset();
+    try {
+      auto hermite = std::make_shared<toppra::PiecewisePolyPath>(
+          toppra::PiecewisePolyPath::CubicHermiteSpline(spline.positions, spline.tangents, spline.sigmas));
+      trajectory = toppra_timing(hermite, gridpoints, error, torques);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    if (!trajectory) {
+      state.SkipWithError(error.c_str());
+      return nullptr;
+    }
+    benchmark::DoNotOptimize(toppra_duration(trajectory));
+  }
+  return trajectory;
+}
+
 // 2. TOPP-RA timing geotraj's path (built as BM_GeotrajJointPath builds it, outside the
 // timing): a cubic Hermite spline through q(sigma) and q'(sigma) at the points of geotraj's
 // grid (exact on the lines; hermite_err: its largest distance from a blend [rad]), timed on that
@@ -426,43 +581,23 @@ void BM_ToppraGeotrajPath(benchmark::State& state) {
     state.SkipWithError("the path rests between its ends");
     return;
   }
-  const std::vector<double> sigmas = geotraj_grid(path);
-  toppra::Vectors positions, tangents;
-  core::JointPathPoint point;
-  std::size_t hint = 0;
-  for (const double sigma : sigmas) {
-    core::evaluate(path, sigma, point, hint);
-    positions.push_back(Eigen::VectorXd(point.q));
-    tangents.push_back(Eigen::VectorXd(point.q_s));
-  }
+  const GridSpline spline = grid_spline(path);
+  const std::vector<double>& sigmas = spline.sigmas;
+  const toppra::Vectors &positions = spline.positions, &tangents = spline.tangents;
   const bool uniform = state.range(2) != 0;
   const auto n = static_cast<Eigen::Index>(sigmas.size());
   const toppra::Vector gridpoints = uniform ? toppra::Vector(toppra::Vector::LinSpaced(n, 0.0, path.length))
                                             : toppra::Vector(Eigen::Map<const Eigen::VectorXd>(sigmas.data(), n));
-  ToppraTrajectory trajectory;
-  std::string error;
-  for (auto _ : state) {
-    trajectory.reset();
-    try {
-      auto hermite = std::make_shared<toppra::PiecewisePolyPath>(
-          toppra::PiecewisePolyPath::CubicHermiteSpline(positions, tangents, sigmas));
-      trajectory = toppra_timing(hermite, gridpoints, error);
-    } catch (const std::exception& e) {
-      error = e.what();
-    }
-    if (!trajectory) {
-      state.SkipWithError(error.c_str());
-      return;
-    }
-    benchmark::DoNotOptimize(toppra_duration(trajectory));
-  }
+  const ToppraTrajectory trajectory = time_each_iteration(state, spline, gridpoints, nullptr);
+  if (!trajectory) return;
   count_toppra(state, trajectory);
+  core::JointPathPoint point;
+  std::size_t hint = 0;
   state.counters["grid_points"] = static_cast<double>(n);
   // How closely the Hermite spline follows the path: the largest difference of q at the
   // middles of its pieces [rad].
   const toppra::PiecewisePolyPath hermite = toppra::PiecewisePolyPath::CubicHermiteSpline(positions, tangents, sigmas);
   double hermite_error = 0.0;
-  hint = 0;
   for (std::size_t i = 0; i + 1 < sigmas.size(); ++i) {
     const double mid = 0.5 * (sigmas[i] + sigmas[i + 1]);
     core::evaluate(path, mid, point, hint);
@@ -473,6 +608,41 @@ void BM_ToppraGeotrajPath(benchmark::State& state) {
   const auto plan = core::plan_joint_path(panda(), path, fastest());
   if (plan) state.counters["geotraj_s"] = plan->duration_s;
 }
+// 3. The same within the loaded Panda's torques as well (its JointTorque constraint), on
+// geotraj's grid: duration, tau_usage at 1 kHz, and geotraj_s, geotraj's duration within the
+// same limits (BM_GeotrajJointPathTorque's plan).
+void BM_ToppraGeotrajPathTorque(benchmark::State& state) {
+  const core::JointPathSpec spec = spec_of(state.range(0), static_cast<double>(state.range(1)) / 100.0);
+  const core::ValidRobot& robot = loaded_panda(state.range(2));
+  const core::JointPath path = *core::build_joint_path(robot, spec);
+  if (path.rests.size() != 2) {
+    state.SkipWithError("the path rests between its ends");
+    return;
+  }
+  const GridSpline spline = grid_spline(path);
+  const std::vector<double>& sigmas = spline.sigmas;
+  const toppra::Vector gridpoints = Eigen::Map<const Eigen::VectorXd>(sigmas.data(), static_cast<Eigen::Index>(sigmas.size()));
+  const ToppraTrajectory trajectory = time_each_iteration(state, spline, gridpoints, &robot.model());
+  if (!trajectory) return;
+  state.counters["duration_s"] = toppra_duration(trajectory);
+  state.counters["tau_usage"] = torque_usage(robot, toppra_duration(trajectory), [&](double t, core::JointVector& q,
+                                                                                     core::JointVector& qd,
+                                                                                     core::JointVector& qdd) {
+    const toppra::Vectors x = trajectory->eval(toppra::Vector::Constant(1, t), 0);
+    const toppra::Vectors v = trajectory->eval(toppra::Vector::Constant(1, t), 1);
+    const toppra::Vectors a = trajectory->eval(toppra::Vector::Constant(1, t), 2);
+    q = x[0], qd = v[0], qdd = a[0];
+  });
+  state.counters["grid_points"] = static_cast<double>(sigmas.size());
+  const auto plan = core::plan_joint_path(robot, path, fastest());
+  if (plan) state.counters["geotraj_s"] = plan->duration_s;
+}
+BENCHMARK(BM_ToppraGeotrajPathTorque)
+    ->ArgNames({"set", "dev_cm", "shoulder_Nm"})
+    ->Args({0, 5, 50})
+    ->Args({1, 5, 60})
+    ->Unit(benchmark::kMillisecond);
+
 BENCHMARK(BM_ToppraGeotrajPath)
     ->ArgNames({"set", "dev_cm", "grid"})
     ->Args({0, 5, 0})

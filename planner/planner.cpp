@@ -289,6 +289,10 @@ LimitsTiming limits_timing(const Request& request, bool joint) {
   return out;
 }
 
+// The rate [Hz] at which a joint move's torques are measured for its stretch (at least the
+// cycle rate): the time-optimal checks' (core::TimeOptimalOptions::check_rate_hz).
+constexpr double kTorqueCheckRateHz = 2'000.0;
+
 // The trajectory of a request with a motion. `default_jerk`: set when the model's missing
 // jerk limits were defaulted.
 Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget& budget, Clock::time_point deadline,
@@ -315,6 +319,19 @@ Expected<core::Trajectory> plan_trajectory(const Request& request, const Budget&
   const auto joint_move = [&](const core::JointMoveSpec& move) -> Expected<core::Trajectory> {
     auto plan = core::plan_joint_move(robot->model, move, motion);
     if (!plan) return tl::unexpected(invalid(std::move(plan.error())));
+    // Timed by the limits on an arm with torque limits: stretched as a whole until every
+    // torque holds (a uniform time scaling, the speed scale's: exact; checked at the check
+    // rate, then by the joint report at the cycle rate). Gravity beyond a limit: the report
+    // names it.
+    if (motion.duration_s == 0.0) {
+      const double f = core::torque_stretch(*plan, std::max(motion.cycle_rate_hz, kTorqueCheckRateHz));
+      if (f > 1.0 && std::isfinite(f)) {
+        core::MotionSpec stretched = motion;
+        stretched.speed_scale /= f * (1.0 + 1e-6);
+        plan = core::plan_joint_move(robot->model, move, stretched);
+        if (!plan) return tl::unexpected(invalid(std::move(plan.error())));
+      }
+    }
     return core::Trajectory(std::in_place_type<core::JointMovePlan>, std::move(*plan));
   };
   // The tool's angular limits are imposed where the motion is as fast as its limits allow:

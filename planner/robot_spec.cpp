@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "core/format.hpp"
+#include "core/robot/dynamics.hpp"
 
 namespace geotraj::planner {
 
@@ -42,6 +43,7 @@ std::vector<NamedLimits> checked_joint_limits(const std::vector<NamedLimits>& gi
     take(l.max_velocity, "maxVelocity", "rad/s or m/s", limits.max_velocity);
     take(l.max_acceleration, "maxAcceleration", "rad/s^2 or m/s^2", limits.max_acceleration);
     take(l.max_jerk, "maxJerk", "rad/s^3 or m/s^3", limits.max_jerk);
+    take(l.max_torque, "maxTorque", "N m or N", limits.max_torque);
     kept.push_back(std::move(limits));
   }
   return kept;
@@ -101,6 +103,15 @@ void apply_joint_limits(const std::vector<NamedLimits>& limits, core::RobotModel
     if (limits[k].max_velocity) l.max_velocity = *limits[k].max_velocity;
     if (limits[k].max_acceleration) l.max_acceleration = *limits[k].max_acceleration;
     if (limits[k].max_jerk) l.max_jerk = limits[k].max_jerk;
+    if (limits[k].max_torque) {
+      if (core::has_dynamics(model)) {
+        l.max_torque = limits[k].max_torque;
+      } else {
+        out.push_back({at("robot.jointLimits", k) + ".maxTorque",
+                       "needs a model with the mass properties of every link (its torques are not known): " +
+                           model.name + " has none"});
+      }
+    }
   }
 }
 
@@ -179,12 +190,22 @@ core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& c
   // What the request changes of the source's model (joint limits, base, tool, scales) is made
   // on a copy, checked once more below; a model the request does not change is used as it
   // was checked.
-  const bool changes = !limits.empty() || spec.base || spec.tool || spec.velocity_scale || spec.acceleration_scale;
+  const bool changes =
+      !limits.empty() || spec.base || spec.tool || spec.velocity_scale || spec.acceleration_scale || spec.payload;
   std::optional<core::RobotModel> model;
   if (source && changes) model = source->model();
   if (model && out.empty()) apply_joint_limits(limits, *model, out);
   if (model && spec.base) model->base = *spec.base;
   if (model && spec.tool) model->tool = *spec.tool;
+  if (spec.payload) {  // a point mass on the tool: a mass and a centre of mass, on a model with dynamics
+    const std::size_t before = out.size();
+    core::check_inertial("robot.payload", core::Inertial{spec.payload->mass, spec.payload->center_of_mass, Eigen::Matrix3d::Zero()}, out);
+    if (model && spec.payload->mass > 0.0 && !core::has_dynamics(*model)) {
+      out.push_back({"robot.payload", "needs a model with the mass properties of every link (Joint.inertial, a URDF's "
+                                      "<inertial>): " + model->name + " has none"});
+    }
+    if (model && out.size() == before) model->payload = *spec.payload;
+  }
   double branch_tolerance = 1e-3;
   if (spec.branch_tolerance) {
     branch_tolerance = *spec.branch_tolerance;

@@ -69,6 +69,7 @@ struct RobotSpec {
   std::optional<double> velocity_scale;             ///< a fraction in (0, 1] of every maxVelocity
   std::optional<double> acceleration_scale;         ///< of every maxAcceleration and maxJerk
   std::vector<double> initial_joints;               ///< [rad or m]; empty: the model's home
+  std::optional<core::Payload> payload;             ///< on the tool; needs mass properties
 };
 
 /// `spec` resolved against `catalog`, or every violation of it together. `motion`: false for

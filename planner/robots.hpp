@@ -38,6 +38,7 @@ namespace geotraj::planner {
 struct NamedLimits {
   std::string joint;
   std::optional<double> max_velocity, max_acceleration, max_jerk;
+  std::optional<double> max_torque{};  ///< [N m or N] (a model with mass properties)
 };
 
 /// When work on a request gives up: once `deadline` passes or `stop` is requested (the

@@ -9,6 +9,8 @@ violations of a google.rpc.BadRequest, the violations of a google.rpc.Preconditi
 Stubs first (see README.md beside this file), then:
     geotraj_example.py --server 127.0.0.1:50051 --request client/grpcurl/plan_demo_path_a.json --csv path_a.csv
     geotraj_example.py --request client/grpcurl/bad_request.json      # exit 1, field violations
+    geotraj_example.py --request client/grpcurl/plan_joint_path_panda.json --payload 3 \
+        --max-torque panda_joint2=50 --csv -                          # timed within a torque
 Options: --token TOKEN (or $GEOTRAJ_TOKEN) sends `authorization: Bearer TOKEN`;
 --tls-ca FILE calls over TLS trusting the CA certificates in FILE (PEM).
 Exit status: 0 done, 1 the server refused the request (or the call failed), 2 bad usage.
@@ -39,6 +41,10 @@ def parse_args(argv):
                    help="a PlanRequest in the proto JSON mapping (default: client/grpcurl/plan_demo_path_a.json)")
     p.add_argument("--csv", default="samples.csv",
                    help="where StreamSamples' samples go, one row each; '-' for stdout (default: samples.csv)")
+    p.add_argument("--payload", metavar="MASS[,X,Y,Z]",
+                   help="what the tool carries (robot.payload): kg, and its centre of mass [m] in the tool frame")
+    p.add_argument("--max-torque", metavar="JOINT=NM,...",
+                   help="joint torque limits by joint name (robot.jointLimits[].maxTorque) [N m]")
     p.add_argument("--no-stream", action="store_true", help="plan only")
     p.add_argument("--timeout", type=float, default=60.0, help="deadline of the plan [s] (default: 60)")
     p.add_argument("--stream-timeout", type=float, default=None,
@@ -120,6 +126,11 @@ def print_plan(plan, out=sys.stdout):
               f"peak acceleration {m.peak_acceleration:.6g} m/s^2, {m.sample_count} samples", file=out)
     if plan.HasField("robot"):
         print(f"robot: feasible {plan.robot.feasible}, {len(plan.robot.violations)} violations", file=out)
+        # A model with mass properties: each joint's largest torque and its share of the limit.
+        for j in plan.robot.joints:
+            if j.HasField("peak_torque"):
+                usage = f", {100.0 * j.torque_usage:.1f} % of its limit" if j.HasField("torque_usage") else ""
+                print(f"  joint {j.joint}: peak torque {j.peak_torque:.4g} N m{usage}", file=out)
     # The optimisers that ran (optimize: tangentScales, breakpoints, timing, redundancy).
     for field, report in plan.optimization.ListFields():
         status = report.DESCRIPTOR.fields_by_name["status"].enum_type.values_by_number[report.status].name
@@ -138,12 +149,14 @@ def write_samples(batches, out, sequence=False):
         for smp in batch.samples:
             if header is None:
                 joints = len(smp.joints)
-                header = CSV_COLUMNS + [f"q{j}" for j in range(joints)] + (["step"] if sequence else [])
+                torques = len(smp.joint_torques)  # a model with mass properties
+                header = (CSV_COLUMNS + [f"q{j}" for j in range(joints)] + [f"tau{j}" for j in range(torques)]
+                          + (["step"] if sequence else []))
                 w.writerow(header)
             p, q, v, a = smp.position, smp.orientation, smp.velocity, smp.acceleration
             w.writerow([repr(x) for x in (smp.t, smp.u, smp.s)] + [smp.segment]
                        + [repr(x) for x in (p.x, p.y, p.z, q.w, q.x, q.y, q.z, v.x, v.y, v.z,
-                                            a.x, a.y, a.z, smp.speed, *smp.joints)]
+                                            a.x, a.y, a.z, smp.speed, *smp.joints, *smp.joint_torques)]
                        + ([smp.step] if sequence else []))
             count += 1
     return count
@@ -157,6 +170,23 @@ def main(argv=None):
 
     with open(args.request, encoding="utf-8") as f:
         request = json_format.Parse(f.read(), pb.PlanRequest())
+    try:
+        if args.payload:
+            values = [float(x) for x in args.payload.split(",")]
+            if len(values) not in (1, 4):
+                raise ValueError("--payload takes MASS or MASS,X,Y,Z")
+            request.robot.payload.mass = values[0]
+            if len(values) == 4:
+                c = request.robot.payload.center_of_mass
+                c.x, c.y, c.z = values[1:]
+        for item in filter(None, (args.max_torque or "").split(",")):
+            joint, _, value = item.partition("=")
+            if not joint or not value:
+                raise ValueError(f"--max-torque takes JOINT=NM,...: {item!r} is not one")
+            request.robot.joint_limits.add(joint=joint, max_torque=float(value))
+    except ValueError as e:
+        print(f"geotraj_example.py: {e}", file=sys.stderr)
+        return 2
     metadata = [("authorization", f"Bearer {args.token}")] if args.token else []
 
     with open_channel(grpc, args) as channel:

@@ -3,7 +3,9 @@
 #include <unistd.h>
 
 #include <cctype>
+#include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstdio>
 #include <cstring>
 
@@ -175,6 +177,38 @@ bool apply_flags(const OptimizeFlags& flags, v1::PlanRequest& request) {
     }
     if (flags.velocity_scale) request.mutable_robot()->set_velocity_scale(*flags.velocity_scale);
     if (flags.acceleration_scale) request.mutable_robot()->set_acceleration_scale(*flags.acceleration_scale);
+  }
+  if (!flags.payload.empty() || !flags.max_torque.empty()) {
+    if (!request.has_robot()) {
+      std::cerr << "geotraj: --payload and --max-torque are a robot's: the request has no robot (--robot NAME)\n";
+      return false;
+    }
+    if (flags.payload.size() != 1 && flags.payload.size() != 4 && !flags.payload.empty()) {
+      std::cerr << "geotraj: --payload takes MASS or MASS,X,Y,Z\n";
+      return false;
+    }
+    if (!flags.payload.empty()) {
+      auto* payload = request.mutable_robot()->mutable_payload();
+      payload->set_mass(flags.payload[0]);
+      if (flags.payload.size() == 4) {
+        payload->mutable_center_of_mass()->set_x(flags.payload[1]);
+        payload->mutable_center_of_mass()->set_y(flags.payload[2]);
+        payload->mutable_center_of_mass()->set_z(flags.payload[3]);
+      }
+    }
+    std::stringstream items(flags.max_torque);
+    for (std::string item; std::getline(items, item, ',');) {
+      const auto eq = item.find('=');
+      char* end = nullptr;
+      const double value = eq == std::string::npos ? 0.0 : std::strtod(item.c_str() + eq + 1, &end);
+      if (eq == std::string::npos || eq == 0 || end == item.c_str() + eq + 1 || *end != '\0' || !std::isfinite(value)) {
+        std::cerr << "geotraj: --max-torque takes JOINT=N_M,...: '" << item << "' is not one\n";
+        return false;
+      }
+      auto* limits = request.mutable_robot()->add_joint_limits();
+      limits->set_joint(item.substr(0, eq));
+      limits->set_max_torque(value);
+    }
   }
   if (!flags.approach.empty()) {
     if (!request.has_robot()) {

@@ -29,6 +29,11 @@ struct OptimizeFlags {
   std::optional<double> velocity_scale;      ///< robot.velocityScale; absent: the request's
   std::optional<double> acceleration_scale;  ///< robot.accelerationScale; absent: the request's
   std::string approach;  ///< robot.approach (joint, linear); empty: the request's
+  /// --payload MASS[,X,Y,Z]: robot.payload, kg and its centre of mass [m] in the tool frame;
+  /// empty: the request's.
+  std::vector<double> payload;
+  /// --max-torque JOINT=N_M,...: robot.jointLimits[].maxTorque by joint name; empty: none.
+  std::string max_torque;
   bool tool_axis_free = false;  ///< robot.toolAxisFree (set when given; false: the request's)
   /// --waypoints: joint waypoints (waypoints.hpp) as the request's jointPath; empty: none.
   std::string waypoints;

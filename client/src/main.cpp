@@ -101,6 +101,12 @@ int main(int argc, char** argv) {
                     "a path that starts away from the robot: joint or linear, a minimum-time move there first "
                     "(robot.approach)")
         ->check(CLI::IsMember({"joint", "linear"}));
+    sub->add_option("--payload", options.optimize.payload,
+                    "what the tool carries: MASS[,X,Y,Z], kg and its centre of mass in the tool frame [m] "
+                    "(robot.payload; a model with mass properties)")
+        ->delimiter(',')->expected(1, 4)->check(kFinite);
+    sub->add_option("--max-torque", options.optimize.max_torque,
+                    "joint torque limits by joint name, JOINT=N_M,... (robot.jointLimits[].maxTorque)");
     sub->add_flag("--tool-axis-free", options.optimize.tool_axis_free,
                   "the tool is symmetric about its z axis: its roll is chosen with the joints for the whole motion "
                   "(robot.toolAxisFree)");

@@ -279,13 +279,24 @@ std::string event_text(const v1::LimitEvent& e) {
 void print_table(const v1::RobotReport& robot, std::ostream& out) {
   out << "\nrobot " << robot.name() << ": " << robot.samples() << " samples, "
       << (robot.feasible() ? "within every limit" : "LIMITS BROKEN") << '\n'
-      << "joint     min q       max q    q margin   peak |qd|  vel usage  peak |qdd|  acc usage\n";
+      << "joint     min q       max q    q margin   peak |qd|  vel usage  peak |qdd|  acc usage";
+  const bool torques = std::any_of(robot.joints().begin(), robot.joints().end(),
+                                   [](const v1::JointReport& j) { return j.has_peak_torque(); });
+  out << (torques ? " peak |tau|  tau usage\n" : "\n");
   for (const auto& j : robot.joints()) {
-    char buf[160];
-    std::snprintf(buf, sizeof buf, "%5u %11.5f %11.5f %11.5f %11.5f %9.1f%% %11.5f %9.1f%%\n", j.joint(),
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "%5u %11.5f %11.5f %11.5f %11.5f %9.1f%% %11.5f %9.1f%%", j.joint(),
                   j.min_position(), j.max_position(), j.position_margin(), j.peak_velocity(),
                   100.0 * j.velocity_usage(), j.peak_acceleration(), 100.0 * j.acceleration_usage());
     out << buf;
+    if (torques && j.has_torque_usage()) {
+      std::snprintf(buf, sizeof buf, " %10.4f %9.1f%%", j.peak_torque(), 100.0 * j.torque_usage());
+      out << buf;
+    } else if (torques) {
+      std::snprintf(buf, sizeof buf, " %10.4f %10s", j.peak_torque(), "-");
+      out << buf;
+    }
+    out << '\n';
   }
   out << "tightest position:     " << event_text(robot.tightest_position()) << '\n'
       << "tightest velocity:     " << event_text(robot.tightest_velocity()) << '\n'
@@ -445,6 +456,7 @@ void print_sample_csv_header(const v1::Sample& first, bool sequence, std::ostrea
   for (const char* name : {"q", "qd", "qdd"}) {  // joint 0 at the base
     for (int j = 0; j < first.joints_size(); ++j) out << ',' << name << j;
   }
+  for (int j = 0; j < first.joint_torques_size(); ++j) out << ",tau" << j;  // a model with mass properties
 }
 
 void print_sample_csv(const v1::Sample& s, bool sequence, std::ostream& out) {
@@ -461,7 +473,7 @@ void print_sample_csv(const v1::Sample& s, bool sequence, std::ostream& out) {
                 a.x(), a.y(), a.z(), s.speed(), w.x(), w.y(), w.z());
   out << line;
   if (sequence) out << ',' << s.step();
-  for (const auto* values : {&s.joints(), &s.joint_velocities(), &s.joint_accelerations()}) {
+  for (const auto* values : {&s.joints(), &s.joint_velocities(), &s.joint_accelerations(), &s.joint_torques()}) {
     for (double x : *values) {
       std::snprintf(line, sizeof line, ",%.17g", x);
       out << line;

@@ -7,6 +7,7 @@
 #include <variant>
 
 #include "core/format.hpp"
+#include "core/robot/dynamics.hpp"
 
 namespace geotraj::core {
 namespace {
@@ -143,7 +144,9 @@ StopPrediction predict_stop(double r, double r_dot, const FactorBounds& bounds) 
 
 LiveExecution::LiveExecution(const Trajectory& trajectory, const RobotModel* robot, const JointVector& seed,
                              const IkOptions& ik)
-    : trajectory_(&trajectory), sampler_(trajectory, robot, seed, ik) {}
+    : trajectory_(&trajectory),
+      dynamics_(robot != nullptr && has_dynamics(*robot) ? robot : nullptr),
+      sampler_(trajectory, robot, seed, ik) {}
 
 Expected<LiveExecution> LiveExecution::start(const Trajectory& trajectory, const RobotModel* robot,
                                              const JointVector& seed, const LiveLimits& limits, double cycle_rate_hz,
@@ -383,6 +386,10 @@ void LiveExecution::write(LiveSample& out) {
   if (x.has_joints) {
     x.joints.q_dot = plan_.joints.q_dot * r;
     x.joints.q_ddot = plan_.joints.q_ddot * (r * r) + plan_.joints.q_dot * r_dot;
+    // The torques of the motion as it runs (the plan's were at r = 1).
+    if (dynamics_ != nullptr && x.joints.tau.size() == x.joints.q.size())
+      inverse_dynamics(*dynamics_, x.joints.q, x.joints.q_dot, x.joints.q_ddot, dynamics_options(*dynamics_),
+                       x.joints.tau);
   }
   out.plan_time = tau_;
   out.speed_factor = r;

@@ -184,6 +184,9 @@ class LiveExecution {
   void write(LiveSample& out);
 
   const Trajectory* trajectory_;
+  /// The model whose torques each sample carries at its speed factor (has_dynamics); null
+  /// otherwise.
+  const RobotModel* dynamics_ = nullptr;
   TrajectorySampler sampler_;
   std::vector<LiveRow> rows_;
   double ramp_s_ = 0.05;

@@ -18,6 +18,7 @@ enum class BindingKind {
   kCentripetalAcceleration,  ///< kappa s_dot^2 <= maxAcceleration [m/s^2]
   kAngularSpeed,             ///< |omega| <= maxAngularSpeed [rad/s]
   kAngularAcceleration,      ///< |alpha| <= maxAngularAcceleration [rad/s^2]
+  kJointTorque,              ///< |tau_j| <= maxTorque [N m or N] (dynamics.hpp)
 };
 
 /// The name of a kind ("joint velocity", ...).
@@ -31,13 +32,14 @@ constexpr const char* name(BindingKind kind) {
     case BindingKind::kCentripetalAcceleration: return "centripetal acceleration";
     case BindingKind::kAngularSpeed: return "angular speed";
     case BindingKind::kAngularAcceleration: return "angular acceleration";
+    case BindingKind::kJointTorque: return "joint torque";
   }
   return "limit";
 }
 
 constexpr bool is_joint_kind(BindingKind kind) {
   return kind == BindingKind::kJointVelocity || kind == BindingKind::kJointAcceleration ||
-         kind == BindingKind::kJointJerk;
+         kind == BindingKind::kJointJerk || kind == BindingKind::kJointTorque;
 }
 
 /// A path's or a line's Cartesian limits as the request gives them (MotionSpec's maxSpeed

@@ -428,9 +428,10 @@ int cause_rank(LimitKind kind) {
     case LimitKind::kVelocity: return 2;
     case LimitKind::kAcceleration: return 3;
     case LimitKind::kJerk: return 4;
-    case LimitKind::kIk: return 5;
+    case LimitKind::kTorque: return 5;
+    case LimitKind::kIk: return 6;
   }
-  return 6;
+  return 7;
 }
 
 // Stable insertion sort of [first, last) by cause_rank (no allocation, unlike stable_sort).
@@ -527,6 +528,18 @@ void JointReportBuilder::add(std::size_t sample, double t, double s_path, const 
       const double jerk = jerk_(i);
       if (jerk > *lim.max_jerk * (1.0 + kStepTolerance)) {
         record(LimitKind::kJerk, j, sample, t, jerk, *lim.max_jerk, *lim.max_jerk - jerk);
+      }
+    }
+
+    // Torque, where the sampler gave one (a model with mass properties).
+    if (s.tau.size() == s.q.size()) {
+      r.torques = true;
+      const double tau = std::abs(s.tau(i));
+      u.peak_torque = std::max(u.peak_torque, tau);
+      if (lim.max_torque) {
+        u.torque_usage = u.peak_torque / *lim.max_torque;
+        if (tau > *lim.max_torque * (1.0 + kLimitTolerance))
+          record(LimitKind::kTorque, j, sample, t, tau, *lim.max_torque, *lim.max_torque - tau);
       }
     }
   }
@@ -641,6 +654,7 @@ void JointReportBuilder::update_binding(std::size_t sample, double t, double s_p
     take(BindingKind::kJointVelocity, j, std::abs(s.q_dot(i)), lim.max_velocity);
     take(BindingKind::kJointAcceleration, j, std::abs(s.q_ddot(i)), lim.max_acceleration);
     if (lim.max_jerk) take(BindingKind::kJointJerk, j, jerk_(i), *lim.max_jerk);
+    if (lim.max_torque && s.tau.size() == s.q.size()) take(BindingKind::kJointTorque, j, std::abs(s.tau(i)), *lim.max_torque);
   }
   const bool cartesian = tool != nullptr && cartesian_.any();
   const ToolValues values = cartesian ? tool_values(*tool) : ToolValues{};
@@ -652,6 +666,7 @@ void JointReportBuilder::update_binding(std::size_t sample, double t, double s_p
     return last.kind == BindingKind::kJointVelocity       ? std::abs(s.q_dot(i))
            : last.kind == BindingKind::kJointAcceleration ? std::abs(s.q_ddot(i))
            : last.kind == BindingKind::kJointJerk         ? jerk_(i)
+           : last.kind == BindingKind::kJointTorque       ? (s.tau.size() == s.q.size() ? std::abs(s.tau(i)) : 0.0)
            : cartesian                                   ? tool_value(values, last.kind)
                                                          : 0.0;
   });

@@ -36,6 +36,7 @@
 #include <cstddef>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -102,6 +103,10 @@ struct JointSample {
   /// first sample). On one smooth branch it is O(dt^2) (the chord's sagitta and the
   /// curvature of the joint map); a branch change or a singularity makes it large.
   double midpoint_deviation = 0.0;
+  /// The joint torques [N m or N] that drive (q, q_dot, q_ddot) with the model's payload under
+  /// standard gravity (inverse_dynamics, dynamics.hpp): written by the samplers of a model
+  /// with mass properties (has_dynamics), empty otherwise.
+  JointVector tau;
 };
 
 /// The tool's Cartesian states between two samples, for JointTracker::follow: a motion that
@@ -266,6 +271,7 @@ enum class LimitKind {
   kIk,            ///< the IK did not converge (value: position error [m])
   kBranch,        ///< midpoint deviation above the tolerance (a branch change or singularity)
   kJerk,          ///< |q_ddot_k - q_ddot_k-1| / dt > maxJerk (where the model gives one)
+  kTorque,        ///< |tau| > maxTorque (where the model gives one and has mass properties)
 };
 
 /// One joint-limit event of a motion: where a limit is broken, or how close it comes.
@@ -289,6 +295,8 @@ struct JointUsage {
   double peak_acceleration = 0.0;  ///< max |q_ddot| [rad/s^2 or m/s^2]
   double velocity_usage = 0.0;     ///< peak_velocity / maxVelocity
   double acceleration_usage = 0.0; ///< peak_acceleration / maxAcceleration
+  double peak_torque = 0.0;        ///< max |tau| [N m or N] (0 without mass properties)
+  std::optional<double> torque_usage;  ///< peak_torque / maxTorque, where the joint has one
   double position_margin = std::numeric_limits<double>::infinity();  ///< smallest distance to a position limit
 };
 
@@ -315,6 +323,7 @@ struct JointMotionReport {
   /// manipulability are taken over these only (none: they keep their +-infinity starts).
   std::size_t converged_samples = 0;
   std::vector<JointUsage> joints;
+  bool torques = false;  ///< the samples carried joint torques (peak_torque, torque_usage hold)
   LimitEvent tightest_position;      ///< smallest position margin, its joint and time
   LimitEvent tightest_velocity;      ///< smallest velocity margin
   LimitEvent tightest_acceleration;  ///< smallest acceleration margin
@@ -376,7 +385,7 @@ class JointReportBuilder {
   const JointMotionReport& report() const { return report_; }
 
  private:
-  static constexpr std::size_t kKinds = 6;  ///< LimitKind values
+  static constexpr std::size_t kKinds = 7;  ///< LimitKind values
   void record(LimitKind kind, std::size_t joint, std::size_t sample, double t, double value, double limit,
               double margin);
   void update_binding(std::size_t sample, double t, double s_path, const JointSample& s, const CartesianState* tool);

@@ -14,6 +14,7 @@
 #include "core/format.hpp"
 #include "core/planning/time_optimal.hpp"
 #include "core/planning/time_optimal_detail.hpp"
+#include "core/robot/dynamics.hpp"
 
 namespace geotraj::core {
 namespace {
@@ -352,8 +353,10 @@ namespace {
 
 // The grid of one portion [r0, r1] of the path: each blend `blend_intervals` intervals
 // (cosine spacing in sigma, or uniform), each line by its share of `line_intervals` (at least
-// kMinLineIntervals), s from r0.
-std::vector<GridPoint> portion_grid(const JointPath& path, double r0, double r1, const JointPathOptions& options) {
+// kMinLineIntervals), s from r0; with the joint torques' terms where `torques` (a model with
+// torque limits: set_torque_terms).
+std::vector<GridPoint> portion_grid(const JointPath& path, double r0, double r1, const JointPathOptions& options,
+                                    const RobotModel* torques) {
   double lines = 0.0;
   for (const auto& seg : path.segments)
     if (seg.kind == JointPathSegment::Kind::kLine && seg.sigma1 > r0 && seg.sigma0 < r1) lines += seg.sigma1 - seg.sigma0;
@@ -399,6 +402,7 @@ std::vector<GridPoint> portion_grid(const JointPath& path, double r0, double r1,
     g.s = s - r0;
     g.q_s = point.q_s;
     g.q_ss = point.q_ss;
+    if (torques != nullptr) set_torque_terms(*torques, point.q, g);
     grid.push_back(std::move(g));
   }
   return grid;
@@ -425,7 +429,9 @@ std::optional<Violations> check_pass(const JointPathPlan& plan, double rate, con
   ProfileCursor cursor;
   std::size_t hint = 0;
   JointPathPoint point;
-  JointVector q_ddot, q_ddot_prev;
+  JointVector q_ddot, q_ddot_prev, q_dot;
+  time_optimal_detail::TorqueScratch scratch;
+  const bool torques = limits.joint_torque.size() == static_cast<Eigen::Index>(plan.model->dof());
   double t_prev = 0.0;
   SampleCheck& check = out.check;
   struct Worst {
@@ -442,10 +448,12 @@ std::optional<Violations> check_pass(const JointPathPlan& plan, double rate, con
     const double dt = t - t_prev;
     // A ratio r > 1 shrinks the points around the interval by 1 / r^2 for a velocity, 1 / r
     // for an acceleration, 1 / r^2 for a jerk (as check_time_optimal_samples does).
-    auto note = [&](double value, double limit, int order, Eigen::Index j, double& usage) {
+    // `ratio` (where >= 0): the usage, when it is not value / limit (a torque's,
+    // dynamic_torque_usage: its part beyond gravity's, which scales as an acceleration).
+    auto note = [&](double value, double limit, int order, Eigen::Index j, double& usage, double ratio = -1.0) {
       if (!(limit < kInf)) return;
-      const double r = value / limit;
-      usage = std::max(usage, r);
+      const double r = ratio >= 0.0 ? ratio : value / limit;
+      usage = std::max(usage, value / limit);
       if (r > check.worst_usage) {
         check.worst_usage = r;
         worst = {value, limit, t, x.s, order, j};  // described once, after the pass
@@ -455,13 +463,29 @@ std::optional<Violations> check_pass(const JointPathPlan& plan, double rate, con
         const std::size_t p = portion_of(plan.path.rests, x.s);
         const auto& grid = plan.grids[p];
         const std::size_t k = interval_of(grid, x.s - plan.path.rests[p]);
-        const double f = (order == 2 ? 1.0 / r : 1.0 / (r * r)) * (1.0 - 1e-6);
+        const double f = (order == 2 || order == 4 ? 1.0 / r : 1.0 / (r * r)) * (1.0 - 1e-6);
         auto& shrink = order == 3 ? check.jerk_shrink[p] : check.shrink[p];
         const std::size_t N = grid.size() - 1;
         const std::size_t lo = order == 3 && k > 0 ? k - 1 : k, hi = order == 3 ? std::min(N, k + 2) : k + 1;
         for (std::size_t g = lo; g <= hi; ++g) shrink[g] = std::min(shrink[g], f);
       }
     };
+    // Torques: screened by the grid's terms, exact near a limit.
+    if (torques) {
+      const std::size_t p = portion_of(plan.path.rests, x.s);
+      const std::size_t k = interval_of(plan.grids[p], x.s - plan.path.rests[p]);
+      const GridPoint &g0 = plan.grids[p][k], &g1 = plan.grids[p][k + 1];
+      const double within = std::clamp((x.s - plan.path.rests[p] - g0.s) / (g1.s - g0.s), 0.0, 1.0);
+      q_dot = point.q_s * x.v;
+      Eigen::Index joint = -1;
+      double load = 0.0;
+      const auto torque = [&](double value, double limit, Eigen::Index j, double ratio) {
+        note(value, limit, 4, j, out.torque_usage, ratio);
+      };
+      if (!time_optimal_detail::check_torques(plan.model, point.q, q_dot, q_ddot, g0, g1, within, x.a, x.v * x.v,
+                                              limits, scratch, torque, joint, load))
+        return Violations{gravity_beyond(joint, load, limits.joint_torque(joint), t, x.s)};
+    }
     for (Eigen::Index j = 0; j < point.q_s.size(); ++j) {
       note(std::abs(point.q_s(j) * x.v), limits.joint_velocity(j), 1, j, out.velocity_usage);
       note(std::abs(q_ddot(j)), limits.joint_acceleration(j), 2, j, out.acceleration_usage);
@@ -472,7 +496,7 @@ std::optional<Violations> check_pass(const JointPathPlan& plan, double rate, con
     t_prev = t;
   }
   if (worst.joint >= 0) {
-    static constexpr const char* kKind[] = {"", " velocity ", " acceleration ", " jerk "};
+    static constexpr const char* kKind[] = {"", " velocity ", " acceleration ", " jerk ", " torque "};
     check.worst = "joint " + std::to_string(worst.joint) + kKind[worst.order] + number(worst.value, 6) + " of " +
                   number(worst.limit, 6) + " at t = " + number(worst.t, 6) + " s (sigma = " + number(worst.sigma, 6) +
                   ", " + number(rate, 6) + " Hz)";
@@ -567,7 +591,7 @@ Expected<JointPathPlan> plan_joint_path(const ValidRobot& robot, JointPath path,
   plan.limit_scale.resize(P);
   plan.solutions.resize(P);
   for (std::size_t p = 0; p < P; ++p) {
-    plan.grids[p] = portion_grid(plan.path, rests[p], rests[p + 1], options);
+    plan.grids[p] = portion_grid(plan.path, rests[p], rests[p + 1], options, torque_limited(model) ? &model : nullptr);
     plan.limit_scale[p].assign(plan.grids[p].size(), 1.0);
     // Between the points of a blend's grid the joints' accelerations pass their values at
     // the ends and the middle by up to a few 1e-4 of the limit: the blends' points start
@@ -594,6 +618,7 @@ Expected<JointPathPlan> plan_joint_path(const ValidRobot& robot, JointPath path,
     plan.profile = joined_profile(profiles, rests);
     plan.duration_s = plan.profile.duration;
     plan.refinements = round;
+    if (!options.verify_samples) break;
     auto check = check_joint_path_samples(plan, limits, options);
     if (!check) return tl::make_unexpected(check.error());
     plan.velocity_usage = check->velocity_usage;

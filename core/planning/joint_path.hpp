@@ -159,7 +159,10 @@ struct JointPathOptions {
   /// timing, which ramps every step, takes a uniform grid (its windows are as wide as the
   /// intervals: tiny ones make its programme stiff).
   bool crowd_blend_ends = true;
-  /// The sample check and its refinements, as TimeOptimalOptions (time_optimal.hpp).
+  /// The sample check and its refinements, as TimeOptimalOptions (time_optimal.hpp);
+  /// verify_samples false: the sweep's timing alone (its limits hold at the grid points, both
+  /// sides), what a comparison with another timing of the same grid measures.
+  bool verify_samples = true;
   int max_refinements = 8;
   int uniform_refinement_from = 4;
   double sample_tolerance = 1e-9;
@@ -209,6 +212,7 @@ struct JointPathCheck {
   double velocity_usage = 0.0;      ///< largest |q_dot_j| / limit
   double acceleration_usage = 0.0;  ///< largest |q_ddot_j| / limit
   double jerk_usage = 0.0;          ///< largest mean jerk over a period / limit (0 without)
+  double torque_usage = 0.0;        ///< largest |tau_j| / maxTorque (0 without torque limits)
 };
 /// Errors (field `motion`): options.stop requested.
 Expected<JointPathCheck> check_joint_path_samples(const JointPathPlan& plan, const TimeOptimalLimits& limits,

@@ -9,6 +9,7 @@
 #include <limits>
 #include <string>
 
+#include "core/robot/dynamics.hpp"
 #include "core/robot/kinematics.hpp"
 
 #include "core/robot/serial_chain.hpp"
@@ -242,6 +243,37 @@ void joint_move_at(const JointMovePlan& plan, double t, MoveSample& out) {
 
 // ---------------------------------------------------------------------------------------
 // Cartesian straight-line move (6.2.2.2)
+
+double torque_stretch(const JointMovePlan& plan, double rate_hz) {
+  const RobotModel& model = plan.model;
+  if (!torque_limited(model) || !(plan.duration_s > 0.0)) return 1.0;
+  const JointVector dq = plan.q1 - plan.q0;
+  const JointVector zero = JointVector::Zero(dq.size());
+  JointVector q, q_dot, q_ddot, tau, gravity;
+  double f2 = 1.0;
+  const auto at = [&](const ProfileState& x) {
+    q = plan.q0 + x.s * dq;
+    q_dot = x.v * dq;
+    q_ddot = x.a * dq;
+    const DynamicsOptions options = dynamics_options(model);
+    inverse_dynamics(model, q, q_dot, q_ddot, options, tau);
+    inverse_dynamics(model, q, zero, zero, options, gravity);
+    for (Eigen::Index j = 0; j < dq.size(); ++j) {
+      const std::optional<double>& T = model.limits[static_cast<std::size_t>(j)].max_torque;
+      if (!T) continue;
+      f2 = std::max(f2, dynamic_torque_usage(tau(j), gravity(j), *T));
+    }
+  };
+  const auto n = static_cast<std::size_t>(std::ceil(plan.duration_s * std::max(rate_hz, 1.0)));
+  ProfileCursor cursor;
+  for (std::size_t k = 0; k <= n && std::isfinite(f2); ++k)
+    at(evaluate(plan.profile, plan.duration_s * static_cast<double>(k) / static_cast<double>(n), cursor));
+  for (const ProfilePiece& piece : plan.profile.pieces) {  // each piece's start, with its own acceleration
+    ProfileState x{piece.s0, piece.v0, piece.a0, piece.j};
+    if (std::isfinite(f2)) at(x);
+  }
+  return std::sqrt(f2);
+}
 
 Expected<LinearMovePlan> plan_linear_move(const LinearMoveSpec& spec, const MotionSpec& motion) {
   Violations v;

@@ -193,6 +193,16 @@ struct LinearMovePlan {
   std::shared_ptr<const JointReference> roll = nullptr;
 };
 
+/// The factor f >= 1 by which a joint move's time must stretch for every joint torque to keep
+/// within maxTorque (with the model's payload, under standard gravity: dynamics.hpp). Along
+/// the move q = q0 + x (q1 - q0), the torque is tau = M(q) dq x_ddot + C(q, dq) dq x_dot^2 +
+/// g(q): a uniform stretch (speedScale / f: the time f times longer) divides the part beyond
+/// gravity's by f^2, so each joint at each instant asks for f^2 >= (tau - g) / (+-maxTorque -
+/// g). Measured on the profile at `rate_hz` (and at each piece's start), two
+/// inverse-dynamics calls per instant. 1 without torque limits (torque_limited); +infinity
+/// where gravity alone needs more than a joint's maxTorque somewhere on the move.
+double torque_stretch(const JointMovePlan& plan, double rate_hz);
+
 /// Plans the straight-line move from spec.start to spec.goal (thesis 6.2.2.2).
 ///  - With motion.duration_s > 0: the rampFraction profile over T = durationS / speedScale,
 ///    over L (or over theta for a pure rotation; a move that neither translates nor turns

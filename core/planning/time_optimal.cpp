@@ -14,6 +14,7 @@
 #include "core/planning/joint_motion.hpp"
 #include "core/format.hpp"
 #include "core/planning/time_optimal_detail.hpp"
+#include "core/robot/dynamics.hpp"
 
 namespace geotraj::core {
 
@@ -25,12 +26,23 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 }  // namespace
 
+
 std::string describe(const BindingStretch& st) {
   std::string who = name(st.kind);
   if (is_joint_kind(st.kind))
-    who = "joint " + std::to_string(st.joint) + (st.kind == BindingKind::kJointVelocity ? " velocity" : " acceleration");
+    who = "joint " + std::to_string(st.joint) + (st.kind == BindingKind::kJointVelocity       ? " velocity"
+                                                 : st.kind == BindingKind::kJointAcceleration ? " acceleration"
+                                                 : st.kind == BindingKind::kJointJerk         ? " jerk"
+                                                                                              : " torque");
   return who + " " + number(st.value, 6) + " of " + number(st.limit, 6) + " on s " + number(st.s_start, 6) + "-" + number(st.s_end, 6) +
          " m, t " + number(st.t_start, 6) + "-" + number(st.t_end, 6) + " s";
+}
+
+FieldViolation gravity_beyond(Eigen::Index joint, double gravity, double limit, double t, double s) {
+  return unattainable("motion", "joint " + std::to_string(joint) + " needs " + number(std::abs(gravity), 6) +
+                                    " N m against gravity (with the payload) at t = " + number(t, 6) + " s (s = " +
+                                    number(s, 6) + "), beyond its maxTorque " + number(limit, 6) +
+                                    ": no timing holds that pose");
 }
 
 std::vector<std::size_t> every_second_point(std::size_t n) {
@@ -53,11 +65,38 @@ TimeOptimalLimits time_optimal_limits(const MotionSpec& spec, const RobotModel* 
       lim.joint_acceleration(j) = robot->limits[static_cast<std::size_t>(j)].max_acceleration * ac;
     }
   }
+  if (robot && torque_limited(*robot)) {
+    lim.joint_torque.setConstant(static_cast<Eigen::Index>(robot->dof()), kInf);
+    for (std::size_t j = 0; j < robot->dof(); ++j)
+      if (robot->limits[j].max_torque) lim.joint_torque(static_cast<Eigen::Index>(j)) = *robot->limits[j].max_torque;
+    lim.torque_dynamic_scale = spec.acceleration_scale;
+  }
   if (spec.max_speed) lim.speed = *spec.max_speed * sc;
   if (spec.max_acceleration) lim.tangential = lim.centripetal = *spec.max_acceleration * ac;
   if (spec.max_angular_speed) lim.angular_speed = *spec.max_angular_speed * sc;
   if (spec.max_angular_acceleration) lim.angular_acceleration = *spec.max_angular_acceleration * ac;
   return lim;
+}
+
+void set_torque_terms(const RobotModel& model, const JointVector& q, GridPoint& g) {
+  path_torque_terms(model, q, g.q_s, g.q_ss, dynamics_options(model), g.tau_a, g.tau_b, g.tau_c);
+}
+
+bool torques_near_limits(const GridPoint& g0, const GridPoint& g1, double f, double s_ddot, double b,
+                         const TimeOptimalLimits& limits, TorqueEstimate& estimate) {
+  estimate = {};
+  if (g0.tau_a.size() != limits.joint_torque.size() || g1.tau_a.size() != limits.joint_torque.size()) return true;
+  for (Eigen::Index j = 0; j < limits.joint_torque.size(); ++j) {
+    const double T = limits.joint_torque(j);
+    if (!(T < kInf)) continue;
+    const auto lerp = [f](double x0, double x1) { return x0 + f * (x1 - x0); };
+    const double gravity = lerp(g0.tau_c(j), g1.tau_c(j));
+    const double tau = lerp(g0.tau_a(j), g1.tau_a(j)) * s_ddot + lerp(g0.tau_b(j), g1.tau_b(j)) * b + gravity;
+    if (std::abs(tau) > kTorqueScreen * T) return true;
+    const double usage = dynamic_torque_usage(tau, gravity, T);
+    if (usage > estimate.usage) estimate = {usage, std::abs(tau), T, j};
+  }
+  return false;
 }
 
 Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& path, const OrientationPlan& orientation,
@@ -75,6 +114,8 @@ Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& pat
   }
   JointSample js;
   Jet jet{};
+  // The joint torques' terms where the robot has them and a torque limit (time_optimal_limits).
+  const bool torques = robot != nullptr && torque_limited(*robot);
   // The tool's angular rates need the orientation planned for this path (a Cartesian-only
   // caller may pass none: then omega_s = omega_ss = 0 and angular limits bind nothing).
   const bool oriented = orientation.segments.size() == path.segment_count();
@@ -155,6 +196,7 @@ Expected<std::vector<std::vector<GridPoint>>> time_optimal_grids(const Path& pat
         }
         g.q_s = js.q_dot;    // dq/ds at s_dot = 1
         g.q_ss = js.q_ddot;  // d2q/ds2 at s_ddot = 0
+        if (torques) set_torque_terms(*robot, js.q, g);
       }
       const double next = k < grid_intervals ? h : 1e-9;
       t_fake += next;  // a rest between portions: a tiny step (the tangent may invert)
@@ -212,6 +254,9 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
   MotionSample ms;
   JointSample js;
   JointVector q_ddot_prev;
+  time_optimal_detail::TorqueScratch scratch;
+  const bool torques = robot != nullptr && limits.joint_torque.size() == static_cast<Eigen::Index>(robot->dof()) &&
+                       has_dynamics(*robot);
   // One pass over the samples of `plan` (the motion at one rate).
   auto pass = [&](const MotionPlan& plan) -> std::optional<Violations> {
     MotionSampler sampler(path, plan);
@@ -228,12 +273,15 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
           h > 0.0 ? std::min(N - 1, static_cast<std::size_t>(std::max(0.0, (ms.s - por.s_start) / h))) : 0;
       // A ratio r shrinks sigma by 1 / r^2 for a velocity, 1 / r for an acceleration, and the
       // jerk limit by 1 / r^2.
-      auto note = [&](double value, double limit, int order, Eigen::Index joint = -1, const char* what = nullptr) {
+      // `ratio` (where >= 0): the usage, when it is not value / limit (a torque's: its part
+      // beyond gravity's, dynamic_torque_usage, scales as an acceleration).
+      auto note = [&](double value, double limit, int order, Eigen::Index joint = -1, const char* what = nullptr,
+                      double ratio = -1.0) {
         if (!(limit < kInf)) return;
-        const double r = value / limit;
+        const double r = ratio >= 0.0 ? ratio : value / limit;
         if (r > out.worst_usage) {
-          static constexpr const char* kKind[] = {"", "velocity", "acceleration", "jerk"};
-          static constexpr const char* kUnit[] = {"", "rad/s", "rad/s^2", "rad/s^3"};
+          static constexpr const char* kKind[] = {"", "velocity", "acceleration", "jerk", "torque"};
+          static constexpr const char* kUnit[] = {"", "rad/s", "rad/s^2", "rad/s^3", "N m"};
           out.worst_usage = r;
           out.worst = (joint >= 0 ? "joint " + std::to_string(joint) + " " + kKind[order] + " " + number(value, 6) +
                                         " of " + number(limit, 6) + " " + kUnit[order]
@@ -248,7 +296,8 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
           auto& shrink = order == 3 ? out.jerk_shrink[ms.portion] : out.shrink[ms.portion];
           // Twice the correction that would remove the excess where it was measured: the
           // limits of neighbouring samples move too, and the loop settles in fewer rounds.
-          const double f = (order == 2 ? 1.0 / r : 1.0 / (r * r)) * (1.0 - 1e-6);
+          // (A torque's part beyond gravity scales as an acceleration.)
+          const double f = (order == 2 || order == 4 ? 1.0 / r : 1.0 / (r * r)) * (1.0 - 1e-6);
           // A jerk comes from the acceleration's change across a grid point and the
           // estimated third derivative of the joint path there: the points around the
           // interval tighten too.
@@ -280,6 +329,20 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
           note(std::abs(js.q_ddot(j)), limits.joint_acceleration(j), 2, j);
           if (joint_jerk && !first && dt > 0.0)
             note(std::abs(js.q_ddot(j) - q_ddot_prev(j)) / dt, limits.joint_jerk(j), 3, j);
+        }
+        // Torques: screened by the grid's terms, exact near a limit.
+        if (torques) {
+          const std::vector<GridPoint>& grid = grids[ms.portion];
+          const double within =
+              h > 0.0 ? std::clamp((ms.s - por.s_start) / h - static_cast<double>(k), 0.0, 1.0) : 0.0;
+          Eigen::Index joint = -1;
+          double load = 0.0;
+          const auto torque = [&](double value, double limit, Eigen::Index j, double ratio) {
+            note(value, limit, 4, j, nullptr, ratio);
+          };
+          if (!time_optimal_detail::check_torques(*robot, js.q, js.q_dot, js.q_ddot, grid[k], grid[k + 1], within,
+                                                  ms.s_ddot, ms.speed * ms.speed, limits, scratch, torque, joint, load))
+            return Violations{gravity_beyond(joint, load, limits.joint_torque(joint), ms.t, ms.s)};
         }
         q_ddot_prev = js.q_ddot;
       }

@@ -16,6 +16,12 @@
 //   Cartesian speed      b <= maxSpeed^2
 //   tangential           |u| <= maxAcceleration
 //   centripetal          kappa b <= maxAcceleration
+//   joint torque         -tau_max,j <= a_j u + b_j b + c_j <= tau_max,j
+// where the joint torques of the motion (thesis Eq. 1.15, dynamics.hpp) along the path are
+// tau = M(q) q_ddot + C(q, q_dot) q_dot + g(q) = a(s) s_ddot + b(s) s_dot^2 + c(s) with
+//   a = M q_s (inverse dynamics at (q, 0, q_s) without gravity),
+//   b = M q_ss + C(q, q_s) q_s (at (q, q_s, q_ss) without gravity),
+//   c = g(q) with the payload (at (q, 0, 0) with gravity): three calls per grid point;
 // and each is imposed at BOTH ends of each interval (at s_{i+1} with b_{i+1} and the same
 // u_i), so the piecewise-constant acceleration is admissible on either side of every grid
 // point. The problem is convex in (b, u); the time is sum_i 2 ds_i / (sqrt(b_i) +
@@ -63,7 +69,16 @@ struct GridPoint {
   /// turn within an interval keeps its limits between the grid points with fewer
   /// refinements.
   JointVector q_s_mid, q_ss_mid;
+  /// The joint torques along the path, tau = tau_a s_ddot + tau_b s_dot^2 + tau_c [N m or N]
+  /// (set_torque_terms), where the limits have torques; empty otherwise.
+  JointVector tau_a, tau_b, tau_c;
 };
+
+/// Writes g.tau_a, tau_b, tau_c at joints q [rad or m] from g.q_s and g.q_ss: three
+/// inverse-dynamics calls with the model's payload (dynamics.hpp). Precondition:
+/// has_dynamics(model). No heap allocation.
+void set_torque_terms(const RobotModel& model, const JointVector& q, GridPoint& g);
+
 
 /// The limits of a time-optimal timing. A limit at +infinity is not imposed.
 struct TimeOptimalLimits {
@@ -82,7 +97,32 @@ struct TimeOptimalLimits {
   /// jerk-limited timing (optim/timing/time_optimal_jerk.hpp); the sweep has no jerk.
   JointVector joint_jerk;  ///< j_max,j [rad/s^3 or m/s^3] per joint; empty: none
   double jerk = std::numeric_limits<double>::infinity();  ///< |s_dddot| <= maxJerk [m/s^3]
+  /// |tau_j| <= maxTorque [N m or N] per joint (GridPoint's tau terms; +infinity: none);
+  /// empty: no torque limit. Not scaled by speedScale (a drive's limit); the part that moves
+  /// the arm (the torque less the gravity's) keeps within `torque_dynamic_scale` of what the
+  /// limit leaves it (the acceleration reserve of live execution, MotionSpec's
+  /// acceleration_scale).
+  JointVector joint_torque;
+  double torque_dynamic_scale = 1.0;
 };
+
+/// The sample checks' screen of the torques: a sample's torques estimated from the grid's
+/// terms (tau_a, tau_b, tau_c linear between the ends of its interval, at the sample's s_ddot
+/// and s_dot^2: exact at grid points, off by O(h^2) between them, far below this margin);
+/// where no estimate comes within this fraction of its limit the estimate is the sample's
+/// usage, else the torques are computed exactly (inverse_dynamics, gravity_torques).
+inline constexpr double kTorqueScreen = 0.95;
+
+/// The screen's estimate: false when every joint's estimated torque is within kTorqueScreen of
+/// its limit, with the largest estimated dynamic_torque_usage in `usage` and where it is (joint,
+/// |tau|, limit); true: the sample needs the exact torques. `f` in [0, 1]: the sample's place
+/// between g0 and g1; `s_ddot` [m/s^2], `b` = s_dot^2 [m^2/s^2].
+struct TorqueEstimate {
+  double usage = 0.0, value = 0.0, limit = 0.0;
+  Eigen::Index joint = -1;
+};
+bool torques_near_limits(const GridPoint& g0, const GridPoint& g1, double f, double s_ddot, double b,
+                         const TimeOptimalLimits& limits, TorqueEstimate& estimate);
 
 /// The exact solution of one portion's grid.
 struct TimeOptimalSolution {
@@ -215,7 +255,9 @@ Expected<TimeOptimalPlan> plan_time_optimal(const Path& path, const OrientationP
 /// The outcome of check_time_optimal_samples.
 struct SampleCheck {
   bool broken = false;        ///< some sample exceeds a limit by more than sample_tolerance
-  double worst_usage = 0.0;   ///< largest value / limit over every sample checked
+  /// Largest value / limit over every sample checked (a torque's: dynamic_torque_usage, its
+  /// part beyond gravity's against what the limit leaves it, which scales as an acceleration).
+  double worst_usage = 0.0;
   /// Per portion and grid point, the factor (in (0, 1]) by which to scale that point's
   /// limits (velocities by it, accelerations by its square) before solving again: for each
   /// sample with value / limit r > 1 + sample_tolerance on grid interval k, both ends k and
@@ -263,6 +305,10 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
 /// cost of at most that factor in duration.
 void tighten_limits(const SampleCheck& check, int round, int uniform_from, std::vector<std::vector<double>>& sigma,
                     std::vector<std::vector<double>>* jerk_sigma);
+
+/// The error of a sample (at t [s], s [m or path parameter]) where joint `joint`'s gravity load
+/// passes its maxTorque `limit` [N m or N] (field `motion`).
+FieldViolation gravity_beyond(Eigen::Index joint, double gravity, double limit, double t, double s);
 
 /// A one-line description of a stretch ("joint 3 velocity 1.99 of 1.99 rad/s on s 0.1-0.4 m").
 std::string describe(const BindingStretch& stretch);

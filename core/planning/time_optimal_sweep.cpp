@@ -38,7 +38,7 @@ struct Line {
 
 /// Scratch of one interval's polygon (fixed capacity: no allocation in the sweep).
 struct Polygon {
-  static constexpr std::size_t kCap = 3 * kMaxJoints + 4 + 2 * kAngularRows;
+  static constexpr std::size_t kCap = 5 * kMaxJoints + 4 + 2 * kAngularRows;
   std::array<Line, kCap> lower, upper;
   std::size_t n_lower = 0, n_upper = 0;
   double x_max = kInf;  ///< bounds on x alone (joint acceleration with no u term)
@@ -66,6 +66,21 @@ struct Polygon {
     } else {
       add_upper(-a / A, -C / A, s);
       add_lower(a / A, -C / A, s);
+    }
+  }
+  /// lo <= A u + C x <= hi with lo <= 0 <= hi (a torque's range less its gravity part).
+  void add_ranged(double A, double C, double lo, double hi, Source s) {
+    if (std::abs(A) <= 1e-13 * (std::abs(C) + 1.0)) {
+      if (C > 0.0) add_x_max(hi / C, s);
+      if (C < 0.0) add_x_max(lo / C, s);
+      return;
+    }
+    if (A > 0.0) {
+      add_upper(hi / A, -C / A, s);
+      add_lower(lo / A, -C / A, s);
+    } else {
+      add_upper(lo / A, -C / A, s);
+      add_lower(hi / A, -C / A, s);
     }
   }
 };
@@ -107,6 +122,10 @@ struct UpperAt {
     if (!(a < kInf) || std::abs(A) <= 1e-13 * (std::abs(C) + 1.0)) return;
     u = std::min(u, ((A > 0.0 ? a : -a) - C * x) / A);
   }
+  void add_ranged(double A, double C, double lo, double hi, Source) {  // as Polygon's upper lines
+    if (std::abs(A) <= 1e-13 * (std::abs(C) + 1.0)) return;
+    u = std::min(u, ((A > 0.0 ? hi : lo) - C * x) / A);
+  }
 };
 
 // |A u + C x| <= a for vectors A, C: support rows d . (A u + C x) <= a cos(pi / 16) over
@@ -124,6 +143,11 @@ void add_norm_rows(const Eigen::Vector3d& A, const Eigen::Vector3d& C, double a,
     const Eigen::Vector3d d = std::cos(th) * e1 + std::sin(th) * e2;
     p.add_two_sided(d.dot(A), d.dot(C), a * kAngularInscribed, src);
   }
+}
+
+/// Whether the grid point carries torque terms and the limits limit torques.
+bool has_torques(const GridPoint& g, const TimeOptimalLimits& lim) {
+  return lim.joint_torque.size() == g.q_s.size() && g.tau_a.size() == g.q_s.size() && g.q_s.size() > 0;
 }
 
 /// The rows of interval i's polygon (points g0 = s_i, g1 = s_{i+1}, ds = s_{i+1} - s_i),
@@ -152,6 +176,19 @@ void interval_rows(const GridPoint& g0, const GridPoint& g1, double ds, const Ti
         const double cap = (v / qs) * (v / qs);
         p.add_upper(cap / ds, -1.0 / ds, {BindingKind::kJointVelocity, static_cast<std::size_t>(j)});
       }
+    }
+  }
+  if (has_torques(g0, lim)) {
+    // tau = tau_a u + tau_b b + tau_c at both ends (b_{i+1} = b_i + 2 ds u), the part beyond
+    // gravity's within the limit's range less tau_c, scaled as the accelerations.
+    for (Eigen::Index j = 0; j < g0.q_s.size(); ++j) {
+      const double T = lim.joint_torque(j);
+      if (!(T < kInf)) continue;
+      const Source src{BindingKind::kJointTorque, static_cast<std::size_t>(j)};
+      const double f0 = sig0 * sig0 * lim.torque_dynamic_scale, f1 = sig1 * sig1 * lim.torque_dynamic_scale;
+      p.add_ranged(g0.tau_a(j), g0.tau_b(j), (-T - g0.tau_c(j)) * f0, (T - g0.tau_c(j)) * f0, src);
+      p.add_ranged(g1.tau_a(j) + 2.0 * ds * g1.tau_b(j), g1.tau_b(j), (-T - g1.tau_c(j)) * f1, (T - g1.tau_c(j)) * f1,
+                   src);
     }
   }
   if (lim.tangential < kInf) {
@@ -284,6 +321,14 @@ Usage interval_usage(const GridPoint& g0, const GridPoint& g1, double x0, double
          std::max(std::abs(g0.q_s(j) * u + g0.q_ss(j) * x0), std::abs(g1.q_s(j) * u + g1.q_ss(j) * x1)),
          lim.joint_acceleration(j));
   }
+  if (has_torques(g0, lim) && has_torques(g1, lim)) {
+    for (Eigen::Index j = 0; j < g0.q_s.size(); ++j) {
+      take({BindingKind::kJointTorque, static_cast<std::size_t>(j)},
+           std::max(std::abs(g0.tau_a(j) * u + g0.tau_b(j) * x0 + g0.tau_c(j)),
+                    std::abs(g1.tau_a(j) * u + g1.tau_b(j) * x1 + g1.tau_c(j))),
+           lim.joint_torque(j));
+    }
+  }
   take({BindingKind::kCartesianSpeed, 0}, std::max(v0, v1), lim.speed);
   take({BindingKind::kTangentialAcceleration, 0}, std::abs(u), lim.tangential);
   take({BindingKind::kCentripetalAcceleration, 0}, std::max(g0.kappa * x0, g1.kappa * x1), lim.centripetal);
@@ -304,6 +349,7 @@ std::string source_words(const Source& s) {
     case BindingKind::kCentripetalAcceleration: return "maxAcceleration (centripetal)";
     case BindingKind::kAngularSpeed: return "maxAngularSpeed";
     case BindingKind::kAngularAcceleration: return "maxAngularAcceleration";
+    case BindingKind::kJointTorque: return "the torque limit of joint " + std::to_string(s.joint);
   }
   return "?";
 }
@@ -328,6 +374,19 @@ Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& all, const Tim
     return tl::make_unexpected(Violations{unattainable(
         "motion", "no positive speed is admissible at s = " + number(point(i).s, 6) + " m from the portion's start: " + why)});
   };
+
+  // At rest a joint's torque is its gravity load: where that passes the limit, no motion
+  // passes the point.
+  for (std::size_t i = 0; i < n_pts; ++i) {
+    const GridPoint& g = point(i);
+    if (!has_torques(g, lim)) continue;
+    for (Eigen::Index j = 0; j < g.q_s.size(); ++j) {
+      if (std::abs(g.tau_c(j)) > lim.joint_torque(j))
+        return fail(i, "joint " + std::to_string(j) + " needs " + number(std::abs(g.tau_c(j)), 6) +
+                           " N m against gravity (with the payload) there, beyond its maxTorque " +
+                           number(lim.joint_torque(j), 6));
+    }
+  }
 
   std::vector<double> lo(n_pts, 0.0), hi(n_pts, 0.0);
   Polygon poly;

@@ -1,6 +1,8 @@
 // Sampling any trajectory with the tool's full state and the joints. See trajectory.hpp.
 #include "core/planning/trajectory.hpp"
 
+#include "core/robot/dynamics.hpp"
+
 namespace geotraj::core {
 namespace {
 
@@ -85,7 +87,7 @@ SequenceMotion make_sequence(std::vector<StepMotion> steps, double rate_hz) {
 }
 
 StepSampler::StepSampler(StepRef step, const RobotModel* robot, const JointVector& seed, const IkOptions& options)
-    : step_(step) {
+    : step_(step), dynamics_(robot != nullptr && has_dynamics(*robot) ? robot : nullptr) {
   std::visit(Overloaded{[&](const PathMotion* m) { path_sampler_.emplace(m->path, m->timing); },
                         [&](const JointMovePlan* m) { joint_sampler_.emplace(*m); },
                         [&](const LinearMovePlan* m) { linear_sampler_.emplace(*m); },
@@ -205,6 +207,12 @@ void StepSampler::finish(TrajectorySample& out) {
       });
       tracker_->follow(x, between, out.joints, kSampleContinuation);
     }
+  }
+  if (out.has_joints && dynamics_ != nullptr) {
+    JointSample& j = out.joints;
+    inverse_dynamics(*dynamics_, j.q, j.q_dot, j.q_ddot, dynamics_options(*dynamics_), j.tau);
+  } else {
+    out.joints.tau.resize(0);
   }
   ++k_;
 }

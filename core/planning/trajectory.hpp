@@ -118,6 +118,9 @@ class StepSampler {
   MotionSample motion_sample_;
   MoveSample move_sample_, move_between_;
   std::size_t k_ = 0;
+  /// The model whose joint torques each sample carries (JointSample::tau), where it has mass
+  /// properties; null otherwise.
+  const RobotModel* dynamics_ = nullptr;
 };
 
 /// Samples a trajectory in time order (no heap allocation per sample; a sequence allocates

@@ -26,6 +26,9 @@
 // transmits; tau_i = z_i . n_i (revolute) or z_i . f_i (prismatic).
 #pragma once
 
+#include <cmath>
+#include <limits>
+
 #include <Eigen/Core>
 
 #include "core/robot/robot.hpp"
@@ -35,21 +38,33 @@ namespace geotraj::core {
 /// Standard gravity [m/s^2], along -z of W.
 inline constexpr double kStandardGravity = 9.80665;
 
-/// A load on the tool (proto Payload): its mass [kg] at its centre of mass [m] in the tool
-/// frame T, a point mass (its own rotational inertia neglected, as a robot's payload rating
-/// gives it).
-struct Payload {
-  double mass = 0.0;
-  Eigen::Vector3d center_of_mass = Eigen::Vector3d::Zero();
-};
-
 struct DynamicsOptions {
   Eigen::Vector3d gravity = Eigen::Vector3d(0.0, 0.0, -kStandardGravity);  ///< [m/s^2] in W
   Payload payload;
 };
 
+/// The model's own: standard gravity along -z of W and RobotModel::payload.
+inline DynamicsOptions dynamics_options(const RobotModel& model) { return {Eigen::Vector3d(0.0, 0.0, -kStandardGravity), model.payload}; }
+
 /// Whether every joint of the model gives the mass properties of the link it moves.
 bool has_dynamics(const RobotModel& model);
+
+/// Whether the model's joint torques are known (has_dynamics) and some joint limits its torque:
+/// then the timings by the limits impose them (time_optimal.hpp, joint_path.hpp, moves.hpp).
+bool torque_limited(const RobotModel& model);
+
+/// How far the torque tau of a joint, whose gravity load is `gravity` (tau at rest in the same
+/// pose), uses what its limit leaves the motion: the part beyond gravity's, d = tau - gravity,
+/// over limit - gravity (d > 0) or limit + gravity (d < 0). Above 1 exactly where |tau| >
+/// limit; a uniform time stretch by f divides d by f^2, so f = sqrt(usage) brings it to the
+/// limit. +infinity where |gravity| > limit (no timing holds the pose). [N m or N]
+inline double dynamic_torque_usage(double tau, double gravity, double limit) {
+  const double d = tau - gravity;
+  if (std::abs(gravity) > limit) return std::numeric_limits<double>::infinity();
+  if (d == 0.0) return 0.0;
+  const double room = d > 0.0 ? limit - gravity : limit + gravity;
+  return room > 0.0 ? std::abs(d) / room : std::numeric_limits<double>::infinity();
+}
 
 /// The joint torques tau [N m or N] that give the motion (q, q_dot, q_ddot) [rad or m, /s,
 /// /s^2] under options' gravity and payload (Eq. 1.15), by the recursive Newton-Euler
@@ -57,5 +72,17 @@ bool has_dynamics(const RobotModel& model);
 /// Preconditions (checked): has_dynamics(model); q, q_dot and q_ddot of model.dof() values.
 void inverse_dynamics(const RobotModel& model, const JointVector& q, const JointVector& q_dot,
                       const JointVector& q_ddot, const DynamicsOptions& options, JointVector& tau);
+
+/// The joint torques at rest at q under options' gravity and payload (g(q) of Eq. 1.15);
+/// inverse_dynamics at zero velocity and acceleration.
+void gravity_torques(const RobotModel& model, const JointVector& q, const DynamicsOptions& options, JointVector& tau);
+
+/// The torques along a path q(s) [rad or m] through q with dq/ds = q_s, d2q/ds2 = q_ss, as
+/// tau = a s_ddot + b s_dot^2 + c (time_optimal.hpp): a = M(q) q_s, b = M(q) q_ss + C(q, q_s) q_s,
+/// c = g(q) (with the payload): inverse_dynamics at (q, 0, q_s) and (q, q_s, q_ss) without
+/// gravity and at (q, 0, 0) with it, the links' poses computed once for the three. No heap
+/// allocation.
+void path_torque_terms(const RobotModel& model, const JointVector& q, const JointVector& q_s, const JointVector& q_ss,
+                       const DynamicsOptions& options, JointVector& a, JointVector& b, JointVector& c);
 
 }  // namespace geotraj::core

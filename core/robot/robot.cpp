@@ -287,6 +287,13 @@ Violations validate_robot(const RobotModel& model) {
     if (l.max_jerk) rate("maxJerk", *l.max_jerk, "rad/s^3", "m/s^3");
     if (l.max_torque) rate("maxTorque", *l.max_torque, "N m", "N");
   }
+  if (model.payload.mass != 0.0 || !model.payload.center_of_mass.isZero()) {
+    check_inertial("payload", Inertial{model.payload.mass, model.payload.center_of_mass, Eigen::Matrix3d::Zero()}, out);
+    const bool dynamics = std::all_of(model.joints.begin(), model.joints.end(),
+                                      [](const Joint& j) { return j.inertial.has_value(); });
+    if (model.payload.mass > 0.0 && !dynamics && !model.joints.empty())
+      out.push_back({"payload", "needs the mass properties of every link (an inertial per joint or link): the model has none"});
+  }
   check_rotation(model.base, "base", out);
   check_rotation(model.tool, "tool", out);
   for (const auto& [name, X] : {std::pair<const char*, const Eigen::Isometry3d*>{"base", &model.base},

@@ -154,6 +154,14 @@ struct DhTable {
   std::vector<DhLink> links;
 };
 
+/// A load on the tool (proto Payload): its mass [kg] at its centre of mass [m] in the tool
+/// frame T, a point mass (its own rotational inertia neglected, as a robot's payload rating
+/// gives it).
+struct Payload {
+  double mass = 0.0;
+  Eigen::Vector3d center_of_mass = Eigen::Vector3d::Zero();
+};
+
 /// A serial arm. A value: copy it to change it (base and tool of a request replace the
 /// model's own).
 struct RobotModel {
@@ -171,6 +179,9 @@ struct RobotModel {
   /// The DH table the joints and flange were written from (set_dh), reported back in that
   /// form; empty for a chain given otherwise (URDF, general joints).
   std::optional<DhTable> dh;
+  /// What the tool carries (RobotSpec.payload): a point mass at a point of the tool frame T,
+  /// in every inverse-dynamics call of the model (dynamics_options); none by default.
+  Payload payload{};
 
   std::size_t dof() const { return joints.size(); }
 };
@@ -193,8 +204,9 @@ void set_dh(RobotModel& model, DhTable table);
 /// maxPosition, `limits[i].maxVelocity`, `limits[i].maxAcceleration`, `limits[i].maxJerk` not
 /// finite or outside [kMinJointLimit, kMaxJointLimit] (joint_limit_violation),
 /// `base.orientation` / `tool.orientation` not a rotation, `base.position` / `tool.position`
-/// beyond kMaxModelMagnitude, `home` of the wrong size or outside the limits.
-/// Empty when the model is usable.
+/// beyond kMaxModelMagnitude, `home` of the wrong size or outside the limits, `payload.mass`
+/// and `payload.centerOfMass` as check_inertial's, `payload` on a model without every link's
+/// mass properties. Empty when the model is usable.
 Violations validate_robot(const RobotModel& model);
 
 /// Appends to `out` what makes `in` no body's, named `field`.mass, .centerOfMass, .inertia:

@@ -349,6 +349,18 @@ void JerkTimingNlp::build_linear_rows() {
         rows.push_back({-gp.q_s(j) * h + (end == 0 ? gp.q_ss(j) : 0.0),
                         gp.q_s(j) * h + (end == 1 ? gp.q_ss(j) : 0.0), -a, a});
       }
+      // The joint torques, tau_a u_i + tau_b b_k + tau_c within +-maxTorque (the sweep's rows,
+      // time_optimal.hpp): the part beyond gravity's scaled as an acceleration.
+      if (lim_.joint_torque.size() == gp.q_s.size() && gp.tau_a.size() == gp.q_s.size()) {
+        const double f = sigma(i + end) * sigma(i + end) * lim_.torque_dynamic_scale;
+        for (Eigen::Index j = 0; j < gp.q_s.size(); ++j) {
+          const double T = lim_.joint_torque(j);
+          if (!(T < kInf)) continue;
+          rows.push_back({-gp.tau_a(j) * h + (end == 0 ? gp.tau_b(j) : 0.0),
+                          gp.tau_a(j) * h + (end == 1 ? gp.tau_b(j) : 0.0), (-T - gp.tau_c(j)) * f,
+                          (T - gp.tau_c(j)) * f});
+        }
+      }
     }
     if (lim_.tangential < kInf) rows.push_back({-h, h, -lim_.tangential, lim_.tangential});
     // The polygon: the box of the point caps (the rests: 0), clipped by every side of every row.

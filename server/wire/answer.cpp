@@ -41,6 +41,11 @@ void to_proto(const core::TrajectorySample& sample, v1::Sample& out) {
     qd->Add(joints.q_dot(i));
     qdd->Add(joints.q_ddot(i));
   }
+  if (joints.tau.size() == n) {
+    auto* tau = out.mutable_joint_torques();
+    tau->Reserve(static_cast<int>(n));
+    for (Eigen::Index i = 0; i < n; ++i) tau->Add(joints.tau(i));
+  }
 }
 
 void to_proto(const planner::OptimizerReports& reports, v1::OptimizationReport& out) {

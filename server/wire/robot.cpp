@@ -61,6 +61,7 @@ v1::LimitKind to_proto(core::LimitKind k) {
     case core::LimitKind::kIk: return v1::LIMIT_KIND_IK;
     case core::LimitKind::kBranch: return v1::LIMIT_KIND_BRANCH;
     case core::LimitKind::kJerk: return v1::LIMIT_KIND_JERK;
+    case core::LimitKind::kTorque: return v1::LIMIT_KIND_TORQUE;
   }
   return v1::LIMIT_KIND_UNSPECIFIED;
 }
@@ -248,6 +249,7 @@ planner::RobotSpec wire_detail::robot_spec_from_proto(const v1::RobotSpec& spec,
     if (l.has_max_velocity()) limits.max_velocity = l.max_velocity();
     if (l.has_max_acceleration()) limits.max_acceleration = l.max_acceleration();
     if (l.has_max_jerk()) limits.max_jerk = l.max_jerk();
+    if (l.has_max_torque()) limits.max_torque = l.max_torque();
     s.joint_limits.push_back(std::move(limits));
   }
   // A pose that cannot be read is left out: its violation is answered, the rest still checked.
@@ -260,6 +262,12 @@ planner::RobotSpec wire_detail::robot_spec_from_proto(const v1::RobotSpec& spec,
   if (spec.has_base()) s.base = pose(spec.base(), "robot.base");
   if (spec.has_tool()) s.tool = pose(spec.tool(), "robot.tool");
   s.report_only = spec.report_only();
+  if (spec.has_payload()) {
+    core::Payload payload;
+    payload.mass = spec.payload().mass();
+    if (spec.payload().has_center_of_mass()) payload.center_of_mass = to_core(spec.payload().center_of_mass());
+    s.payload = payload;
+  }
   s.tool_axis_free = spec.tool_axis_free();
   if (spec.has_branch_tolerance()) s.branch_tolerance = spec.branch_tolerance();
   if (spec.has_start_position_tolerance()) s.start_position_tolerance = spec.start_position_tolerance();
@@ -292,6 +300,7 @@ void to_proto(const core::BindingStretch& stretch, v1::BindingStretch& out) {
       break;
     case core::BindingKind::kAngularSpeed: out.set_kind(v1::BINDING_KIND_ANGULAR_SPEED); break;
     case core::BindingKind::kAngularAcceleration: out.set_kind(v1::BINDING_KIND_ANGULAR_ACCELERATION); break;
+    case core::BindingKind::kJointTorque: out.set_kind(v1::BINDING_KIND_JOINT_TORQUE); break;
   }
   out.set_joint(static_cast<std::uint32_t>(stretch.joint));
   out.set_t_start(stretch.t_start);
@@ -338,6 +347,9 @@ std::string describe(const core::LimitEvent& e) {
     case core::LimitKind::kIk:
       return "the inverse kinematics did not converge" + where + " (position residual " + core::number(e.value, 6) +
              " m): the pose is out of reach or at a singularity";
+    case core::LimitKind::kTorque:
+      return joint + " torque " + core::number(e.value, 6) + " exceeds maxTorque " + core::number(e.limit, 6) + where +
+             " (with the payload; docs/dynamics.md)";
     case core::LimitKind::kBranch:
       return "joint interpolation strays " + core::number(e.value, 6) + " m from the path" + where +
              " (tolerance " + core::number(e.limit, 6) + " m): a branch change or a singularity crossing";
@@ -369,6 +381,8 @@ void to_proto(const std::string& robot_name, const core::JointMotionReport& repo
     r->set_velocity_usage(u.velocity_usage);
     r->set_acceleration_usage(u.acceleration_usage);
     if (std::isfinite(u.position_margin)) r->set_position_margin(u.position_margin);  // none: continuous
+    if (report.torques) r->set_peak_torque(u.peak_torque);
+    if (report.torques && u.torque_usage) r->set_torque_usage(*u.torque_usage);
   }
   if (std::isfinite(report.tightest_position.margin)) {  // every joint continuous: none
     to_proto(report.tightest_position, *out.mutable_tightest_position());

@@ -148,7 +148,7 @@ TEST_F(CliLive, ExecuteFollowsItsScript) {
   ASSERT_EQ(run.exit_code, 0) << run.out.substr(0, 2000);
   const Csv csv = parse_csv(run.out);
   std::string expected = "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz";
-  for (const char* name : {"q", "qd", "qdd"}) {
+  for (const char* name : {"q", "qd", "qdd", "tau"}) {  // the Panda's torques: it has mass properties
     for (int j = 0; j < 7; ++j) expected += "," + std::string(name) + std::to_string(j);
   }
   expected += ",plan_time,speed_factor,state";

@@ -117,9 +117,8 @@ class PythonExample(unittest.TestCase):
         res = self.run_example("--request", os.path.join(ARGS.requests, "plan_joint_path_panda.json"), "--csv", "-")
         self.assertEqual(res.returncode, 0, res.stderr)
         self.assertIn("plan: no path segments (a joint move or a joint path)", res.stderr)
-        rows = list(csv.reader(res.stdout.splitlines()))
-        self.assertEqual(rows[0][-7:], [f"q{j}" for j in range(7)])
-        q = [[float(x) for x in r[-7:]] for r in rows[1:]]
+        rows = list(csv.DictReader(res.stdout.splitlines()))
+        q = [[float(r[f"q{j}"]) for j in range(7)] for r in rows]
         for got, want in ((q[0], waypoints[0]), (q[-1], waypoints[-1])):
             for a, b in zip(got, want):
                 self.assertAlmostEqual(a, b, places=9)
@@ -129,6 +128,23 @@ class PythonExample(unittest.TestCase):
             nearest = min(math.dist(s, w) for s in q)
             self.assertLessEqual(nearest, tolerance + 3e-3, f"waypoint {i}")
             self.assertGreater(nearest, 1e-3, f"waypoint {i} is blended, not met")
+
+    def test_torques_within_a_limit(self):
+        """The Panda's pick and place with its rated 3 kg and its shoulder limited to 50 N m: the
+        CSV's torques stay within it and reach it (the timing within torques), each joint's
+        peak printed with its share of the limit."""
+        res = self.run_example("--request", os.path.join(ARGS.requests, "plan_joint_path_panda.json"),
+                               "--payload", "3,0,0,0.05", "--max-torque", "panda_joint2=50", "--csv", "-")
+        self.assertEqual(res.returncode, 0, res.stderr)
+        self.assertRegex(res.stderr, r"joint 1: peak torque 50 N m, 100\.0 % of its limit")
+        rows = list(csv.DictReader(res.stdout.splitlines()))
+        shoulder = [abs(float(r["tau1"])) for r in rows]
+        self.assertLessEqual(max(shoulder), 50.0 * (1 + 1e-9))
+        self.assertGreater(max(shoulder), 49.5)
+        bad = self.run_example("--request", os.path.join(ARGS.requests, "plan_joint_path_panda.json"),
+                               "--max-torque", "panda_joint2", "--no-stream")
+        self.assertEqual(bad.returncode, 2)
+        self.assertIn("--max-torque takes JOINT=NM", bad.stderr)
 
     def test_blended_sequence(self):
         res = self.run_example("--request", os.path.join(ARGS.requests, "sequence_blended_ur5.json"), "--csv", "-")

@@ -414,6 +414,9 @@ describe('the operator page in chromium', () => {
     assert.ok(await dataValue('plan-time-optimal') > 0);
     await streamed();
     assert.ok(await page.$eval(sel('plot-joint-positions'), (e) => Number(e.dataset.series)) === 7);
+    // The PA-10 has no mass properties: no torques, and the page says why.
+    assert.equal(await page.$eval(sel('plot-joint-torques'), (e) => Number(e.dataset.series)), 0);
+    assert.match(await page.$eval(sel('plot-joint-torques'), (e) => e.textContent), /no mass properties/);
     const duration = await dataValue('plan-duration');
     const a = await seek(duration * 0.25);
     const b = await seek(duration * 0.75);
@@ -1070,6 +1073,8 @@ describe('a joint path of waypoints', () => {
     assert.match(await page.$eval(sel('colorbar'), (e) => e.textContent), /tool speed \[m\/s\]/);
     assert.equal(await page.$eval(sel('plot-joint-positions'), (e) => Number(e.dataset.series)), 7);
     assert.equal(await page.$eval(sel('plot-joint-velocities'), (e) => Number(e.dataset.series)), 7);
+    // The Panda's torques (its mass properties), with its torque limits as bands.
+    assert.equal(await page.$eval(sel('plot-joint-torques'), (e) => Number(e.dataset.series)), 7);
     assertPassed(await passes(), waypoints, asked.jointPath.blendTolerance);
     const a = await seek(duration * 0.25);
     const b = await seek(duration * 0.75);

@@ -135,10 +135,12 @@ export class Plots {
     this.jointPos = new Chart(root, 'plot-joint-positions', 'Joint positions', 'Dashed: position limits.');
     this.jointVel = new Chart(root, 'plot-joint-velocities', 'Joint velocities', 'Dashed: ±velocity limits.');
     this.jointAcc = new Chart(root, 'plot-joint-accelerations', 'Joint accelerations', 'Dashed: ±acceleration limits.');
+    this.jointTau = new Chart(root, 'plot-joint-torques', 'Joint torques',
+      'With the payload, under gravity. Dashed: ±torque limits (the model\'s maxTorque).');
     this.binding = el('div', 'plot-card binding-card');
     this.binding.setAttribute('data-testid', 'plot-binding');
     root.append(this.binding);
-    this.charts = [this.curvature, this.derivatives, this.speed, this.jointPos, this.jointVel, this.jointAcc];
+    this.charts = [this.curvature, this.derivatives, this.speed, this.jointPos, this.jointVel, this.jointAcc, this.jointTau];
     new ResizeObserver(() => this.charts.forEach((c) => c.resize())).observe(root);
     this.setProfile(null);
     this.setSamples(null, null);
@@ -190,7 +192,7 @@ export class Plots {
   setSamples(samples, robot) {
     if (!samples || samples.length < 2) {
       this.speed.empty('no motion: give the request a motion (duration) to stream its samples');
-      for (const c of [this.jointPos, this.jointVel, this.jointAcc]) c.empty('no robot samples: choose a robot');
+      for (const c of [this.jointPos, this.jointVel, this.jointAcc, this.jointTau]) c.empty('no robot samples: choose a robot');
       return;
     }
     const t = samples.map((x) => x.t ?? 0);
@@ -215,7 +217,7 @@ export class Plots {
 
     const n = samples[0].joints ? samples[0].joints.length : 0;
     if (!n) {
-      for (const c of [this.jointPos, this.jointVel, this.jointAcc]) c.empty('no robot in the request: choose one to see its joints');
+      for (const c of [this.jointPos, this.jointVel, this.jointAcc, this.jointTau]) c.empty('no robot in the request: choose one to see its joints');
       return;
     }
     const names = robot?.names || [];
@@ -246,6 +248,13 @@ export class Plots {
       (l) => [-(l.maxVelocity ?? 0) * (robot.velocityScale ?? 1), (l.maxVelocity ?? 0) * (robot.velocityScale ?? 1)]);
     make(this.jointAcc, 'jointAccelerations', 'rad/s²', 'joint acceleration',
       (l) => [-(l.maxAcceleration ?? 0) * (robot.accelerationScale ?? 1), (l.maxAcceleration ?? 0) * (robot.accelerationScale ?? 1)]);
+    // Torques: a model with mass properties (the Panda, the UR5e, a URDF with <inertial>).
+    if (samples[0].jointTorques?.length === n) {
+      make(this.jointTau, 'jointTorques', 'N m', 'joint torque',
+        (l) => (Number.isFinite(l.maxTorque) ? [-l.maxTorque, l.maxTorque] : null));
+    } else {
+      this.jointTau.empty('no torques: the model has no mass properties (docs/dynamics.md)');
+    }
   }
 
   // stretches: BindingStretch[] (RobotReport.binding, TimingReport.binding or MotionSummary.binding); names: joint
@@ -324,6 +333,7 @@ const KIND_NAMES = {
   BINDING_KIND_JOINT_VELOCITY: 'velocity',
   BINDING_KIND_JOINT_ACCELERATION: 'acceleration',
   BINDING_KIND_JOINT_JERK: 'jerk',
+  BINDING_KIND_JOINT_TORQUE: 'torque',
   BINDING_KIND_CARTESIAN_SPEED: 'Cartesian speed',
   BINDING_KIND_CARTESIAN_TANGENTIAL_ACCELERATION: 'tangential acceleration',
   BINDING_KIND_CARTESIAN_CENTRIPETAL_ACCELERATION: 'centripetal acceleration κv²',

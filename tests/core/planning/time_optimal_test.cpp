@@ -224,6 +224,40 @@ TEST(TimeOptimalSweep, StraightLineIsTheMinimumTimeTrapezoid) {
   EXPECT_NEAR(sol->binding[1].s_end, 0.8, 0.02 + 1e-12);
 }
 
+// Closed form with a torque: one joint, q = s, of inertia 2 kg m^2 under a constant load of
+// 3 N m and a 5 N m limit: tau = 2 s_ddot + 3 within +-5 accelerates at most (5 - 3) / 2 = 1
+// and brakes at most (5 + 3) / 2 = 4 m/s^2: the asymmetric bang-bang over 1 m switches at
+// s = 4 / (1 + 4) = 0.8 m (a grid point), T = sqrt(2 0.8 / 1) + sqrt(2 0.2 / 4).
+TEST(TimeOptimalSweep, ATorqueWithAGravityLoadIsTheAsymmetricBangBang) {
+  std::vector<GridPoint> g(51);
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    g[i].s = static_cast<double>(i) / 50.0;
+    g[i].q_s = JointVector::Constant(1, 1.0);
+    g[i].q_ss = JointVector::Zero(1);
+    g[i].tau_a = JointVector::Constant(1, 2.0);
+    g[i].tau_b = JointVector::Zero(1);
+    g[i].tau_c = JointVector::Constant(1, 3.0);
+  }
+  TimeOptimalLimits lim;
+  lim.joint_velocity = lim.joint_acceleration = JointVector::Constant(1, kInf);
+  lim.joint_torque = JointVector::Constant(1, 5.0);
+  const auto sol = core::solve_time_optimal(g, lim);
+  ASSERT_TRUE(sol) << sol.error().front().description;
+  EXPECT_NEAR(sol->duration, std::sqrt(1.6) + std::sqrt(0.1), 1e-12);
+  for (const auto& st : sol->binding) {
+    EXPECT_EQ(st.kind, core::BindingKind::kJointTorque);
+    EXPECT_LE(st.value, 5.0 * (1.0 + 1e-12));
+  }
+  for (std::size_t i = 0; i < sol->u.size(); ++i)  // the torque of every interval, from its s_ddot
+    EXPECT_LE(std::abs(2.0 * sol->u[i] + 3.0), 5.0 * (1.0 + 1e-12)) << "interval " << i;
+  // A load beyond the limit: no speed at all, named.
+  for (auto& p : g) p.tau_c(0) = 6.0;
+  const auto held = core::solve_time_optimal(g, lim);
+  ASSERT_FALSE(held);
+  EXPECT_NE(held.error().front().description.find("against gravity"), std::string::npos)
+      << held.error().front().description;
+}
+
 // The same through the whole pipeline: a straight path, no robot.
 TEST(TimeOptimalPlan, StraightPathThroughThePipeline) {
   core::PathSpec spec;

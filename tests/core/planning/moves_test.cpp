@@ -6,15 +6,19 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <cstdint>
 #include <numbers>
+#include <random>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "allocation_counter.hpp"
+#include "random_robot.hpp"
 #include "test_support.hpp"
 #include "core/planning/moves.hpp"
+#include "core/robot/dynamics.hpp"
 #include "core/robot/kinematics.hpp"
 #include "core/robot/robot.hpp"
 
@@ -280,6 +284,62 @@ TEST(JointMove, MinimumTimeKeepsEveryJointWithinItsLimitsWithOneAtALimit) {
       const Usage u = measured_usage(pa10(), run(plan));
       EXPECT_LE(u.velocity, scale * (1 + 1e-12));
       EXPECT_LE(u.acceleration, scale * scale * (1 + 1e-12));
+    }
+  }
+}
+
+// Within torques (moves.hpp, torque_stretch): the PA-10 given random mass properties and a
+// 2 kg payload, each joint's torque limit halfway between its largest gravity load along the
+// move and its largest torque on the fastest move within the joint limits (at least 5 % above
+// that load); stretched by the
+// factor torque_stretch gives, the move's torques, sampled at 10 kHz, stay within every limit
+// and one reaches it. Random seeds, both profiles.
+TEST(JointMove, StretchedByTorqueStretchTheTorquesHoldWithOneAtItsLimit) {
+  for (const std::uint64_t seed : {1u, 2u, 3u}) {
+    std::mt19937_64 rng(seed);
+    RobotModel model = with_random_inertials(pa10(), rng);
+    model.payload.mass = 2.0;
+    model.payload.center_of_mass = Vector3d(0.0, 0.0, 0.1);
+    for (const ProfileShape shape : {ProfileShape::kTrapezoidal, ProfileShape::kSCurve}) {
+      SCOPED_TRACE(::testing::Message() << "seed " << seed << ", shape " << static_cast<int>(shape));
+      const MotionSpec m = fastest(shape, 10'000.0);
+      const JointMovePlan free = plan_or_fail(model, pa10_move(), m);
+      const auto dof = static_cast<Eigen::Index>(model.dof());
+      const JointVector zero = JointVector::Zero(dof);
+      // The torques of a plan's samples, and the gravity loads along the move.
+      const auto torques = [&](const core::RobotModel& r, const JointMovePlan& plan, JointVector& peak, JointVector& load) {
+        peak = load = JointVector::Zero(dof);
+        JointVector tau, g;
+        for (const MoveSample& s : run(plan)) {
+          core::inverse_dynamics(r, s.q, s.q_dot, s.q_ddot, core::dynamics_options(r), tau);
+          core::inverse_dynamics(r, s.q, zero, zero, core::dynamics_options(r), g);
+          peak = peak.cwiseMax(tau.cwiseAbs());
+          load = load.cwiseMax(g.cwiseAbs());
+        }
+      };
+      JointVector peak, load;
+      torques(model, free, peak, load);
+      RobotModel limited = model;
+      for (std::size_t j = 0; j < model.dof(); ++j)
+        limited.limits[j].max_torque = std::max(1.05 * load(static_cast<Eigen::Index>(j)),
+                                                0.5 * (peak(static_cast<Eigen::Index>(j)) + load(static_cast<Eigen::Index>(j))));
+      const JointMovePlan fast = plan_or_fail(limited, pa10_move(), m);
+      const double f = core::torque_stretch(fast, 2'000.0);
+      EXPECT_GT(f, 1.0);
+      MotionSpec slower = m;
+      slower.speed_scale /= f * (1.0 + 1e-6);
+      const JointMovePlan stretched = plan_or_fail(limited, pa10_move(), slower);
+      EXPECT_NEAR(stretched.duration_s, fast.duration_s * f, 1e-5 * fast.duration_s * f);
+      JointVector stretched_peak, unused;
+      torques(limited, stretched, stretched_peak, unused);
+      double top = 0.0;
+      for (std::size_t j = 0; j < model.dof(); ++j) {
+        const double usage = stretched_peak(static_cast<Eigen::Index>(j)) / *limited.limits[j].max_torque;
+        EXPECT_LE(usage, 1.0 + 1e-6) << "joint " << j;
+        top = std::max(top, usage);
+      }
+      EXPECT_GT(top, 0.999);
+      EXPECT_NEAR(core::torque_stretch(stretched, 2'000.0), 1.0, 1e-5);
     }
   }
 }

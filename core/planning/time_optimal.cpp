@@ -42,7 +42,7 @@ FieldViolation gravity_beyond(Eigen::Index joint, double gravity, double limit, 
   return unattainable("motion", "joint " + std::to_string(joint) + " needs " + number(std::abs(gravity), 6) +
                                     " N m against gravity (with the payload) at t = " + number(t, 6) + " s (s = " +
                                     number(s, 6) + "), beyond its maxTorque " + number(limit, 6) +
-                                    ": no timing holds that pose");
+                                    kTorqueLimitSource + ": no timing holds that pose");
 }
 
 std::vector<std::size_t> every_second_point(std::size_t n) {

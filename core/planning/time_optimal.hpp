@@ -306,6 +306,10 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
 void tighten_limits(const SampleCheck& check, int round, int uniform_from, std::vector<std::vector<double>>& sigma,
                     std::vector<std::vector<double>>* jerk_sigma);
 
+/// Where a torque limit comes from and how to change it, for the errors that name one.
+inline constexpr const char* kTorqueLimitSource =
+    " (the model's, a URDF's <limit effort>; robot.jointLimits[].maxTorque gives another)";
+
 /// The error of a sample (at t [s], s [m or path parameter]) where joint `joint`'s gravity load
 /// passes its maxTorque `limit` [N m or N] (field `motion`).
 FieldViolation gravity_beyond(Eigen::Index joint, double gravity, double limit, double t, double s);

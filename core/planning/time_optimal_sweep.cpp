@@ -384,7 +384,7 @@ Expected<TimeOptimalSolution> sweep(const std::vector<GridPoint>& all, const Tim
       if (std::abs(g.tau_c(j)) > lim.joint_torque(j))
         return fail(i, "joint " + std::to_string(j) + " needs " + number(std::abs(g.tau_c(j)), 6) +
                            " N m against gravity (with the payload) there, beyond its maxTorque " +
-                           number(lim.joint_torque(j), 6));
+                           number(lim.joint_torque(j), 6) + kTorqueLimitSource);
     }
   }
 

@@ -386,8 +386,8 @@ void LiveExecution::write(LiveSample& out) {
   if (x.has_joints) {
     x.joints.q_dot = plan_.joints.q_dot * r;
     x.joints.q_ddot = plan_.joints.q_ddot * (r * r) + plan_.joints.q_dot * r_dot;
-    // The torques of the motion as it runs (the plan's were at r = 1).
-    if (dynamics_ != nullptr && x.joints.tau.size() == x.joints.q.size())
+    // The torques of the motion as it runs (the plan's, at r = 1, stand at full speed).
+    if (dynamics_ != nullptr && x.joints.tau.size() == x.joints.q.size() && (r != 1.0 || r_dot != 0.0))
       inverse_dynamics(*dynamics_, x.joints.q, x.joints.q_dot, x.joints.q_ddot, dynamics_options(*dynamics_),
                        x.joints.tau);
   }

@@ -16,7 +16,9 @@
 #include "core/live/rate_profile.hpp"
 #include "core/motion/orientation.hpp"
 #include "core/planning/time_optimal.hpp"
+#include "core/robot/dynamics.hpp"
 #include "core/robot/robot.hpp"
+#include "random_robot.hpp"
 #include "test_support.hpp"
 #include "thesis_paths.hpp"
 
@@ -240,6 +242,31 @@ TEST(LiveExecution, AnOverrideChangeStaysOnThePathWithinTheLimits) {
   check_on_plan(c, samples);
   // Slower: longer than the plan.
   EXPECT_GT(samples.back().sample.t, live.plan_duration() + 1.0);
+}
+
+// The torques streamed live (a model with mass properties: the PA-10 given random ones and a
+// payload) are those of the motion as it runs, at its speed factor: inverse dynamics of each
+// set point's own joints, velocities and accelerations, through an override change and back.
+TEST(LiveExecution, TheTorquesAreThoseOfTheMotionAsItRuns) {
+  std::mt19937_64 rng(7);
+  core::RobotModel model = test::with_random_inertials(*core::find_builtin_robot("pa10"), rng);
+  model.payload.mass = 2.0;
+  Pa10C c(0.0, kReserved);
+  c.robot = &model;
+  auto started = c.start();
+  ASSERT_TRUE(started) << started.error()[0].description;
+  const auto samples = run(*started, {{2.0, [](core::LiveExecution& l) { l.set_override(0.3); }},
+                                      {6.0, [](core::LiveExecution& l) { l.set_override(1.0); }}});
+  JointVector tau;
+  std::size_t slowed = 0;
+  for (const auto& s : samples) {
+    const auto& j = s.sample.joints;
+    ASSERT_EQ(j.tau.size(), j.q.size()) << "t " << s.sample.t;
+    core::inverse_dynamics(model, j.q, j.q_dot, j.q_ddot, core::dynamics_options(model), tau);
+    EXPECT_LE((tau - j.tau).cwiseAbs().maxCoeff(), 1e-9 * std::max(1.0, tau.cwiseAbs().maxCoeff())) << "t " << s.sample.t;
+    if (s.speed_factor < 0.99) ++slowed;
+  }
+  EXPECT_GT(slowed, 100u);
 }
 
 // A plan with a durationS keeps the room it has: the thesis's 10 s breaks the PA-10's

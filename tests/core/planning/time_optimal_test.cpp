@@ -64,8 +64,9 @@ std::vector<GridPoint> random_grid(std::mt19937_64& rng, std::size_t n, double L
 
 /// The independent reference: a dynamic programme over b in K + 1 levels [0, b_cap] at each
 /// point, transitions between levels of neighbouring points checked against every limit at
-/// both ends (the same discrete problem), minimum total time 2 ds / (sqrt b + sqrt b').
-double dp_time(const std::vector<GridPoint>& g, const TimeOptimalLimits& lim, int K) {
+/// both ends (the same discrete problem), minimum total time 2 ds / (sqrt b + sqrt b'). The
+/// levels span at most b_max where given (the range an optimum can use: finer levels there).
+double dp_time(const std::vector<GridPoint>& g, const TimeOptimalLimits& lim, int K, double b_max = kInf) {
   const std::size_t n = g.size();
   double b_cap = 0.0;
   std::vector<double> cap(n, kInf);
@@ -76,10 +77,13 @@ double dp_time(const std::vector<GridPoint>& g, const TimeOptimalLimits& lim, in
     if (g[i].kappa > 0.0) cap[i] = std::min(cap[i], lim.centripetal / g[i].kappa);
     b_cap = std::max(b_cap, cap[i]);
   }
+  b_cap = std::min(b_cap, b_max);
   const double db = b_cap / K;
   auto ok_acc = [&](const GridPoint& p, double u, double b) {
     for (Eigen::Index j = 0; j < p.q_s.size(); ++j)
       if (std::abs(p.q_s(j) * u + p.q_ss(j) * b) > lim.joint_acceleration(j) * (1 + 1e-12)) return false;
+    for (Eigen::Index j = 0; j < lim.joint_torque.size() && p.tau_a.size() == lim.joint_torque.size(); ++j)
+      if (std::abs(p.tau_a(j) * u + p.tau_b(j) * b + p.tau_c(j)) > lim.joint_torque(j) * (1 + 1e-12)) return false;
     return std::abs(u) <= lim.tangential * (1 + 1e-12);
   };
   std::vector<double> f(static_cast<std::size_t>(K + 1), kInf), nf(static_cast<std::size_t>(K + 1));
@@ -134,6 +138,43 @@ TEST(TimeOptimalSweep, MatchesDynamicProgrammeOnSmallGrids) {
     EXPECT_GE(coarse, sol->duration * (1 - 1e-9)) << "case " << c;
     EXPECT_LE(fine, sol->duration * 1.01) << "case " << c;
     EXPECT_LE(fine, coarse * (1 + 1e-12)) << "case " << c;
+  }
+}
+
+// The same with joint torques (the asymmetric rows, time_optimal.hpp): random smooth torque
+// terms with a gravity load c(s) within 60 % of the limit, the DP's transitions checked
+// against tau = a u + b s_dot^2 + c at both ends as well: the sweep's duration is the DP's
+// limit from below, and some interval is at a torque limit.
+TEST(TimeOptimalSweep, WithTorquesMatchesDynamicProgrammeOnSmallGrids) {
+  std::mt19937_64 rng(20261207);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  for (int c = 0; c < 6; ++c) {
+    auto g = random_grid(rng, 25, 1.0, 2);
+    const double a0 = 2.0 + U(rng), b0 = U(rng), c0 = 0.6 * U(rng), w = 2.0 + U(rng);
+    for (auto& p : g) {
+      p.tau_a = JointVector::Constant(2, a0 + 0.5 * std::sin(w * p.s));
+      p.tau_b = JointVector::Constant(2, b0 * std::cos(w * p.s));
+      p.tau_c = JointVector::Constant(2, c0 * std::cos(0.5 * w * p.s));
+      p.tau_a(1) *= -0.7;
+    }
+    auto lim = two_joint_limits();
+    lim.joint_torque = JointVector::Constant(2, 1.0);
+    const auto sol = core::solve_time_optimal(g, lim);
+    ASSERT_TRUE(sol) << sol.error()[0].description;
+    const auto without = core::solve_time_optimal(g, two_joint_limits());
+    ASSERT_TRUE(without);
+    // The DP's levels up to 1.2 times the sweep's largest b: finer where the optimum is.
+    const double b_max = 1.2 * *std::max_element(sol->b.begin(), sol->b.end());
+    const double coarse = dp_time(g, lim, 200, b_max), fine = dp_time(g, lim, 800, b_max);
+    std::printf("case %d: sweep %.6f s (%.6f s without torques), DP(200) %.6f s, DP(800) %.6f s\n", c,
+                sol->duration, without->duration, coarse, fine);
+    EXPECT_GE(fine, sol->duration * (1 - 1e-9)) << "case " << c;
+    EXPECT_LE(fine, sol->duration * 1.01) << "case " << c;
+    EXPECT_LE(fine, coarse * (1 + 1e-12)) << "case " << c;
+    EXPECT_GT(sol->duration, without->duration) << "case " << c << ": the torque binds";
+    bool binds = false;
+    for (const auto& st : sol->binding) binds = binds || (st.kind == core::BindingKind::kJointTorque && st.usage > 0.999);
+    EXPECT_TRUE(binds) << "case " << c;
   }
 }
 

@@ -8,6 +8,7 @@
 
 #include "core/format.hpp"
 #include "core/robot/dynamics.hpp"
+#include "planner/joint_limits_yaml.hpp"
 
 namespace geotraj::planner {
 
@@ -87,15 +88,16 @@ std::optional<core::ValidRobot> source_model(const RobotSpec& spec, const std::v
   return std::nullopt;
 }
 
-// robot.jointLimits over the model's, by joint name.
-void apply_joint_limits(const std::vector<NamedLimits>& limits, core::RobotModel& model, core::Violations& out) {
+// robot.jointLimits (or a joint_limits.yaml's, named `field`) over the model's, by joint name.
+void apply_joint_limits(const std::vector<NamedLimits>& limits, const char* field, core::RobotModel& model,
+                        core::Violations& out) {
   for (std::size_t k = 0; k < limits.size(); ++k) {
     const auto it = std::find_if(model.joints.begin(), model.joints.end(),
                                  [&](const core::Joint& j) { return j.name == limits[k].joint; });
     if (it == model.joints.end()) {
       std::string names;
       for (const auto& j : model.joints) names += (names.empty() ? "'" : ", '") + j.name + "'";
-      out.push_back({at("robot.jointLimits", k) + ".joint",
+      out.push_back({at(field, k) + ".joint",
                      "names no joint of the model ('" + limits[k].joint + "'); its joints: " + names});
       continue;
     }
@@ -107,7 +109,7 @@ void apply_joint_limits(const std::vector<NamedLimits>& limits, core::RobotModel
       if (core::has_dynamics(model)) {
         l.max_torque = limits[k].max_torque;
       } else {
-        out.push_back({at("robot.jointLimits", k) + ".maxTorque",
+        out.push_back({at(field, k) + ".maxTorque",
                        "needs a model with the mass properties of every link (its torques are not known): " +
                            model.name + " has none"});
       }
@@ -183,18 +185,46 @@ core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& c
                                     const StopAt& stop_at) {
   core::Violations out;
   const std::vector<NamedLimits> limits = checked_joint_limits(spec.joint_limits, out);
-  const std::optional<core::ValidRobot> source = source_model(spec, limits, catalog, motion, stop_at, out);
+  // MoveIt's joint_limits.yaml, under the request's jointLimits.
+  std::vector<NamedLimits> yaml;
+  if (!spec.joint_limits_yaml.empty()) {
+    auto from_yaml = joint_limits_from_yaml(spec.joint_limits_yaml, "robot.jointLimitsYaml");
+    if (from_yaml) {
+      yaml = std::move(*from_yaml);
+    } else {
+      for (auto& v : from_yaml.error()) out.push_back(std::move(v));
+    }
+  }
+  const std::optional<core::ValidRobot> source = source_model(spec, merged(yaml, limits), catalog, motion, stop_at, out);
+  // A MoveIt configuration describes the whole robot (a gripper's joints too): the file's
+  // joints off the chain are not read, but a file that names none of it is refused; its
+  // efforts are read on a model with mass properties (elsewhere no torque is known).
+  if (source && !yaml.empty()) {
+    const auto& joints = (*source)->joints;
+    const auto on_chain = [&](const NamedLimits& l) {
+      return std::any_of(joints.begin(), joints.end(), [&](const core::Joint& j) { return j.name == l.joint; });
+    };
+    std::erase_if(yaml, [&](const NamedLimits& l) { return !on_chain(l); });
+    if (yaml.empty()) {
+      std::string names;
+      for (const auto& j : joints) names += (names.empty() ? "'" : ", '") + j.name + "'";
+      out.push_back({"robot.jointLimitsYaml", "names none of the model's joints (" + names + ")"});
+    }
+    if (!core::has_dynamics(**source))
+      for (NamedLimits& l : yaml) l.max_torque.reset();
+  }
   if (!std::holds_alternative<UrdfRobot>(spec.source) && (!spec.base_link.empty() || !spec.tip_link.empty())) {
     out.push_back({spec.base_link.empty() ? "robot.tipLink" : "robot.baseLink", "is read with `urdf` only"});
   }
   // What the request changes of the source's model (joint limits, base, tool, scales) is made
   // on a copy, checked once more below; a model the request does not change is used as it
   // was checked.
-  const bool changes =
-      !limits.empty() || spec.base || spec.tool || spec.velocity_scale || spec.acceleration_scale || spec.payload;
+  const bool changes = !limits.empty() || !yaml.empty() || spec.base || spec.tool || spec.velocity_scale ||
+                       spec.acceleration_scale || spec.payload;
   std::optional<core::RobotModel> model;
   if (source && changes) model = source->model();
-  if (model && out.empty()) apply_joint_limits(limits, *model, out);
+  if (model && out.empty()) apply_joint_limits(yaml, "robot.jointLimitsYaml", *model, out);
+  if (model && out.empty()) apply_joint_limits(limits, "robot.jointLimits", *model, out);
   if (model && spec.base) model->base = *spec.base;
   if (model && spec.tool) model->tool = *spec.tool;
   if (spec.payload) {  // a point mass on the tool: a mass and a centre of mass, on a model with dynamics

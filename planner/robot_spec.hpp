@@ -70,6 +70,7 @@ struct RobotSpec {
   std::optional<double> acceleration_scale;         ///< of every maxAcceleration and maxJerk
   std::vector<double> initial_joints;               ///< [rad or m]; empty: the model's home
   std::optional<core::Payload> payload;             ///< on the tool; needs mass properties
+  std::string joint_limits_yaml;                    ///< MoveIt's joint_limits.yaml; under joint_limits
 };
 
 /// `spec` resolved against `catalog`, or every violation of it together. `motion`: false for

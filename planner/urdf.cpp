@@ -441,8 +441,9 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
     if (!acceleration && options.require_accelerations) {
       v.push_back({"urdf", at + ": has no acceleration limit, which every motion needs and URDF cannot say: give it "
                                "in a <geotraj> block beside the links, <geotraj><joint name=\"" + name +
-                               "\" max_acceleration=\"...\"/></geotraj> [rad/s^2 or m/s^2], or in the request's "
-                               "robot.jointLimits (docs/kinematics.md)"});
+                               "\" max_acceleration=\"...\"/></geotraj> [rad/s^2 or m/s^2], in the request's "
+                               "robot.jointLimits, or in MoveIt's joint_limits.yaml (robot.jointLimitsYaml, "
+                               "geotrajd --joint-limits) (docs/kinematics.md)"});
     } else {
       m.limits[i].max_acceleration = acceleration.value_or(kUnknownAcceleration);  // unknown: kinematics only
     }

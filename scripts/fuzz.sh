@@ -6,7 +6,7 @@
 #   scripts/fuzz.sh [BUILD_DIR] [SECONDS_PER_TARGET]     (defaults: build-fuzz, 45)
 #
 # Environment:
-#   FUZZ_TARGETS     the targets to run (default: all nine)
+#   FUZZ_TARGETS     the targets to run (default: all ten)
 #   FUZZ_JOBS        build parallelism, and how many targets fuzz at once (default: nproc)
 #   FUZZ_CONFIG      the configure flags (default: clang, Debug -g1, ASan + UBSan, the fuzz
 #                    targets, no tests)
@@ -25,7 +25,7 @@ cd "$(dirname "$0")/.."
 
 build_dir="${1:-build-fuzz}"
 seconds="${2:-45}"
-targets="${FUZZ_TARGETS:-fuzz_plan_request fuzz_plan_request_json fuzz_convert fuzz_robot_model_json fuzz_http_head fuzz_kinematics fuzz_live fuzz_web fuzz_urdf}"
+targets="${FUZZ_TARGETS:-fuzz_plan_request fuzz_plan_request_json fuzz_convert fuzz_robot_model_json fuzz_http_head fuzz_kinematics fuzz_live fuzz_web fuzz_urdf fuzz_joint_limits_yaml}"
 jobs="${FUZZ_JOBS:-$(nproc)}"
 fork="${FUZZ_FORK:-0}"
 timeout="${FUZZ_TIMEOUT:-10}"

@@ -18,6 +18,7 @@ packages=(
   liblapacke-dev                      # LAPACK's banded Cholesky, compared in bench_banded_cholesky
   liborocos-kdl-dev                   # Orocos KDL: the kinematics cross-check (tests only)
   liburdfdom-dev                      # URDF robot models (planner/urdf.cpp; brings TinyXML, console_bridge)
+  libyaml-cpp-dev                     # MoveIt's joint_limits.yaml (planner/joint_limits_yaml.cpp)
   coinor-libipopt-dev libnlopt-cxx-dev libceres-dev   # the optimisers (optim/)
   python3 python3-grpcio python3-protobuf   # the cross-language client test
   openssl libssl-dev                  # test certificates for TLS and mutual TLS; the certificate checks

@@ -346,6 +346,13 @@ int main(int argc, char** argv) {
       ->envname("GEOTRAJ_ROBOT_MODELS")
       ->delimiter(',')
       ->group("Models");
+  app.add_option("--joint-limits", options.joint_limits_files,
+                 "MoveIt's joint_limits.yaml: the velocity, acceleration, jerk and effort limits of the --robot-model "
+                 "models' joints it names (where its has_..._limits flags are true), over each model's own; repeat "
+                 "for several (environment: comma-separated)")
+      ->envname("GEOTRAJ_JOINT_LIMITS")
+      ->delimiter(',')
+      ->group("Models");
   CLI11_PARSE(app, argc, argv);
   const auto to_ms = [](double seconds) {
     return std::chrono::milliseconds(static_cast<std::int64_t>(std::llround(seconds * 1000.0)));

@@ -161,6 +161,9 @@ struct ServerOptions {
   /// Robot model files (proto3 JSON of geotraj.v1.RobotModel) served beside the built-in
   /// models, by their `name`.
   std::vector<std::string> robot_model_files;
+  /// MoveIt joint_limits.yaml files (planner/joint_limits_yaml.hpp): the limits of the robot
+  /// model files' joints they name, over each file's own (the accelerations a URDF lacks).
+  std::vector<std::string> joint_limits_files;
 };
 
 /// Health service name that reports readiness: SERVING once warm, NOT_SERVING while draining.

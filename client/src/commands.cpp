@@ -210,6 +210,20 @@ bool apply_flags(const OptimizeFlags& flags, v1::PlanRequest& request) {
       limits->set_max_torque(value);
     }
   }
+  if (!flags.joint_limits.empty()) {
+    if (!request.has_robot()) {
+      std::cerr << "geotraj: --joint-limits gives a robot's limits: the request has no robot (--robot NAME)\n";
+      return false;
+    }
+    std::ifstream file(flags.joint_limits, std::ios::binary);
+    std::stringstream text;
+    if (file) text << file.rdbuf();
+    if (!file) {
+      std::cerr << "geotraj: --joint-limits: cannot read " << flags.joint_limits << '\n';
+      return false;
+    }
+    request.mutable_robot()->set_joint_limits_yaml(text.str());
+  }
   if (!flags.approach.empty()) {
     if (!request.has_robot()) {
       std::cerr << "geotraj: --approach moves a robot to the path's start: the request has no robot\n";

@@ -34,6 +34,8 @@ struct OptimizeFlags {
   std::vector<double> payload;
   /// --max-torque JOINT=N_M,...: robot.jointLimits[].maxTorque by joint name; empty: none.
   std::string max_torque;
+  /// --joint-limits FILE: MoveIt's joint_limits.yaml as robot.jointLimitsYaml; empty: none.
+  std::string joint_limits;
   bool tool_axis_free = false;  ///< robot.toolAxisFree (set when given; false: the request's)
   /// --waypoints: joint waypoints (waypoints.hpp) as the request's jointPath; empty: none.
   std::string waypoints;

@@ -107,6 +107,8 @@ int main(int argc, char** argv) {
         ->delimiter(',')->expected(1, 4)->check(kFinite);
     sub->add_option("--max-torque", options.optimize.max_torque,
                     "joint torque limits by joint name, JOINT=N_M,... (robot.jointLimits[].maxTorque)");
+    sub->add_option("--joint-limits", options.optimize.joint_limits,
+                    "MoveIt's joint_limits.yaml: its joints' limits over the model's (robot.jointLimitsYaml)");
     sub->add_flag("--tool-axis-free", options.optimize.tool_axis_free,
                   "the tool is symmetric about its z axis: its roll is chosen with the joints for the whole motion "
                   "(robot.toolAxisFree)");

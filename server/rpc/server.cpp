@@ -23,6 +23,8 @@
 #include "server/ops/runtime.hpp"
 #include "server/ops/socket.hpp"
 #include "server/rpc/health.hpp"
+#include "core/robot/dynamics.hpp"
+#include "planner/joint_limits_yaml.hpp"
 #include "planner/robots.hpp"
 #include "server/rpc/service.hpp"
 #include "server/web/gateway.hpp"
@@ -144,15 +146,60 @@ tl::expected<TokenTable, std::string> tokens(const ServerOptions& options) {
   return table;
 }
 
+// The limits of the --joint-limits files, later files over earlier ones.
+tl::expected<std::vector<planner::NamedLimits>, std::string> joint_limits_files(const ServerOptions& options) {
+  std::vector<planner::NamedLimits> limits;
+  for (const auto& file : options.joint_limits_files) {
+    auto text = read_file(file, "joint limits file (--joint-limits)");
+    if (!text) return tl::unexpected(text.error());
+    auto read = planner::joint_limits_from_yaml(*text, "");
+    if (!read) {
+      std::string why;
+      for (const auto& v : read.error()) why += (why.empty() ? "" : "; ") + v.description;
+      return tl::unexpected("joint limits file \"" + file + "\" " + why);
+    }
+    limits = planner::merged(std::move(limits), *read);
+  }
+  return limits;
+}
+
+// The limits of `yaml` over a model's, for the joints it has (the URDF reader has applied the
+// velocities, accelerations and jerks already; the efforts where the model has dynamics).
+// Whether any joint was named.
+bool apply_yaml(const std::vector<planner::NamedLimits>& yaml, core::RobotModel& model) {
+  bool named = false;
+  for (const auto& l : yaml) {
+    for (std::size_t i = 0; i < model.dof(); ++i) {
+      if (model.joints[i].name != l.joint) continue;
+      named = true;
+      core::JointLimits& to = model.limits[i];
+      if (l.max_velocity) to.max_velocity = *l.max_velocity;
+      if (l.max_acceleration) to.max_acceleration = *l.max_acceleration;
+      if (l.max_jerk) to.max_jerk = l.max_jerk;
+      if (l.max_torque && core::has_dynamics(model)) to.max_torque = l.max_torque;
+    }
+  }
+  return named;
+}
+
 tl::expected<RobotCatalog, std::string> robot_catalog(const ServerOptions& options) {
   RobotCatalog robots{planner::builtin_robots()};
+  const auto yaml = joint_limits_files(options);
+  if (!yaml) return tl::unexpected(yaml.error());
+  bool named = false;
   for (const auto& file : options.robot_model_files) {
     auto text = read_file(file, "robot model file");
     if (!text) return tl::unexpected(text.error());
     // A URDF document (by its extension, or its first character) or a RobotModel in JSON.
     const auto first = text->find_first_not_of(" \t\r\n");
     const bool urdf = file.ends_with(".urdf") || (first != std::string::npos && (*text)[first] == '<');
-    auto read = urdf ? planner::robot_from_urdf(*text) : robot_model_from_json(*text);
+    planner::UrdfOptions urdf_options;
+    urdf_options.limits = *yaml;
+    auto read = (urdf ? planner::robot_from_urdf(*text, urdf_options) : robot_model_from_json(*text))
+                    .map([&](core::RobotModel m) {
+                      named = apply_yaml(*yaml, m) || named;
+                      return m;
+                    });
     // Checked once, here: the catalogue's models carry the proof to every request.
     auto model = read.and_then([](core::RobotModel m) { return core::ValidRobot::check(std::move(m)); });
     if (!model) {
@@ -165,6 +212,8 @@ tl::expected<RobotCatalog, std::string> robot_catalog(const ServerOptions& optio
     }
     robots.models.push_back(std::move(*model));
   }
+  if (!yaml->empty() && !named)
+    return tl::unexpected(std::string("--joint-limits names no joint of the --robot-model models"));
   return robots;
 }
 

@@ -262,6 +262,7 @@ planner::RobotSpec wire_detail::robot_spec_from_proto(const v1::RobotSpec& spec,
   if (spec.has_base()) s.base = pose(spec.base(), "robot.base");
   if (spec.has_tool()) s.tool = pose(spec.tool(), "robot.tool");
   s.report_only = spec.report_only();
+  s.joint_limits_yaml = spec.joint_limits_yaml();
   if (spec.has_payload()) {
     core::Payload payload;
     payload.mass = spec.payload().mass();

@@ -20,6 +20,7 @@
 //                                          baseLink and its last as tipLink, a link in the
 //                                          middle as tipLink alone, accelerations not
 //                                          required, and jointLimits for its first joint
+//   OUT_DIR/seeds/fuzz_joint_limits_yaml/  the hand-written joint_limits.yaml files as they are
 //   OUT_DIR/seeds/fuzz_web/                every example posted (HTTP/1.1) to each route that
 //                                          takes it; GET /v1/robots, GET /, a wrong method,
 //                                          two requests on one connection, a chunked body
@@ -340,6 +341,18 @@ int main(int argc, char** argv) {
     variant("_base_tip", std::string(1, '\3') + links.front() + "\n" + links.back() + "\n");
     variant("_mid_tip", std::string(1, '\2') + links[links.size() / 2] + "\n");
   }
+  // fuzz_joint_limits_yaml: the hand-written MoveIt files as they are, and the words of the
+  // format and of YAML.
+  for (const auto& file : files_in(extra / "fuzz_joint_limits_yaml", false))
+    write(seeds / "fuzz_joint_limits_yaml" / file.filename(), read(file));
+  std::string yaml_words;
+  for (const char* word : {"joint_limits:", "has_velocity_limits: ", "max_velocity: ", "has_acceleration_limits: ",
+                           "max_acceleration: ", "has_jerk_limits: ", "max_jerk: ", "has_effort_limits: ",
+                           "max_effort: ", "true", "false", "\\x0A  ", "\\x0A    ", "{", "}", "[", "]", "&a ", "*a", "---",
+                           "!!float ", ".inf", ".nan", "1e308", "5e-324", "- "}) {
+    yaml_words += "\"" + std::string(word) + "\"\n";
+  }
+  write(out / "fuzz_joint_limits_yaml.dict", yaml_words);
   // The words of URDF (the elements and attributes urdfdom reads), of the <geotraj> block
   // (planner/robots.hpp), of XML, and numbers at the edges of what the reader accepts.
   std::string urdf_words;

@@ -1381,6 +1381,15 @@ TEST_F(RobotTest, GeotrajdServesARobotModelFile) {
   EXPECT_EQ(daemon.wait(), 0);
 }
 
+// A stub on the daemon's port (null when it did not start or print its port).
+std::unique_ptr<v1::TrajectoryService::Stub> stub_of(Daemon& daemon) {
+  if (!daemon.started()) return nullptr;
+  const int port = port_of(daemon.line());
+  if (port <= 0) return nullptr;
+  return v1::TrajectoryService::NewStub(
+      grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials()));
+}
+
 // `--robot-model arm.urdf`: a URDF document served by its robot name, its <geotraj> block
 // read; a bad one refused at start-up with the file and the line.
 TEST_F(RobotTest, GeotrajdServesAUrdfFile) {
@@ -1400,11 +1409,8 @@ TEST_F(RobotTest, GeotrajdServesAUrdfFile) {
 )";
   const TempFile file("two_link.urdf", text);
   Daemon daemon({"--address", "127.0.0.1:0", "--drain-seconds", "0.2", "--robot-model", file.path()});
-  ASSERT_TRUE(daemon.started());
-  const int port = port_of(daemon.line());
-  ASSERT_GT(port, 0) << daemon.errors();
-  auto stub = v1::TrajectoryService::NewStub(
-      grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials()));
+  const auto stub = stub_of(daemon);
+  ASSERT_TRUE(stub) << daemon.errors();
   v1::ListRobotsResponse robots;
   ASSERT_TRUE(stub->ListRobots(context().get(), v1::ListRobotsRequest{}, &robots).ok());
   ASSERT_EQ(robots.robots_size(), builtin.robots_size() + 1);
@@ -1440,6 +1446,89 @@ TEST_F(RobotTest, GeotrajdServesAUrdfFile) {
   EXPECT_THAT(errors, HasSubstr(bad.path()));
   EXPECT_THAT(errors, HasSubstr("line 6, joint 'elbow'"));
   EXPECT_THAT(errors, HasSubstr("acceleration"));
+}
+
+// `--joint-limits joint_limits.yaml`: MoveIt's file gives the accelerations the URDF lacks
+// (the elbow's, removed from the block), a jerk and a tighter velocity; a joint of the file off
+// every model (a gripper's) is not read; a file naming no model's joint, or not YAML, refused
+// at start-up naming the file.
+TEST_F(RobotTest, GeotrajdReadsMoveItsJointLimits) {
+  const std::string text = R"(<?xml version="1.0"?>
+<robot name="two-link-moveit">
+  <link name="base"/><link name="upper"/><link name="lower"/>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/><origin xyz="0 0 0.3"/>
+    <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="10" velocity="1.5"/></joint>
+  <joint name="elbow" type="revolute"><parent link="upper"/><child link="lower"/><origin xyz="0 0 0.4"/>
+    <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="10" velocity="2"/></joint>
+</robot>
+)";
+  const TempFile urdf("two_link_moveit.urdf", text);
+  const TempFile yaml("joint_limits.yaml", R"(joint_limits:
+  shoulder:
+    has_velocity_limits: true
+    max_velocity: 1.2
+    has_acceleration_limits: true
+    max_acceleration: 3
+  elbow:
+    has_acceleration_limits: true
+    max_acceleration: 4
+    has_jerk_limits: true
+    max_jerk: 40
+  gripper_finger_joint:
+    has_velocity_limits: true
+    max_velocity: 0.1
+)");
+  const std::string without = refused_start({"--address", "127.0.0.1:0", "--robot-model", urdf.path()});
+  EXPECT_THAT(without, HasSubstr("has no acceleration limit"));
+  EXPECT_THAT(without, HasSubstr("geotrajd --joint-limits"));
+  Daemon daemon({"--address", "127.0.0.1:0", "--drain-seconds", "0.2", "--robot-model", urdf.path(),
+                 "--joint-limits", yaml.path()});
+  const auto stub = stub_of(daemon);
+  ASSERT_TRUE(stub) << daemon.errors();
+  v1::ListRobotsResponse robots;
+  ASSERT_TRUE(stub->ListRobots(context().get(), v1::ListRobotsRequest{}, &robots).ok());
+  const v1::RobotModel& arm = robots.robots(robots.robots_size() - 1);
+  ASSERT_EQ(arm.name(), "two-link-moveit");
+  EXPECT_EQ(arm.limits(0).max_velocity(), 1.2);
+  EXPECT_EQ(arm.limits(0).max_acceleration(), 3.0);
+  EXPECT_EQ(arm.limits(1).max_velocity(), 2.0) << "the URDF's, the file gives none";
+  EXPECT_EQ(arm.limits(1).max_acceleration(), 4.0);
+  EXPECT_EQ(arm.limits(1).max_jerk(), 40.0);
+  daemon.signal(SIGTERM);
+  EXPECT_EQ(daemon.wait(), 0);
+
+  std::string blocked = text;  // with its accelerations in a <geotraj> block
+  blocked.insert(blocked.find("</robot>"), "<geotraj><joint name=\"shoulder\" max_acceleration=\"3\"/>"
+                                           "<joint name=\"elbow\" max_acceleration=\"4\"/></geotraj>\n");
+  const TempFile complete("two_link_complete.urdf", blocked);
+  const TempFile other("other_limits.yaml", "joint_limits:\n  wrist:\n    has_velocity_limits: true\n    max_velocity: 1\n");
+  EXPECT_THAT(refused_start({"--address", "127.0.0.1:0", "--robot-model", complete.path(), "--joint-limits", other.path()}),
+              HasSubstr("--joint-limits names no joint of the --robot-model models"));
+  const TempFile broken("broken_limits.yaml", "joint_limits: {shoulder: [");
+  const std::string errors =
+      refused_start({"--address", "127.0.0.1:0", "--robot-model", urdf.path(), "--joint-limits", broken.path()});
+  EXPECT_THAT(errors, HasSubstr(broken.path()));
+  EXPECT_THAT(errors, HasSubstr("is not YAML"));
+}
+
+// The same file in a request (RobotSpec.jointLimitsYaml): a built-in arm's limits over its
+// own, the plan slower for a lower velocity.
+TEST_F(RobotTest, ARequestsJointLimitsYamlIsTheRobotsLimits) {
+  v1::PlanRequest request = example<v1::PlanRequest>("plan_joint_path_panda.json");
+  const double fast = plan_ok(request).motion().duration_s();
+  std::string yaml = "joint_limits:\n";
+  for (int j = 1; j <= 7; ++j)
+    yaml += "  panda_joint" + std::to_string(j) + ":\n    has_velocity_limits: true\n    max_velocity: 1.0\n";
+  request.mutable_robot()->set_joint_limits_yaml(yaml);
+  const auto slow = plan_ok(request);
+  EXPECT_GT(slow.motion().duration_s(), fast * 1.1);
+  for (const auto& j : slow.robot().joints()) EXPECT_LE(j.peak_velocity(), 1.0 * (1 + 1e-9)) << "joint " << j.joint();
+  request.mutable_robot()->set_joint_limits_yaml("joint_limits:\n  panda_joint1:\n    has_velocity_limits: yes please\n");
+  v1::PlanResponse response;
+  const auto status = plan(request, response);
+  ASSERT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(violation_of(bad_request_violations(status), "robot.jointLimitsYaml"),
+              HasSubstr("line 3, joint_limits.panda_joint1.has_velocity_limits: must be true or false"));
 }
 
 // A URDF as its maker ships it (no <geotraj> block): kinematics calls take it as it is; a

@@ -4,8 +4,9 @@
 //
 // A URDF document becomes a core::RobotModel (core/robot/robot.hpp) through urdfdom:
 //  - the chain runs from the base link (default: the root) to the tip link (default: the
-//    only leaf below the base; several leaves are an error that lists them); links and
-//    joints off that chain are ignored;
+//    leaf below the base reached through the most moving joints, a maker's tool0 beside its
+//    `base` frame; several such leaves, a hand's fingers, are an error that lists them);
+//    links and joints off that chain are ignored;
 //  - each revolute, continuous or prismatic joint on it is one joint of the model: its
 //    <origin> (xyz [m], rpy [rad], roll-pitch-yaw about fixed x, y, z) with the fixed joints
 //    since the previous moving joint folded in, and its <axis> (normalised; default x, as
@@ -51,7 +52,7 @@ struct StopAt {
 
 struct UrdfOptions {
   std::string base_link;  ///< empty: the <geotraj> block's base_link, else the root
-  std::string tip_link;   ///< empty: the block's tip_link, else the only leaf below the base
+  std::string tip_link;   ///< empty: the block's tip_link, else the leaf through the most moving joints
   std::vector<NamedLimits> limits;
   /// Whether a joint without an acceleration limit is an error (every motion needs one).
   /// False for kinematics only (ComputeForwardKinematics, ComputeInverseKinematics): such a

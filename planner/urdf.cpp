@@ -223,7 +223,8 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
   }
 
   // The chain: base (default: the <geotraj> block's base_link, else the root) down to the tip
-  // (default: the block's tip_link, else the only leaf below the base).
+  // (default: the block's tip_link, else the leaf below the base reached through the most
+  // moving joints, where only one is).
   const TiXmlElement* block = robot->FirstChildElement("geotraj");
   std::string block_base, block_tip;
   if (block != nullptr) {
@@ -246,22 +247,32 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
   }
   urdf::LinkConstSharedPtr tip;
   if (tip_link.empty()) {
-    std::vector<std::string> leaves;
-    std::vector<urdf::LinkConstSharedPtr> stack{base};
+    // The leaf reached through the most moving joints (a maker's tool0 beside a `base` frame,
+    // a flange beside a sensor's mounting frames on a shorter branch), where it is the only one.
+    std::vector<std::pair<std::string, std::size_t>> leaves;  // name, moving joints from the base
+    std::vector<std::pair<urdf::LinkConstSharedPtr, std::size_t>> stack{{base, 0}};
+    std::size_t most = 0;
     while (!stack.empty()) {  // a tree (check_link_tree): each link once
-      const urdf::LinkConstSharedPtr l = stack.back();
+      const auto [l, moving] = stack.back();
       stack.pop_back();
       if (l->child_links.empty()) {
-        leaves.push_back(l->name);
-        tip = l;
+        leaves.emplace_back(l->name, moving);
+        if (leaves.size() == 1 || moving > most) most = moving, tip = l;
       }
-      for (const auto& c : l->child_links) stack.push_back(c);
+      for (const auto& c : l->child_links) {
+        const bool moves = c->parent_joint && c->parent_joint->type != urdf::Joint::FIXED;
+        stack.emplace_back(c, moving + (moves ? 1 : 0));
+      }
     }
-    if (leaves.size() > 1) {
-      std::sort(leaves.begin(), leaves.end());
+    std::vector<std::string> candidates;
+    for (const auto& [name, moving] : leaves)
+      if (moving == most) candidates.push_back(name);
+    if (candidates.size() > 1) {
+      std::sort(candidates.begin(), candidates.end());
       v.push_back({"tipLink", "is needed: the URDF branches below '" + base->name + "' into " +
-                                  std::to_string(leaves.size()) + " leaf links (" + listed(leaves) +
-                                  "); name the one the tool is on"});
+                                  std::to_string(leaves.size()) + " leaf links, " + std::to_string(candidates.size()) +
+                                  " of them through " + std::to_string(most) + " moving joints (" +
+                                  listed(candidates) + "); name the one the tool is on"});
       return tl::unexpected(std::move(v));
     }
   } else {

@@ -170,7 +170,7 @@ int main(int argc, char** argv) {
              "SampleBatch per line with --json)");
   jog->add_option("--robot", live.robot, "a built-in robot's name (see `geotraj robots`)");
   jog->add_option("--robot-file", live.robot_file, "a RobotModel in the proto JSON mapping (- for stdin)");
-  jog->add_option("--urdf", live.urdf, "a URDF file (its only leaf link is the tip)");
+  jog->add_option("--urdf", live.urdf, "a URDF file (the tip: the leaf link through the most moving joints)");
   jog->add_option("--joints", live.joints,
                   "where the robot is: joint values [rad or m], joint 0 first, comma-separated (default: the model's "
                   "home)")

@@ -422,6 +422,49 @@ TEST(Urdf, TheUr5esCentresOfMassAreUrsInItsDhFrames) {
   for (int k = 0; k < 20; ++k) expect_torques_hold_the_weights(m, random_q(m, rng), potential);
 }
 
+// As ROS-Industrial ships an arm: besides tool0 at the end of the chain, a `base` frame fixed
+// to base_link (REP 199) is a leaf too. The tip is the leaf reached through the most moving
+// joints: tool0, with no tipLink. Two such leaves (a camera frame beside the flange, both on
+// the last link) are listed, each through the same count.
+TEST(Urdf, TheTipIsTheLeafThroughTheMostMovingJoints) {
+  const std::string arm = R"(<?xml version="1.0"?>
+<robot name="rosi_arm">
+  <link name="base_link"/><link name="base"/><link name="link_1"/><link name="link_2"/><link name="link_3"/>
+  <link name="flange"/><link name="tool0"/>
+  <joint name="base_link-base" type="fixed"><parent link="base_link"/><child link="base"/><origin xyz="0 0 0.4"/></joint>
+  <joint name="joint_a1" type="revolute"><parent link="base_link"/><child link="link_1"/><origin xyz="0 0 0.4"/>
+    <axis xyz="0 0 -1"/><limit lower="-3" upper="3" effort="0" velocity="2"/></joint>
+  <joint name="joint_a2" type="revolute"><parent link="link_1"/><child link="link_2"/><origin xyz="0.26 0 0.27"/>
+    <axis xyz="0 1 0"/><limit lower="-2" upper="1" effort="0" velocity="2"/></joint>
+  <joint name="joint_a3" type="revolute"><parent link="link_2"/><child link="link_3"/><origin xyz="0.68 0 0"/>
+    <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="0" velocity="2"/></joint>
+  <joint name="joint_a3-flange" type="fixed"><parent link="link_3"/><child link="flange"/><origin xyz="0.6 0 0"/></joint>
+  <joint name="flange-tool0" type="fixed"><parent link="flange"/><child link="tool0"/><origin rpy="0 1.5707963 0"/></joint>
+</robot>
+)";
+  auto kinematics = [](const std::string& text) {
+    planner::UrdfOptions options;
+    options.require_accelerations = false;  // as shipped: no accelerations
+    return planner::robot_from_urdf(text, options);
+  };
+  const auto model = kinematics(arm);
+  ASSERT_TRUE(model) << model.error()[0].description;
+  EXPECT_EQ(model->dof(), 3u);
+  const RobotModel& m = *model;
+  // The flange is tool0's: 0.6 m along link_3's x, turned about y.
+  EXPECT_NEAR(m.flange.translation().x(), 0.6, 1e-12);
+  EXPECT_NEAR(std::abs(m.flange.linear()(0, 2)), 1.0, 1e-6);
+
+  std::string camera = arm;
+  camera.insert(camera.find("</robot>"), R"(<link name="camera_frame"/>
+  <joint name="camera" type="fixed"><parent link="link_3"/><child link="camera_frame"/><origin xyz="0.3 0 0.1"/></joint>
+)");
+  const auto tied = kinematics(camera);
+  ASSERT_FALSE(tied);
+  EXPECT_EQ(tied.error()[0].field, "tipLink");
+  EXPECT_THAT(tied.error()[0].description, HasSubstr("3 leaf links, 2 of them through 3 moving joints ('camera_frame', 'tool0')"));
+}
+
 TEST(Urdf, BaseAndTipChooseTheChain) {
   // A hand with two fingers below the Panda's flange: three leaves below the root.
   std::string text(planner::builtin_urdf("panda"));

@@ -41,12 +41,14 @@ struct OptimizeFlags {
   std::string waypoints;
   double blend_tolerance = -1.0;  ///< jointPath.blendTolerance [rad or m]; < 0: the request's
   std::string robot;              ///< robot.name; empty: the request's
+  std::string urdf;               ///< --urdf FILE: robot.urdf, the file's text; empty: none
   double rate_hz = 0.0;           ///< motion.cycleRateHz [Hz]; 0: the request's
 };
 
 /// What `fk` and `ik` flags write into their requests (over a request file's own).
 struct KinematicsFlags {
   std::string robot;                 ///< robot.name; empty: the request's
+  std::string urdf;                  ///< --urdf FILE: robot.urdf, the file's text; empty: none
   std::vector<double> joints;        ///< fk: the joint values [rad or m], joint 0 first
   std::vector<double> seed;          ///< ik: robot.initialJoints
   std::vector<double> position;      ///< ik: target.position (x, y, z) [m]
@@ -99,6 +101,11 @@ struct CallOptions {
 
 /// Reads `input` ("-": standard input) whole; false when it cannot be read.
 bool read_text(const std::string& input, std::string& text);
+
+/// The robot of a request from the CLI's --robot NAME or --urdf FILE (at most one; neither:
+/// the request's own): false, with the reason on stderr, where both are given or the file
+/// cannot be read.
+bool set_robot_source(const std::string& name, const std::string& urdf_file, v1::RobotSpec& robot);
 /// Parses a request file ("-": standard input) in the proto JSON mapping; prints why it
 /// cannot (naming the file and the message type) and returns false.
 bool read_request(const std::string& input, google::protobuf::Message& request);

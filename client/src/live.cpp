@@ -412,16 +412,8 @@ int run_jog(const Connection& connection, const CallOptions& options) {
     std::cerr << "geotraj: jog: the robot and the script cannot both come from standard input\n";
     return 2;
   }
-  if (!flags.robot.empty()) robot->set_name(flags.robot);
+  if (!set_robot_source(flags.robot, flags.urdf, *robot)) return 2;
   if (!flags.robot_file.empty() && !read_request(flags.robot_file, *robot->mutable_model())) return 2;
-  if (!flags.urdf.empty()) {
-    std::string text;
-    if (!read_text(flags.urdf, text)) {
-      std::cerr << "geotraj: --urdf: cannot read \"" << flags.urdf << "\"\n";
-      return 2;
-    }
-    robot->set_urdf(std::move(text));
-  }
   for (double q : flags.joints) robot->add_initial_joints(q);
   if (flags.rate_hz) start->set_cycle_rate_hz(*flags.rate_hz);
   if (flags.deadman_s) start->set_deadman_s(*flags.deadman_s);

@@ -95,6 +95,9 @@ int main(int argc, char** argv) {
                     "(jointPath.blendTolerance); 0: rest at each")
         ->check(kFinite)->check(CLI::NonNegativeNumber);
     sub->add_option("--robot", options.optimize.robot, "a built-in robot's name (robot.name; see `geotraj robots`)");
+    sub->add_option("--urdf", options.optimize.urdf,
+                    "a URDF file as its maker ships it (robot.urdf; accelerations from --joint-limits or a <geotraj> "
+                    "block)");
     sub->add_option("--rate", options.optimize.rate_hz, "the cycle rate [Hz] (motion.cycleRateHz)")
         ->check(kFinite)->check(CLI::PositiveNumber);
     sub->add_option("--approach", options.optimize.approach,
@@ -195,11 +198,13 @@ int main(int argc, char** argv) {
   auto* fk = app.add_subcommand("fk", "ComputeForwardKinematics: the tool pose, manipulability, axes and Jacobian of "
                                       "joint values");
   fk->add_option("--robot", kin.robot, "a built-in robot's name (see `geotraj robots`)");
+  fk->add_option("--urdf", kin.urdf, "or a URDF file as its maker ships it (robot.urdf)");
   fk->add_option("--joints", kin.joints, "joint values [rad or m], joint 0 first, comma-separated")->delimiter(',');
   fk->add_option("--request", options.input, "or a ForwardKinematicsRequest in the proto JSON mapping (- for stdin)");
   auto* ik = app.add_subcommand("ik", "ComputeInverseKinematics: the joints of a tool pose (exit 3 when it is out of "
                                       "reach: the closest pose is printed)");
   ik->add_option("--robot", kin.robot, "a built-in robot's name (see `geotraj robots`)");
+  ik->add_option("--urdf", kin.urdf, "or a URDF file as its maker ships it (robot.urdf)");
   ik->add_option("--position", kin.position, "the tool's position x,y,z in W [m]")->delimiter(',');
   ik->add_option("--orientation", kin.orientation, "the tool's orientation as a unit quaternion w,x,y,z (default: "
                                                    "the identity)")

@@ -1,9 +1,11 @@
 // The `geotraj` CLI run as a subprocess on the example request files: tables, --json, errors
 // on stderr, in process and against a server on a loopback port.
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -11,6 +13,7 @@
 
 #include <gmock/gmock.h>
 
+#include "planner/robots.hpp"
 #include "tests/client/cli_support.hpp"
 #include "tests/server/support/test_server.hpp"
 
@@ -105,6 +108,57 @@ TEST(Cli, PayloadAndTorqueLimitsTimeTheMotionWithinTheTorques) {
   const CliRun none = run_cli("plan " + example_path("plan_demo_path_a.json") + " --payload 1", true);
   EXPECT_NE(none.exit_code, 0);
   EXPECT_THAT(none.out, HasSubstr("--payload and --max-torque are a robot's"));
+}
+
+// A file in the test's temporary directory, removed at the end of the test.
+struct TempText {
+  std::string path;
+  TempText(const std::string& name, const std::string& text)
+      : path(::testing::TempDir() + "geotraj_cli_test_" + std::to_string(::getpid()) + "_" + name) {
+    std::ofstream(path) << text;
+  }
+  ~TempText() { std::remove(path.c_str()); }
+};
+
+// --urdf FILE: the Panda's URDF as Franka ships it (no <geotraj> block) for fk and ik at once,
+// the same pose as the built-in Panda's; a plan with MoveIt's joint_limits.yaml for the
+// accelerations (--joint-limits), refused without it naming what is missing; --robot with
+// --urdf refused.
+TEST(Cli, UrdfAsShippedForTheKinematicsAndWithMoveItsLimitsForAPlan) {
+  std::string urdf(planner::builtin_urdf("panda"));
+  const auto block = urdf.rfind("<geotraj");
+  urdf.erase(block, urdf.find("</geotraj>") + std::string("</geotraj>").size() - block);
+  const TempText file("panda.urdf", urdf);
+  const std::string q = "0.1,-0.6,0.2,-2.2,0.1,1.7,0.7";
+  const CliRun shipped = run_cli("fk --json --urdf '" + file.path + "' --joints " + q);
+  ASSERT_EQ(shipped.exit_code, 0) << shipped.out;
+  const CliRun builtin = run_cli("fk --json --robot panda --joints " + q);
+  ASSERT_EQ(builtin.exit_code, 0) << builtin.out;
+  const auto a = from_json<v1::ForwardKinematicsResponse>(shipped.out);
+  const auto b = from_json<v1::ForwardKinematicsResponse>(builtin.out);
+  EXPECT_NEAR(a.pose().position().x(), b.pose().position().x(), 1e-12);
+  EXPECT_NEAR(a.pose().position().y(), b.pose().position().y(), 1e-12);
+  EXPECT_NEAR(a.pose().position().z(), b.pose().position().z(), 1e-12);
+  const CliRun ik = run_cli("ik --json --urdf '" + file.path + "' --position 0.4,0.1,0.5 --orientation 0,1,0,0");
+  EXPECT_EQ(ik.exit_code, 0) << ik.out;
+
+  std::string yaml = "joint_limits:\n";
+  for (int j = 1; j <= 7; ++j)
+    yaml += "  panda_joint" + std::to_string(j) + ":\n    has_acceleration_limits: true\n    max_acceleration: 5\n";
+  const TempText limits("joint_limits.yaml", yaml);
+  const std::string request = example_path("plan_joint_path_panda.json");
+  const CliRun bare = run_cli("plan " + request + " --urdf '" + file.path + "'", true);
+  EXPECT_NE(bare.exit_code, 0);
+  EXPECT_THAT(bare.out, HasSubstr("has no acceleration limit"));
+  EXPECT_THAT(bare.out, HasSubstr("robot.jointLimitsYaml"));
+  const CliRun planned = run_cli("plan --json " + request + " --urdf '" + file.path + "' --joint-limits '" + limits.path + "'");
+  ASSERT_EQ(planned.exit_code, 0) << planned.out;
+  const auto response = from_json<v1::PlanResponse>(planned.out);
+  EXPECT_TRUE(response.robot().feasible());
+  for (const auto& j : response.robot().joints()) EXPECT_LE(j.peak_acceleration(), 5.0 * (1 + 1e-9));
+  const CliRun both = run_cli("fk --robot panda --urdf '" + file.path + "' --joints " + q, true);
+  EXPECT_EQ(both.exit_code, 2);
+  EXPECT_THAT(both.out, HasSubstr("--robot NAME or --urdf FILE, not both"));
 }
 
 TEST(Cli, ConvertReadsStdin) {

@@ -1,5 +1,7 @@
 #include "connection.hpp"
 
+#include <cstdlib>
+
 #include <fstream>
 #include <sstream>
 
@@ -83,6 +85,9 @@ tl::expected<Connection, std::string> connect(const ServerAddress& server) {
   }
   server::ServerOptions options;
   options.address.clear();  // in-process channels only: no port is opened
+  // Its log lines only when asked (GEOTRAJ_LOG_LEVEL=info): the CLI's output is the answer.
+  const char* level = std::getenv("GEOTRAJ_LOG_LEVEL");
+  options.log_level = level != nullptr && *level != '\0' ? level : "warning";
   auto running = server::start_server(options);
   if (!running) return tl::unexpected(running.error());
   c.local = std::move(*running);

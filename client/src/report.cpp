@@ -325,25 +325,34 @@ void print_table(const v1::ListRobotsResponse& robots, std::ostream& out) {
     return std::string(buf);
   };
   const auto kind = [](v1::JointType type) { return short_enum(v1::JointType_Name(type), "JOINT_TYPE_"); };
+  // The name column as wide as the longest name (at least the header's): names are whole.
+  const auto width = [](const auto& joints, int least) {
+    int w = least;
+    for (const auto& j : joints) w = std::max(w, static_cast<int>(std::min<std::size_t>(j.name().size(), 64)));
+    return w;
+  };
   for (const auto& m : robots.robots()) {
     if (m.links_size() > 0) {  // a DH table
+      const int w = width(m.links(), 14);
       out << m.name() << "  (" << m.links_size() << " joints, "
           << short_enum(v1::DhConvention_Name(m.dh_convention()), "DH_CONVENTION_") << " DH)\n  " << m.description()
-          << "\n  joint  name           type          a [m]  alpha [rad]       d [m]  theta [rad]     min q     max q  "
-             "max qd  max qdd\n";
+          << "\n  joint  " << std::string("name") + std::string(static_cast<std::size_t>(w - 3), ' ')
+          << "type          a [m]  alpha [rad]       d [m]  theta [rad]     min q     max q  max qd  max qdd\n";
       for (int i = 0; i < m.links_size(); ++i) {
         const auto& l = m.links(i);
-        char buf[300];
-        std::snprintf(buf, sizeof buf, "  %5d  %-14.14s %-10s %9.5f %12.6f %11.5f %12.6f ", i, l.name().c_str(),
+        char buf[400];
+        std::snprintf(buf, sizeof buf, "  %5d  %-*.*s %-10s %9.5f %12.6f %11.5f %12.6f ", i, w, w, l.name().c_str(),
                       kind(l.joint_type()).c_str(), l.a(), l.alpha(), l.d(), l.theta() + l.offset());
         out << buf << (i < m.limits_size() ? limits(m.limits(i), l.joint_type()) : std::string()) << '\n';
       }
       continue;
     }
     // A general chain (URDF): each joint's origin (position, roll-pitch-yaw) and axis.
-    out << m.name() << "  (" << m.joints_size() << " joints, general chain)\n  " << m.description()
-        << "\n  joint  name              type        origin x     y [m]     z [m]  roll  pitch   yaw [rad]   "
-           "axis x     y     z     min q     max q  max qd  max qdd\n";
+    const int w = width(m.joints(), 17);
+    out << m.name() << "  (" << m.joints_size() << " joints, general chain)\n  " << m.description() << "\n  joint  "
+        << std::string("name") + std::string(static_cast<std::size_t>(w - 3), ' ')
+        << "type        origin x     y [m]     z [m]  roll  pitch   yaw [rad]   axis x     y     z     min q     max q  "
+           "max qd  max qdd\n";
     for (int i = 0; i < m.joints_size(); ++i) {
       const auto& j = m.joints(i);
       const auto& o = j.origin().orientation();
@@ -353,9 +362,9 @@ void print_table(const v1::ListRobotsResponse& robots, std::ostream& out) {
       const double pitch = clean(std::asin(std::clamp(-R(2, 0), -1.0, 1.0)));
       const double roll = clean(std::atan2(R(2, 1), R(2, 2))), yaw = clean(std::atan2(R(1, 0), R(0, 0)));
       const auto& p = j.origin().position();
-      char buf[300];
-      std::snprintf(buf, sizeof buf, "  %5d  %-17.17s %-10s %9.4f %9.4f %9.4f %6.3f %6.3f %6.3f   %6.3f %5.3f %5.3f ", i,
-                    j.name().c_str(), kind(j.joint_type()).c_str(), p.x(), p.y(), p.z(), roll, pitch, yaw, j.axis().x(),
+      char buf[400];
+      std::snprintf(buf, sizeof buf, "  %5d  %-*.*s %-10s %9.4f %9.4f %9.4f %6.3f %6.3f %6.3f   %6.3f %5.3f %5.3f ", i, w,
+                    w, j.name().c_str(), kind(j.joint_type()).c_str(), p.x(), p.y(), p.z(), roll, pitch, yaw, j.axis().x(),
                     j.axis().y(), j.axis().z());
       out << buf << (i < m.limits_size() ? limits(m.limits(i), j.joint_type()) : std::string()) << '\n';
     }

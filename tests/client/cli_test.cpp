@@ -226,6 +226,11 @@ TEST(Cli, RobotsListsTheBuiltInModels) {
   EXPECT_EQ(robots.robots(2).joints_size(), 7);  // the Panda, from its URDF
   EXPECT_THAT(run.out, HasSubstr("panda  (7 joints, general chain)"));
   EXPECT_THAT(run.out, HasSubstr("      3  panda_joint4      REVOLUTE      0.0825    0.0000    0.0000  1.571  0.000  0.000"));
+  // Joint names whole, the column as wide as the longest (the UR5e's).
+  EXPECT_THAT(run.out, HasSubstr("      1  shoulder_lift_joint REVOLUTE"));
+  // The in-process server logs only when asked: the output is the answer alone.
+  const CliRun merged = run_cli("robots", /*merge_stderr=*/true);
+  EXPECT_EQ(merged.out.find("INFO"), std::string::npos) << merged.out.substr(0, 300);
 
   // The URDF of a built-in arm, to start one's own from; a DH model has none.
   const CliRun urdf = run_cli("robots --urdf ur5e");

@@ -139,6 +139,12 @@ def print_plan(plan, out=sys.stdout):
               file=out)
 
 
+def has_steps(request):
+    """Whether the samples come in steps (a `step` column): a sequence, or a path with the
+    approach move to its start (robot.approach)."""
+    return len(request.sequence) > 0 or (request.HasField("robot") and request.robot.approach != 0)
+
+
 def write_samples(batches, out, sequence=False):
     """Streams the batches into CSV rows as they arrive; returns the sample count. A
     sequence's rows end with the step each sample belongs to."""
@@ -203,14 +209,14 @@ def main(argv=None):
             call = stub.StreamSamples(request, timeout=args.stream_timeout, metadata=metadata)
             if args.csv == "-":
                 try:
-                    write_samples(call, sys.stdout, len(request.sequence) > 0)
+                    write_samples(call, sys.stdout, has_steps(request))
                     sys.stdout.flush()
                 except BrokenPipeError:  # `| head`: the reader has had enough
                     call.cancel()
                     os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             else:
                 with open(args.csv, "w", newline="", encoding="utf-8") as out:
-                    count = write_samples(call, out, len(request.sequence) > 0)
+                    count = write_samples(call, out, has_steps(request))
                 print(f"stream: {count} samples written to {args.csv}")
         except grpc.RpcError as err:
             print_error(err, status_pb2, error_details_pb2)

@@ -375,7 +375,7 @@ int run_stream(const Connection& connection, const CallOptions& options) {
   if (options.timeout_s > 0.0) set_deadline(context, options.timeout_s);  // else none: see CallOptions
   auto reader = stub->StreamSamples(&context, request);
   bool header_written = options.json;
-  const bool sequence = request.sequence_size() > 0;  // a `step` column after the tool's state
+  const bool sequence = has_steps(request);  // a `step` column after the tool's state
   google::protobuf::util::JsonPrintOptions print;
   print.add_whitespace = false;
   v1::SampleBatch batch;

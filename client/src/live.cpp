@@ -351,7 +351,7 @@ int run_execute(const Connection& connection, const CallOptions& options) {
     };
   }
 
-  const bool sequence = first.plan().sequence_size() > 0;  // a `step` column, as in `stream`
+  const bool sequence = has_steps(first.plan());  // a `step` column, as in `stream`
   bool header_written = options.json;
   BatchView view;
   view.print = [&](const v1::SampleBatch& batch) {

@@ -284,7 +284,7 @@ int run_plot(const Connection& connection, const CallOptions& options) {
     auto reader = stub->StreamSamples(&context, request);
     v1::SampleBatch batch;
     bool header = false;
-    const bool sequence = request.sequence_size() > 0;
+    const bool sequence = has_steps(request);
     while (reader->Read(&batch)) {
       for (const auto& s : batch.samples()) {
         if (!header) {

@@ -26,6 +26,12 @@ void print_table(const v1::ForwardKinematicsResponse& fk, std::ostream& out);
 /// Inverse kinematics: the solutions nearest the seed first, or the closest pose.
 void print_table(const v1::InverseKinematicsResponse& ik, std::ostream& out);
 
+/// Whether the request's samples come in steps (a `step` column in the CSV): a sequence, or a
+/// path with the approach move the robot makes to its start (robot.approach).
+inline bool has_steps(const v1::PlanRequest& request) {
+  return request.sequence_size() > 0 || (request.has_robot() && request.robot().approach() != v1::APPROACH_MOVE_UNSPECIFIED);
+}
+
 /// The CSV header of samples like `first` (`geotraj stream`): t,u,s,segment, the tool's pose,
 /// velocity, acceleration, speed and angular velocity, `step` when `sequence`, then
 /// q0.., qd0.., qdd0.. when the samples carry joints. No newline.

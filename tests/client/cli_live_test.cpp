@@ -147,8 +147,9 @@ TEST_F(CliLive, ExecuteFollowsItsScript) {
       run_cli(server() + "execute " + example_path("plan_panda_path_c.json") + " --deadman 5 --script " + script);
   ASSERT_EQ(run.exit_code, 0) << run.out.substr(0, 2000);
   const Csv csv = parse_csv(run.out);
-  std::string expected = "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz";
-  for (const char* name : {"q", "qd", "qdd", "tau"}) {  // the Panda's torques: it has mass properties
+  // The approach move and the path: a `step` column; the Panda's torques (mass properties).
+  std::string expected = "t,u,s,segment,x,y,z,qw,qx,qy,qz,vx,vy,vz,ax,ay,az,speed,wx,wy,wz,step";
+  for (const char* name : {"q", "qd", "qdd", "tau"}) {
     for (int j = 0; j < 7; ++j) expected += "," + std::string(name) + std::to_string(j);
   }
   expected += ",plan_time,speed_factor,state";

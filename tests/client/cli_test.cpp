@@ -3,9 +3,11 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -276,6 +278,23 @@ TEST(Cli, StreamOfARobotRequestHasJointColumns) {
     EXPECT_EQ(std::stod(last[21 + j]), goal[j]) << "q" << j;  // %.17g: exact
     EXPECT_EQ(std::stod(last[28 + j]), 0.0) << "qd" << j;
   }
+}
+
+// A path with its approach move streams in two steps: the CSV has the `step` column, 0 for the
+// approach and 1 for the path, as for a sequence.
+TEST(Cli, AnApproachPlanHasTheStepColumn) {
+  const CliRun run = run_cli("stream " + example_path("plan_panda_path_c.json"));
+  ASSERT_EQ(run.exit_code, 0) << run.out.substr(0, 300);
+  std::stringstream out(run.out);
+  std::string header;
+  ASSERT_TRUE(std::getline(out, header));
+  const auto columns = csv_fields(header);
+  const auto at = std::find(columns.begin(), columns.end(), "step");
+  ASSERT_NE(at, columns.end()) << header;
+  const auto k = static_cast<std::size_t>(at - columns.begin());
+  std::set<std::string> steps;
+  for (std::string line; std::getline(out, line);) steps.insert(csv_fields(line).at(k));
+  EXPECT_EQ(steps, (std::set<std::string>{"0", "1"}));
 }
 
 // The joint values of the last CSV row of a stream (columns q0..q6 after the 21 tool columns).

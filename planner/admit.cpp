@@ -365,11 +365,13 @@ core::Expected<Request> admit_single(const RequestInput& input, const RobotCatal
   }
   Violations violations;
   std::shared_ptr<const Robot> robot;
+  bool refused = false;  // a robot given, and refused: its violations name it
   if (input.robot && input.geometry.kinds() == 1) {
     if (auto r = resolved(*input.robot, catalog, stop_at)) {
       robot = std::move(*r);
     } else {
       violations = std::move(r.error());
+      refused = true;
     }
   }
   if (robot && robot->tool_axis_free && (input.geometry.joint_move || input.geometry.joint_path)) {
@@ -379,7 +381,12 @@ core::Expected<Request> admit_single(const RequestInput& input, const RobotCatal
   }
   auto out = admit_motion(input.geometry, *input.motion, input.robot ? &*input.robot : nullptr, std::move(robot),
                           input.optimize, false);
-  if (!out) append(violations, std::move(out.error()));
+  if (!out) {
+    // A joint move or path "requires a robot": not said of one given and refused.
+    for (auto& v : out.error())
+      if (!(refused && v.field == "robot" && v.description.starts_with("is required by a joint")))
+        violations.push_back(std::move(v));
+  }
   if (!violations.empty()) return tl::unexpected(std::move(violations));
   return out;
 }

@@ -4,6 +4,7 @@
 // resolved once, the moves completed from the robot, and a sequence's steps each with the
 // request's motion under its own.
 #include <cmath>
+#include <limits>
 #include <string>
 #include <utility>
 #include <variant>
@@ -93,6 +94,23 @@ TEST(Admit, EachCallAsksForWhatItNeeds) {
   in.geometry = {};
   in.geometry.joint_move = planner::JointMoveInput{};
   EXPECT_THAT(description_of(planner::admit(in, catalog(), planner::Use::kAnalyze), "path"), HasSubstr("required"));
+}
+
+// A joint move or a joint path needs a robot: said where none is given; where one is given
+// but refused, its own violations name it and nothing says it is missing.
+TEST(Admit, AJointMotionNeedsARobotAndARefusedOneIsNamedOnce) {
+  planner::RequestInput in;
+  in.geometry.joint_move = planner::JointMoveInput{{}, {0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7}, std::nullopt};
+  in.motion = timed(2.0);
+  EXPECT_THAT(description_of(planner::admit(in, catalog(), planner::Use::kPlan), "robot"), HasSubstr("is required"));
+  in.geometry = {};
+  in.geometry.joint_path = core::JointPathSpec{};
+  EXPECT_THAT(description_of(planner::admit(in, catalog(), planner::Use::kPlan), "robot"), HasSubstr("is required"));
+  in.robot = named("panda");
+  in.robot->payload = core::Payload{std::numeric_limits<double>::quiet_NaN(), Eigen::Vector3d::Zero()};
+  const auto refused = planner::admit(in, catalog(), planner::Use::kPlan);
+  EXPECT_THAT(description_of(refused, "robot.payload.mass"), HasSubstr("must be in [0"));
+  EXPECT_EQ(description_of(refused, "robot"), "") << listed(refused);
 }
 
 TEST(Admit, AMotionTimedByTheLimitsNeedsNoProfileLimits) {

@@ -26,8 +26,13 @@ void StreamReactor::OnDone(const grpc::Status& status) {
   // The connection deletes the reactor on its strand: until then it may still refer to it.
   Shared& shared = shared_;
   shared.streams.fetch_sub(1);
-  const auto sink = std::move(sink_);
-  sink->stream_end(status, request_id_of(context_, true), this);
+  {
+    // This may be the connection's last reference: it goes (and the connection with it, on
+    // this thread) before the count below says the reactor is done, so that a gateway
+    // stopping, which waits for that count, never tears its io_context down under it.
+    const auto sink = std::move(sink_);
+    sink->stream_end(status, request_id_of(context_, true), this);
+  }
   const std::lock_guard lock(shared.reactors_mutex);
   if (--shared.reactors == 0) shared.reactors_done.notify_all();
 }

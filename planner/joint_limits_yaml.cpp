@@ -130,17 +130,4 @@ core::Expected<std::vector<NamedLimits>> joint_limits_from_yaml(std::string_view
   }
 }
 
-std::vector<NamedLimits> merged(std::vector<NamedLimits> base, const std::vector<NamedLimits>& over) {
-  for (const NamedLimits& o : over) {
-    const auto it = std::find_if(base.begin(), base.end(), [&](const NamedLimits& b) { return b.joint == o.joint; });
-    if (it == base.end()) {
-      base.push_back(o);
-      continue;
-    }
-    for (const Kind& kind : kKinds)
-      if (o.*kind.to) (*it).*kind.to = o.*kind.to;
-  }
-  return base;
-}
-
 }  // namespace geotraj::planner

@@ -42,8 +42,4 @@ inline constexpr std::size_t kMaxJointLimitsYamlBytes = 1u << 20;
 /// joint named twice.
 core::Expected<std::vector<NamedLimits>> joint_limits_from_yaml(std::string_view text, const std::string& field);
 
-/// `base` with `over` on top, joint by joint and value by value (a request's jointLimits over
-/// a joint_limits.yaml's): the joints of `base` in their order, then those only `over` names.
-std::vector<NamedLimits> merged(std::vector<NamedLimits> base, const std::vector<NamedLimits>& over);
-
 }  // namespace geotraj::planner

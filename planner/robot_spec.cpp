@@ -31,7 +31,7 @@ std::vector<NamedLimits> checked_joint_limits(const std::vector<NamedLimits>& gi
     const NamedLimits& l = given[k];
     const std::string field = at("robot.jointLimits", k);
     if (l.joint.empty()) out.push_back({field + ".joint", "is required: the name of one of the model's joints"});
-    NamedLimits limits{l.joint, std::nullopt, std::nullopt, std::nullopt};
+    NamedLimits limits{l.joint, std::nullopt, std::nullopt, std::nullopt, std::nullopt, field};
     const auto take = [&](const std::optional<double>& value, const char* name, const char* unit,
                           std::optional<double>& to) {
       if (!value) return;
@@ -53,9 +53,8 @@ std::vector<NamedLimits> checked_joint_limits(const std::vector<NamedLimits>& gi
 // The model the source names, checked, or nullopt with its violations in `out`: the
 // catalogue's as it was checked when it entered, an inline model or a URDF document's checked
 // here.
-std::optional<core::ValidRobot> source_model(const RobotSpec& spec, const std::vector<NamedLimits>& limits,
-                                             const RobotCatalog& catalog, bool motion, const StopAt& stop_at,
-                                             core::Violations& out) {
+std::optional<core::ValidRobot> source_model(const RobotSpec& spec, const RobotCatalog& catalog,
+                                             const StopAt& stop_at, core::Violations& out) {
   if (const auto* by_name = std::get_if<RobotByName>(&spec.source)) {
     if (const auto* model = catalog.find(by_name->name)) return *model;
     std::string names;
@@ -71,7 +70,7 @@ std::optional<core::ValidRobot> source_model(const RobotSpec& spec, const std::v
     return std::nullopt;
   }
   if (const auto* urdf = std::get_if<UrdfRobot>(&spec.source)) {
-    const UrdfOptions options{spec.base_link, spec.tip_link, limits, motion, stop_at};
+    const UrdfOptions options{spec.base_link, spec.tip_link, {}, stop_at};  // the limits: resolve_robot
     auto model = robot_from_urdf(urdf->urdf, options);
     if (!model) {
       for (auto& v : core::prefixed(std::move(model.error()), "robot.")) out.push_back(std::move(v));
@@ -91,6 +90,7 @@ std::optional<core::ValidRobot> source_model(const RobotSpec& spec, const std::v
 // robot.jointLimits (or a joint_limits.yaml's, named `field`) over the model's, by joint name.
 void apply_joint_limits(const std::vector<NamedLimits>& limits, const char* field, core::RobotModel& model,
                         core::Violations& out) {
+  const std::size_t before = out.size();
   for (std::size_t k = 0; k < limits.size(); ++k) {
     const auto it = std::find_if(model.joints.begin(), model.joints.end(),
                                  [&](const core::Joint& j) { return j.name == limits[k].joint; });
@@ -99,22 +99,13 @@ void apply_joint_limits(const std::vector<NamedLimits>& limits, const char* fiel
       for (const auto& j : model.joints) names += (names.empty() ? "'" : ", '") + j.name + "'";
       out.push_back({at(field, k) + ".joint",
                      "names no joint of the model ('" + limits[k].joint + "'); its joints: " + names});
-      continue;
-    }
-    core::JointLimits& l = model.limits[static_cast<std::size_t>(it - model.joints.begin())];
-    if (limits[k].max_velocity) l.max_velocity = *limits[k].max_velocity;
-    if (limits[k].max_acceleration) l.max_acceleration = *limits[k].max_acceleration;
-    if (limits[k].max_jerk) l.max_jerk = limits[k].max_jerk;
-    if (limits[k].max_torque) {
-      if (core::has_dynamics(model)) {
-        l.max_torque = limits[k].max_torque;
-      } else {
-        out.push_back({at(field, k) + ".maxTorque",
-                       "needs a model with the mass properties of every link (its torques are not known): " +
-                           model.name + " has none"});
-      }
+    } else if (limits[k].max_torque && !core::has_dynamics(model)) {
+      out.push_back({at(field, k) + ".maxTorque",
+                     "needs a model with the mass properties of every link (its torques are not known): " +
+                         model.name + " has none"});
     }
   }
+  if (out.size() == before) apply_named_limits(limits, model);
 }
 
 // robot.velocityScale and accelerationScale: fractions in (0, 1] of the model's limits, whose
@@ -131,6 +122,16 @@ void apply_scales(const RobotSpec& spec, core::RobotModel& model, bool model_kno
   const double acceleration = factor(spec.acceleration_scale, "robot.accelerationScale");
   if (!out.empty() || !model_known || (velocity == 1.0 && acceleration == 1.0)) return;
   model = core::with_scaled_limits(std::move(model), velocity, acceleration);
+  if (model.limit_sources.empty()) model.limit_sources.assign(model.dof(), core::LimitSources{});
+  const auto scaled_by = [](std::string& source, double scale, const char* field) {
+    if (scale != 1.0) source = (source.empty() ? "the model's" : source) + " x " + field + " " + core::number(scale);
+  };
+  for (std::size_t i = 0; i < model.dof(); ++i) {
+    core::LimitSources& from = model.limit_sources[i];
+    scaled_by(from.velocity, velocity, "robot.velocityScale");
+    scaled_by(from.acceleration, acceleration, "robot.accelerationScale");
+    if (model.limits[i].max_jerk) scaled_by(from.jerk, acceleration, "robot.accelerationScale");
+  }
   const auto scaled = [&](double scale, const char* field, const char* what, auto limit_of) {
     for (std::size_t i = 0; i < model.dof(); ++i) {
       const std::optional<double> limit = limit_of(model.limits[i]);
@@ -195,7 +196,8 @@ core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& c
       for (auto& v : from_yaml.error()) out.push_back(std::move(v));
     }
   }
-  const std::optional<core::ValidRobot> source = source_model(spec, merged(yaml, limits), catalog, motion, stop_at, out);
+  for (NamedLimits& l : yaml) l.source = "robot.jointLimitsYaml";
+  const std::optional<core::ValidRobot> source = source_model(spec, catalog, stop_at, out);
   // A MoveIt configuration describes the whole robot (a gripper's joints too): the file's
   // joints off the chain are not read, but a file that names none of it is refused; its
   // efforts are read on a model with mass properties (elsewhere no torque is known).
@@ -283,6 +285,13 @@ core::Expected<Robot> resolve_robot(const RobotSpec& spec, const RobotCatalog& c
   }
   core::JointVector seed;
   if (source && (*source)->dof() > 0) seed = initial_joints(spec.initial_joints, model ? *model : source->model(), out);
+  // A motion is timed within every joint's acceleration limit, or checked against it; the
+  // kinematics read none.
+  if (source && motion) {
+    if (std::string why = missing_accelerations(model ? *model : source->model()); !why.empty()) {
+      out.push_back({"robot.jointLimits", std::move(why)});
+    }
+  }
   // No model and nothing said: an inline model whose wire form was refused, and named there.
   if (!source || !out.empty()) return tl::unexpected(std::move(out));
   core::ValidRobot valid = *source;

@@ -16,9 +16,12 @@
 //    naming the joint;
 //  - URDF has no acceleration or jerk limits and no home pose: a <geotraj> element beside
 //    the links gives them, one <joint name=".." max_acceleration=".." max_jerk=".." home=".."/>
-//    per moving joint (max_acceleration required for motions, or given by the request's
-//    jointLimits; max_jerk optional; home default 0, or the middle of the range when 0 is
-//    outside it), and optional description="..", base_link="..", tip_link="..".
+//    per moving joint (max_jerk optional; home default 0, or the middle of the range when 0 is
+//    outside it), and optional description="..", base_link="..", tip_link="..". A joint
+//    without max_acceleration loads all the same (LimitSources::acceleration_known false):
+//    the kinematics need none, and a motion is refused until the request's jointLimits or a
+//    MoveIt joint_limits.yaml gives one (resolve_robot);
+//  - the model records where each limit came from (RobotModel::limit_sources).
 // Every error names the element and its line ("line 12, joint 'elbow': ...").
 #pragma once
 
@@ -34,13 +37,24 @@
 
 namespace geotraj::planner {
 
-/// Limits given beside a URDF document (a request's RobotSpec.jointLimits), by joint name;
-/// they take precedence over the <geotraj> block.
+/// Limits given beside a model (a request's RobotSpec.jointLimits, a MoveIt joint_limits.yaml),
+/// by joint name; they take precedence over the model's own.
 struct NamedLimits {
   std::string joint;
   std::optional<double> max_velocity, max_acceleration, max_jerk;
   std::optional<double> max_torque{};  ///< [N m or N] (a model with mass properties)
+  std::string source{};  ///< where they were given, for LimitSources ("robot.jointLimits[0]")
 };
+
+/// Sets the limits of `limits` in order (later over earlier) on the joints of `model` they name,
+/// recording `source` in model.limit_sources (filled with the model's own where empty); a
+/// maxTorque only on a model with mass properties (core::has_dynamics). Whether each entry
+/// named a joint of the model. Values are the caller's to check.
+std::vector<bool> apply_named_limits(const std::vector<NamedLimits>& limits, core::RobotModel& model);
+
+/// The joints of `model` that have no known acceleration limit (LimitSources), and what to do
+/// about it: empty when every joint has one.
+std::string missing_accelerations(const core::RobotModel& model);
 
 /// When work on a request gives up: once `deadline` passes or `stop` is requested (the
 /// call's deadline and cancellation).
@@ -53,19 +67,17 @@ struct StopAt {
 struct UrdfOptions {
   std::string base_link;  ///< empty: the <geotraj> block's base_link, else the root
   std::string tip_link;   ///< empty: the block's tip_link, else the leaf through the most moving joints
+  /// Over the <geotraj> block's, by apply_named_limits (the caller checks their values).
   std::vector<NamedLimits> limits;
-  /// Whether a joint without an acceleration limit is an error (every motion needs one).
-  /// False for kinematics only (ComputeForwardKinematics, ComputeInverseKinematics): such a
-  /// joint gets kUnknownAcceleration, which no kinematics call reads.
-  bool require_accelerations = true;
   /// Checked before each stage of the parse (each linear in the document's size, at most about
   /// 0.2 s at the 16 MiB limit): once reached, the parse ends with a violation of `urdf` that
   /// says so (the caller reports its deadline or cancellation instead).
   StopAt stop_at;
 };
 
-/// What a joint without an acceleration limit carries when none is required: finite and
-/// positive and within core::kMaxJointLimit (the model validates), never read by the kinematics.
+/// What a joint without an acceleration limit carries (LimitSources::acceleration_known false):
+/// finite and positive and within core::kMaxJointLimit (the model validates), never read by the
+/// kinematics, and no motion is planned with it (resolve_robot).
 inline constexpr double kUnknownAcceleration = core::kMaxJointLimit;
 
 /// The model of the chain from the base link to the tip link of the URDF document `urdf`.

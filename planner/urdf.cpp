@@ -428,12 +428,17 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
   if (m.description.empty()) m.description = "URDF robot '" + m.name + "'";
   m.description += no_dynamics;
   m.home.assign(m.joints.size(), 0.0);
+  m.limit_sources.assign(m.joints.size(), core::LimitSources{});
   for (std::size_t i = 0; i < m.joints.size(); ++i) {
     const std::string& name = m.joints[i].name;
     const TiXmlElement* entry = nullptr;
     for (const TiXmlElement* e : side.joints) {
       if (name == e->Attribute("name")) entry = e;
     }
+    core::LimitSources& from = m.limit_sources[i];
+    const std::string limit_at = elements[i] ? ", " + where(elements[i]) : "";
+    from.velocity = "URDF <limit velocity>" + limit_at;
+    if (m.limits[i].max_torque) from.torque = "URDF <limit effort>" + limit_at;
     std::optional<double> acceleration, jerk, home;
     if (entry != nullptr) {
       read_number(entry, "max_acceleration", acceleration, v);
@@ -441,23 +446,12 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
       read_number(entry, "home", home, v);
       if (acceleration && !(*acceleration > 0.0)) v.push_back({"urdf", where(entry) + ": max_acceleration must be > 0"});
       if (jerk && !(*jerk > 0.0)) v.push_back({"urdf", where(entry) + ": max_jerk must be > 0"});
+      if (acceleration) from.acceleration = "URDF <geotraj> block, " + where(entry);
+      if (jerk) from.jerk = "URDF <geotraj> block, " + where(entry);
     }
-    for (const NamedLimits& l : options.limits) {  // the request's (checked by its caller), over the block
-      if (l.joint != name) continue;
-      if (l.max_acceleration) acceleration = l.max_acceleration;
-      if (l.max_jerk) jerk = l.max_jerk;
-      if (l.max_velocity) m.limits[i].max_velocity = *l.max_velocity;
-    }
-    const std::string at = elements[i] ? where(elements[i]) : "joint '" + name + "'";
-    if (!acceleration && options.require_accelerations) {
-      v.push_back({"urdf", at + ": has no acceleration limit, which every motion needs and URDF cannot say: give it "
-                               "in a <geotraj> block beside the links, <geotraj><joint name=\"" + name +
-                               "\" max_acceleration=\"...\"/></geotraj> [rad/s^2 or m/s^2], in the request's "
-                               "robot.jointLimits, or in MoveIt's joint_limits.yaml (robot.jointLimitsYaml, "
-                               "geotrajd --joint-limits) (docs/kinematics.md)"});
-    } else {
-      m.limits[i].max_acceleration = acceleration.value_or(kUnknownAcceleration);  // unknown: kinematics only
-    }
+    // Unknown: kinematics only, until a request's or a file's limits give one (resolve_robot).
+    from.acceleration_known = acceleration.has_value();
+    m.limits[i].max_acceleration = acceleration.value_or(kUnknownAcceleration);
     m.limits[i].max_jerk = jerk;
     const core::JointLimits& l = m.limits[i];
     const bool continuous = m.joints[i].type == core::JointType::kContinuous;
@@ -472,6 +466,7 @@ core::Expected<core::RobotModel> robot_from_urdf(std::string_view text, const Ur
     }
   }
   if (!v.empty()) return tl::unexpected(std::move(v));
+  apply_named_limits(options.limits, m);  // checked by the caller; a joint off the chain is not ours
   if (Violations rest = core::validate_robot(m); !rest.empty()) {  // the model it makes (joints[i] counts moving joints)
     for (auto& fv : rest) fv = {"urdf", "the chain's " + fv.field + " " + fv.description};
     return tl::unexpected(std::move(rest));

@@ -298,6 +298,19 @@ void print_table(const v1::RobotReport& robot, std::ostream& out) {
     }
     out << '\n';
   }
+  // Where the limits come from, for joints whose limits are not all the model's own.
+  for (const auto& j : robot.joints()) {
+    const auto& from = j.limit_sources();
+    const std::string own = "the model's";
+    if (from.velocity() == own && from.acceleration() == own && (from.jerk().empty() || from.jerk() == own) &&
+        (from.torque().empty() || from.torque() == own))
+      continue;
+    out << "joint " << j.joint() << " limits from: velocity " << from.velocity() << "; acceleration "
+        << from.acceleration();
+    if (!from.jerk().empty()) out << "; jerk " << from.jerk();
+    if (!from.torque().empty()) out << "; torque " << from.torque();
+    out << '\n';
+  }
   out << "tightest position:     " << event_text(robot.tightest_position()) << '\n'
       << "tightest velocity:     " << event_text(robot.tightest_velocity()) << '\n'
       << "tightest acceleration: " << event_text(robot.tightest_acceleration()) << '\n';
@@ -317,12 +330,18 @@ void print_table(const v1::ListRobotsResponse& robots, std::ostream& out) {
   const auto limits = [](const v1::JointLimits& lim, v1::JointType type) {
     char buf[96];
     if (type == v1::JOINT_TYPE_CONTINUOUS) {
-      std::snprintf(buf, sizeof buf, "%9s %9s %7.4f %8.4f", "-", "-", lim.max_velocity(), lim.max_acceleration());
+      std::snprintf(buf, sizeof buf, "%9s %9s %7.4f", "-", "-", lim.max_velocity());
     } else {
-      std::snprintf(buf, sizeof buf, "%9.4f %9.4f %7.4f %8.4f", lim.min_position(), lim.max_position(), lim.max_velocity(),
-                    lim.max_acceleration());
+      std::snprintf(buf, sizeof buf, "%9.4f %9.4f %7.4f", lim.min_position(), lim.max_position(), lim.max_velocity());
     }
-    return std::string(buf);
+    std::string text = buf;
+    if (lim.max_acceleration() > 0.0) {
+      std::snprintf(buf, sizeof buf, " %8.4f", lim.max_acceleration());
+      text += buf;
+    } else {
+      text += "  unknown";  // a URDF as shipped: kinematics only until a limit is given
+    }
+    return text;
   };
   const auto kind = [](v1::JointType type) { return short_enum(v1::JointType_Name(type), "JOINT_TYPE_"); };
   // The name column as wide as the longest name (at least the header's): names are whole.

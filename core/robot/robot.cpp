@@ -241,6 +241,10 @@ Violations validate_robot(const RobotModel& model) {
     out.push_back({"limits", "has " + std::to_string(model.limits.size()) + " entries for " +
                                  std::to_string(model.joints.size()) + " joints: give one per joint"});
   }
+  if (!model.limit_sources.empty() && model.limit_sources.size() != model.joints.size()) {
+    out.push_back({"limitSources", "has " + std::to_string(model.limit_sources.size()) + " entries for " +
+                                       std::to_string(model.joints.size()) + " joints: none, or one per joint"});
+  }
   if (model.dh) {  // the joints are derived from the table: its rows are what the user wrote
     for (std::size_t i = 0; i < model.dh->links.size(); ++i) {
       const DhLink& l = model.dh->links[i];
@@ -359,7 +363,13 @@ bool jerk_limited(const RobotModel& model) {
 }
 
 RobotModel with_default_jerk(RobotModel model, double ramp_s) {
-  for (JointLimits& l : model.limits) l.max_jerk = jerk_bound(l, ramp_s);
+  if (model.limit_sources.empty()) model.limit_sources.assign(model.dof(), LimitSources{});
+  for (std::size_t i = 0; i < model.dof(); ++i) {
+    if (!model.limits[i].max_jerk) {
+      model.limit_sources[i].jerk = "default: maxAcceleration / " + number(ramp_s) + " s";
+    }
+    model.limits[i].max_jerk = jerk_bound(model.limits[i], ramp_s);
+  }
   return model;
 }
 
@@ -386,6 +396,7 @@ ValidRobot with_tool_roll(const ValidRobot& robot) {
   limits.max_velocity = kMaxJointLimit;
   limits.max_acceleration = kMaxJointLimit;
   model.limits.push_back(limits);
+  if (!model.limit_sources.empty()) model.limit_sources.push_back({"the tool's roll (unlimited)", "the tool's roll (unlimited)", "", "", true});
   model.flange = Eigen::Isometry3d::Identity();
   model.tool = Eigen::Isometry3d::Identity();
   if (!model.home.empty()) model.home.push_back(0.0);

@@ -142,6 +142,19 @@ struct JointLimits {
   std::optional<double> max_torque{};
 };
 
+/// Where a joint's rate and torque limits come from, as a plan's report and ListRobots say it
+/// (text for the user: "URDF <limit velocity>, line 12", "robot.jointLimits[0]",
+/// "joint_limits.yaml (robot.jointLimitsYaml)"). An empty source is the model's own (a
+/// built-in or inline model's), or no such limit (jerk, torque).
+struct LimitSources {
+  std::string velocity, acceleration, jerk, torque;
+  /// False where nothing gave the joint an acceleration limit (a URDF as shipped: URDF has no
+  /// field for one): JointLimits::max_acceleration then holds kMaxJointLimit, which the
+  /// kinematics never read, and a motion is refused (planner::resolve_robot) until a limit is
+  /// given.
+  bool acceleration_known = true;
+};
+
 /// Whether joint value q is within the joint's position limits (always, for a continuous
 /// joint, whose limits are not read).
 inline bool within_position_limits(JointType type, const JointLimits& l, double q) {
@@ -182,8 +195,14 @@ struct RobotModel {
   /// What the tool carries (RobotSpec.payload): a point mass at a point of the tool frame T,
   /// in every inverse-dynamics call of the model (dynamics_options); none by default.
   Payload payload{};
+  /// Where each joint's limits come from: empty (the model's own), or one per joint.
+  std::vector<LimitSources> limit_sources;
 
   std::size_t dof() const { return joints.size(); }
+  /// Whether joint i has an acceleration limit that something gave (LimitSources).
+  bool acceleration_known(std::size_t i) const {
+    return limit_sources.empty() || limit_sources[i].acceleration_known;
+  }
 };
 
 /// The joints and flange of a DH table (see the top of this file), exactly:
@@ -199,7 +218,7 @@ void set_dh(RobotModel& model, DhTable table);
 
 /// Every problem with `model` (field paths relative to the model, proto JSON names):
 /// `joints` (none, or more than kMaxJoints; `links` for a DH model), `limits` (not one per
-/// joint), `links[i].a` ... not finite (a DH model), `joints[i].origin` not finite or not a
+/// joint), `limitSources` (neither empty nor one per joint), `links[i].a` ... not finite (a DH model), `joints[i].origin` not finite or not a
 /// rigid transform, `joints[i].axis` not a unit vector, `flange`, `limits[i].minPosition` >
 /// maxPosition, `limits[i].maxVelocity`, `limits[i].maxAcceleration`, `limits[i].maxJerk` not
 /// finite or outside [kMinJointLimit, kMaxJointLimit] (joint_limit_violation),

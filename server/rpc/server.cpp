@@ -23,7 +23,6 @@
 #include "server/ops/runtime.hpp"
 #include "server/ops/socket.hpp"
 #include "server/rpc/health.hpp"
-#include "core/robot/dynamics.hpp"
 #include "planner/joint_limits_yaml.hpp"
 #include "planner/robots.hpp"
 #include "server/rpc/service.hpp"
@@ -146,7 +145,8 @@ tl::expected<TokenTable, std::string> tokens(const ServerOptions& options) {
   return table;
 }
 
-// The limits of the --joint-limits files, later files over earlier ones.
+// The limits of the --joint-limits files, in order (later files over earlier ones), each
+// naming its file as its source.
 tl::expected<std::vector<planner::NamedLimits>, std::string> joint_limits_files(const ServerOptions& options) {
   std::vector<planner::NamedLimits> limits;
   for (const auto& file : options.joint_limits_files) {
@@ -158,28 +158,12 @@ tl::expected<std::vector<planner::NamedLimits>, std::string> joint_limits_files(
       for (const auto& v : read.error()) why += (why.empty() ? "" : "; ") + v.description;
       return tl::unexpected("joint limits file \"" + file + "\" " + why);
     }
-    limits = planner::merged(std::move(limits), *read);
-  }
-  return limits;
-}
-
-// The limits of `yaml` over a model's, for the joints it has (the URDF reader has applied the
-// velocities, accelerations and jerks already; the efforts where the model has dynamics).
-// Whether any joint was named.
-bool apply_yaml(const std::vector<planner::NamedLimits>& yaml, core::RobotModel& model) {
-  bool named = false;
-  for (const auto& l : yaml) {
-    for (std::size_t i = 0; i < model.dof(); ++i) {
-      if (model.joints[i].name != l.joint) continue;
-      named = true;
-      core::JointLimits& to = model.limits[i];
-      if (l.max_velocity) to.max_velocity = *l.max_velocity;
-      if (l.max_acceleration) to.max_acceleration = *l.max_acceleration;
-      if (l.max_jerk) to.max_jerk = l.max_jerk;
-      if (l.max_torque && core::has_dynamics(model)) to.max_torque = l.max_torque;
+    for (auto& l : *read) {
+      l.source = "joint_limits.yaml \"" + file + "\" (geotrajd --joint-limits)";
+      limits.push_back(std::move(l));
     }
   }
-  return named;
+  return limits;
 }
 
 tl::expected<RobotCatalog, std::string> robot_catalog(const ServerOptions& options) {
@@ -191,15 +175,13 @@ tl::expected<RobotCatalog, std::string> robot_catalog(const ServerOptions& optio
     auto text = read_file(file, "robot model file");
     if (!text) return tl::unexpected(text.error());
     // A URDF document (by its extension, or its first character) or a RobotModel in JSON.
+    // MoveIt's limits over the model's, for the joints it has (a gripper's are not the arm's).
     const auto first = text->find_first_not_of(" \t\r\n");
     const bool urdf = file.ends_with(".urdf") || (first != std::string::npos && (*text)[first] == '<');
-    planner::UrdfOptions urdf_options;
-    urdf_options.limits = *yaml;
-    auto read = (urdf ? planner::robot_from_urdf(*text, urdf_options) : robot_model_from_json(*text))
-                    .map([&](core::RobotModel m) {
-                      named = apply_yaml(*yaml, m) || named;
-                      return m;
-                    });
+    auto read = (urdf ? planner::robot_from_urdf(*text) : robot_model_from_json(*text)).map([&](core::RobotModel m) {
+      for (bool n : planner::apply_named_limits(*yaml, m)) named = named || n;
+      return m;
+    });
     // Checked once, here: the catalogue's models carry the proof to every request.
     auto model = read.and_then([](core::RobotModel m) { return core::ValidRobot::check(std::move(m)); });
     if (!model) {
@@ -375,6 +357,10 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
   if (!table) return tl::unexpected(table.error());
   auto robots = robot_catalog(options);
   if (!robots) return tl::unexpected(robots.error());
+  for (const auto& m : robots->models) {  // served for the kinematics; a motion says what it lacks
+    if (std::string why = planner::missing_accelerations(m); !why.empty())
+      warnings.push_back("robot model \"" + m->name + "\" serves the kinematics only until its limits are given: " + why);
+  }
 
   RunningServer running;
   running.runtime = std::make_shared<Runtime>(options.limits, std::move(*table),

@@ -61,7 +61,7 @@ void to_proto(const planner::Plan& plan, bool with_optimization, v1::PlanRespons
     to_proto(*plan.followed_path(), r.achieved, r.closed_loop, r.geometry, response);
   }
   if (with_optimization) to_proto(plan.optimizers, *response.mutable_optimization());
-  if (plan.joints) to_proto(plan.robot->model->name, *plan.joints, *response.mutable_robot());
+  if (plan.joints) to_proto(*plan.robot->model, *plan.joints, *response.mutable_robot());
   if (plan.joints && plan.default_jerk) {
     auto& out = *response.mutable_robot()->mutable_default_jerk();
     out.set_ramp_s(plan.default_jerk->ramp_s);

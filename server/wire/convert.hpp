@@ -101,7 +101,8 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out);
 
 
 /// PlanTrajectory's joint-space report.
-void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out);
+/// The joint report of a plan on `model` (its name, and where each joint's limits come from).
+void to_proto(const core::RobotModel& model, const core::JointMotionReport& report, v1::RobotReport& out);
 
 /// One limit event (also used in error messages).
 void to_proto(const core::LimitEvent& event, v1::LimitEvent& out);

@@ -103,6 +103,20 @@ core::Inertial inertial_from_proto(const v1::Inertial& in, const std::string& at
   return inertial;
 }
 
+// Where joint i's limits come from: the model's own where it records none.
+void limit_sources_to_proto(const core::RobotModel& model, std::size_t i, v1::LimitSources& out) {
+  static const core::LimitSources own{};
+  const core::LimitSources& from = model.limit_sources.empty() ? own : model.limit_sources[i];
+  const core::JointLimits& l = model.limits[i];
+  const auto said = [](const std::string& source) { return source.empty() ? std::string("the model's") : source; };
+  out.set_velocity(said(from.velocity));
+  out.set_acceleration(from.acceleration_known ? said(from.acceleration)
+                                               : "not known: give robot.jointLimits[].maxAcceleration, MoveIt's "
+                                                 "joint_limits.yaml or the URDF's <geotraj> block");
+  if (l.max_jerk) out.set_jerk(said(from.jerk));
+  if (l.max_torque) out.set_torque(said(from.torque));
+}
+
 void to_proto(const core::Inertial& in, v1::Inertial& out) {
   out.set_mass(in.mass);
   set(out.mutable_center_of_mass(), in.center_of_mass);
@@ -211,14 +225,16 @@ void to_proto(const core::RobotModel& model, v1::RobotModel& out) {
     }
     to_proto(model.flange, *out.mutable_flange());
   }
-  for (const auto& l : model.limits) {
+  for (std::size_t i = 0; i < model.dof(); ++i) {
+    const core::JointLimits& l = model.limits[i];
     auto* limits = out.add_limits();
     limits->set_min_position(l.min_position);
     limits->set_max_position(l.max_position);
     limits->set_max_velocity(l.max_velocity);
-    limits->set_max_acceleration(l.max_acceleration);
+    if (model.acceleration_known(i)) limits->set_max_acceleration(l.max_acceleration);  // 0: not known
     if (l.max_jerk) limits->set_max_jerk(*l.max_jerk);
     if (l.max_torque) limits->set_max_torque(*l.max_torque);
+    limit_sources_to_proto(model, i, *limits->mutable_sources());
   }
   to_proto(model.base, *out.mutable_base());
   to_proto(model.tool, *out.mutable_tool());
@@ -358,8 +374,8 @@ std::string describe(const core::LimitEvent& e) {
   return "limit event" + where;
 }
 
-void to_proto(const std::string& robot_name, const core::JointMotionReport& report, v1::RobotReport& out) {
-  out.set_name(robot_name);
+void to_proto(const core::RobotModel& model, const core::JointMotionReport& report, v1::RobotReport& out) {
+  out.set_name(model.name);
   out.set_samples(report.samples);
   out.set_converged_samples(report.converged_samples);
   out.set_max_ik_position_error(report.max_position_error);
@@ -368,7 +384,11 @@ void to_proto(const std::string& robot_name, const core::JointMotionReport& repo
   for (const auto& v : report.violations) to_proto(v, *out.add_violations());
   if (report.converged_samples == 0) {
     // No joint value was measured: the figures below would be their +-infinity starts.
-    for (std::size_t j = 0; j < report.joints.size(); ++j) out.add_joints()->set_joint(static_cast<std::uint32_t>(j));
+    for (std::size_t j = 0; j < report.joints.size(); ++j) {
+      auto* r = out.add_joints();
+      r->set_joint(static_cast<std::uint32_t>(j));
+      if (j < model.dof()) limit_sources_to_proto(model, j, *r->mutable_limit_sources());
+    }
     return;
   }
   for (std::size_t j = 0; j < report.joints.size(); ++j) {
@@ -384,6 +404,7 @@ void to_proto(const std::string& robot_name, const core::JointMotionReport& repo
     if (std::isfinite(u.position_margin)) r->set_position_margin(u.position_margin);  // none: continuous
     if (report.torques) r->set_peak_torque(u.peak_torque);
     if (report.torques && u.torque_usage) r->set_torque_usage(*u.torque_usage);
+    if (j < model.dof()) limit_sources_to_proto(model, j, *r->mutable_limit_sources());
   }
   if (std::isfinite(report.tightest_position.margin)) {  // every joint continuous: none
     to_proto(report.tightest_position, *out.mutable_tightest_position());

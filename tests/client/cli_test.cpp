@@ -151,13 +151,17 @@ TEST(Cli, UrdfAsShippedForTheKinematicsAndWithMoveItsLimitsForAPlan) {
   const std::string request = example_path("plan_joint_path_panda.json");
   const CliRun bare = run_cli("plan " + request + " --urdf '" + file.path + "'", true);
   EXPECT_NE(bare.exit_code, 0);
-  EXPECT_THAT(bare.out, HasSubstr("has no acceleration limit"));
+  EXPECT_THAT(bare.out, HasSubstr("have no acceleration limit"));
   EXPECT_THAT(bare.out, HasSubstr("robot.jointLimitsYaml"));
   const CliRun planned = run_cli("plan --json " + request + " --urdf '" + file.path + "' --joint-limits '" + limits.path + "'");
   ASSERT_EQ(planned.exit_code, 0) << planned.out;
   const auto response = from_json<v1::PlanResponse>(planned.out);
   EXPECT_TRUE(response.robot().feasible());
-  for (const auto& j : response.robot().joints()) EXPECT_LE(j.peak_acceleration(), 5.0 * (1 + 1e-9));
+  for (const auto& j : response.robot().joints()) {
+    EXPECT_LE(j.peak_acceleration(), 5.0 * (1 + 1e-9));
+    EXPECT_EQ(j.limit_sources().acceleration(), "robot.jointLimitsYaml");  // the file the CLI sent
+    EXPECT_THAT(j.limit_sources().velocity(), HasSubstr("URDF <limit velocity>, line "));
+  }
   const CliRun both = run_cli("fk --robot panda --urdf '" + file.path + "' --joints " + q, true);
   EXPECT_EQ(both.exit_code, 2);
   EXPECT_THAT(both.out, HasSubstr("--robot NAME or --urdf FILE, not both"));

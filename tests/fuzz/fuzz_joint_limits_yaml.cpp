@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 #include <optional>
 #include <set>
 #include <string>
@@ -51,7 +52,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     check_value(l.max_jerk, l.joint + " max_jerk");
     check_value(l.max_torque, l.joint + " max_effort");
   }
-  const auto again = geotraj::planner::merged(*read, *read);
-  if (again.size() != read->size()) fail("merging the limits over themselves changed their count");
+  // Whatever the reader accepts makes a valid model of the joints it names.
+  geotraj::core::RobotModel panda = *geotraj::planner::find_builtin_robot("panda");
+  for (auto& l : *read) l.joint = "panda_joint" + std::to_string(1 + std::hash<std::string>{}(l.joint) % 7);
+  geotraj::planner::apply_named_limits(*read, panda);
+  if (const auto bad = geotraj::core::validate_robot(panda); !bad.empty())
+    fail("the limits read make an invalid model: " + bad.front().field + " " + bad.front().description);
   return 0;
 }

@@ -1,19 +1,19 @@
 // fuzz_urdf: bytes as a URDF document (RobotSpec.urdf from a client, `geotrajd --robot-model
 // arm.urdf`), read by planner::robot_from_urdf with the options (UrdfOptions: baseLink,
-// tipLink, the request's jointLimits, whether accelerations are required) the fuzzer may also
+// tipLink, the request's jointLimits) the fuzzer may also
 // choose. No server: the reader is called directly.
 //
 // Input: when the first byte is 0x00-0x07 (C0 controls that no XML document may contain, so
 // a URDF file used as a seed as it is never starts with one) it is a selector, and what it
 // selects follows in this order:
-//   bit 2: an options byte: bit 0 set, require_accelerations = false (the kinematics calls);
+//   bit 2: an options byte (bit 0 unused);
 //          bits 1-2, how many jointLimits entries (0-3) follow the links;
 //   bit 0: the baseLink;  bit 1: the tipLink;
 //   then each jointLimits entry: its joint name, then three bytes, maxVelocity, maxAcceleration
 //   and maxJerk, each absent when 0, else byte / 4 (finite and > 0, as the caller checks);
 // each name being the bytes up to the next '\n' (consumed) or kMaxName bytes, whichever comes
 // first; the rest is the document. Any other first byte: the whole input is the document with
-// the default options (the root, the only leaf, accelerations required).
+// the default options (the root, the default leaf).
 //
 // A model it accepts must
 //  - pass core::validate_robot, with 1 to core::kMaxJoints joints and one limit per joint;
@@ -84,7 +84,6 @@ Input split(const std::uint8_t* data, std::size_t size) {
   }
   if ((selector & 1u) != 0) in.options.base_link = std::string(take_name(rest));
   if ((selector & 2u) != 0) in.options.tip_link = std::string(take_name(rest));
-  in.options.require_accelerations = (options & 1u) == 0;
   for (unsigned k = 0; k < ((options >> 1) & 3u); ++k) {
     geotraj::planner::NamedLimits limits;
     limits.joint = std::string(take_name(rest));
@@ -123,9 +122,9 @@ std::string printable(std::string_view s, std::size_t limit) {
   }
   std::fprintf(stderr,
                "\n==== geotraj fuzz check failed: %s\n==== baseLink: '%s'\n==== tipLink: '%s'\n"
-               "==== require_accelerations: %d\n==== jointLimits:%s\n==== urdf (%zu bytes):\n%s\n\n",
+               "==== jointLimits:%s\n==== urdf (%zu bytes):\n%s\n\n",
                why.c_str(), printable(in.options.base_link, kMaxName).c_str(),
-               printable(in.options.tip_link, kMaxName).c_str(), in.options.require_accelerations ? 1 : 0,
+               printable(in.options.tip_link, kMaxName).c_str(),
                limits.c_str(), in.urdf.size(), printable(in.urdf, 4000).c_str());
   std::abort();
 }

@@ -132,7 +132,7 @@ TEST(JointLimitsYaml, AUrdfWithoutAccelerationsTakesThemFromTheFile) {
   spec.tip_link = "panda_link8";
   const auto bare = planner::resolve_robot(spec, geotraj::testing::builtin_catalog());
   ASSERT_FALSE(bare);
-  EXPECT_THAT(bare.error().front().description, HasSubstr("has no acceleration limit"));
+  EXPECT_THAT(bare.error().front().description, HasSubstr("have no acceleration limit"));
 
   spec.joint_limits_yaml = kPandaYaml;
   spec.joint_limits.push_back({"panda_joint4", 1.5, std::nullopt, std::nullopt});

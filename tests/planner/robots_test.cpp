@@ -442,11 +442,7 @@ TEST(Urdf, TheTipIsTheLeafThroughTheMostMovingJoints) {
   <joint name="flange-tool0" type="fixed"><parent link="flange"/><child link="tool0"/><origin rpy="0 1.5707963 0"/></joint>
 </robot>
 )";
-  auto kinematics = [](const std::string& text) {
-    planner::UrdfOptions options;
-    options.require_accelerations = false;  // as shipped: no accelerations
-    return planner::robot_from_urdf(text, options);
-  };
+  auto kinematics = [](const std::string& text) { return planner::robot_from_urdf(text); };  // as shipped
   const auto model = kinematics(arm);
   ASSERT_TRUE(model) << model.error()[0].description;
   EXPECT_EQ(model->dof(), 3u);
@@ -504,27 +500,49 @@ TEST(Urdf, BaseAndTipChooseTheChain) {
   EXPECT_THAT(above.error()[0].description, HasSubstr("not below"));
 }
 
-// Kinematics need no accelerations: a document without them loads when they are not
-// required; limits given beside the document take precedence over its block.
-TEST(Urdf, AccelerationsRequiredForMotionsOnly) {
+// A document without accelerations loads (the kinematics need none), saying which joints
+// lack one and the three ways to give it; limits given beside the document take precedence
+// over its block, and the model says where each came from.
+TEST(Urdf, LoadsWithoutAccelerationsAndSaysWhereEachLimitComesFrom) {
   const std::string text = fixture("scara_like.urdf");
   const std::string bare = text.substr(0, text.find("<geotraj ")) + "</robot>\n";
-  EXPECT_FALSE(planner::robot_from_urdf(bare));
-  planner::UrdfOptions kinematics;
-  kinematics.require_accelerations = false;
-  const RobotModel m = *planner::robot_from_urdf(bare, kinematics);
-  EXPECT_EQ(m.limits[0].max_acceleration, planner::kUnknownAcceleration);
+  const auto loaded = planner::robot_from_urdf(bare);
+  ASSERT_TRUE(loaded) << loaded.error()[0].description;
+  const RobotModel& m = *loaded;
   EXPECT_TRUE(core::validate_robot(m).empty());
+  ASSERT_EQ(m.limit_sources.size(), m.dof());
+  for (std::size_t i = 0; i < m.dof(); ++i) {
+    EXPECT_FALSE(m.acceleration_known(i));
+    EXPECT_EQ(m.limits[i].max_acceleration, planner::kUnknownAcceleration);
+    EXPECT_THAT(m.limit_sources[i].velocity, HasSubstr("URDF <limit velocity>, line "));
+    EXPECT_THAT(m.limit_sources[i].velocity, HasSubstr("'" + m.joints[i].name + "'"));
+  }
+  const std::string why = planner::missing_accelerations(m);
+  EXPECT_THAT(why, HasSubstr("joints 0 (j1), 1 (j2), 2 (j3), 3 (j4), 4 (j5) have no acceleration limit"));
+  EXPECT_THAT(why, HasSubstr("robot.jointLimits"));
+  EXPECT_THAT(why, HasSubstr("joint_limits.yaml (robot.jointLimitsYaml, or geotrajd --joint-limits FILE)"));
+  EXPECT_THAT(why, HasSubstr("<geotraj><joint name=\"j1\" max_acceleration="));
+  // The block's accelerations are known, and said to be the block's.
+  const RobotModel blocked = *planner::robot_from_urdf(text);
+  EXPECT_TRUE(planner::missing_accelerations(blocked).empty());
+  EXPECT_THAT(blocked.limit_sources[0].acceleration, HasSubstr("URDF <geotraj> block, line "));
 
   planner::UrdfOptions given;
   for (const char* joint : {"j1", "j2", "j3", "j4", "j5"}) given.limits.push_back({joint, std::nullopt, 2.5, 30.0});
   given.limits[1].max_velocity = 0.5;
+  given.limits[1].source = "robot.jointLimits[1]";
   const RobotModel g = *planner::robot_from_urdf(bare, given);
+  EXPECT_TRUE(planner::missing_accelerations(g).empty());
   EXPECT_EQ(g.limits[4].max_acceleration, 2.5);
   EXPECT_EQ(*g.limits[4].max_jerk, 30.0);
   EXPECT_EQ(g.limits[1].max_velocity, 0.5);
+  EXPECT_EQ(g.limit_sources[1].velocity, "robot.jointLimits[1]");
+  EXPECT_EQ(g.limit_sources[1].acceleration, "robot.jointLimits[1]");
+  EXPECT_EQ(g.limit_sources[4].acceleration, "robot.jointLimits");  // no source given: the request's
+  EXPECT_THAT(g.limit_sources[0].velocity, HasSubstr("URDF <limit velocity>"));
   const RobotModel over = *planner::robot_from_urdf(text, given);  // over the block's 6
   EXPECT_EQ(over.limits[0].max_acceleration, 2.5);
+  EXPECT_EQ(over.limit_sources[0].acceleration, "robot.jointLimits");
 }
 
 // --- bad documents -----------------------------------------------------------------------
@@ -589,12 +607,6 @@ INSTANTIATE_TEST_SUITE_P(
         BadDocument{"FloatingJoint",
                     [](std::string doc) { return replaced(doc, "<joint name=\"j2\" type=\"revolute\">", "<joint name=\"j2\" type=\"floating\">"); },
                     "urdf", {"joint 'j2'", "floating"}},
-        BadDocument{"NoAcceleration",
-                    [](std::string doc) { return replaced(doc, "<joint name=\"j3\" max_acceleration=\"8\" home=\"0.3\"/>", ""); },
-                    "urdf", {"joint 'j3'", "acceleration", "URDF", "<geotraj>"}},
-        BadDocument{"NoSideBlock",
-                    [](std::string doc) { return doc.substr(0, doc.find("<geotraj ")) + "</robot>\n"; }, "urdf",
-                    {"joint 'j1'", "joint 'j5'", "<geotraj>"}},
         BadDocument{"SideBlockUnknownJoint",
                     [](std::string doc) {
                       return replaced(doc, "<joint name=\"j3\" max_acceleration=\"8\"", "<joint name=\"j33\" max_acceleration=\"8\"");

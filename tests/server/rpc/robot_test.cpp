@@ -1438,14 +1438,47 @@ TEST_F(RobotTest, GeotrajdServesAUrdfFile) {
   daemon.signal(SIGTERM);
   EXPECT_EQ(daemon.wait(), 0);
 
-  // Broken: the acceleration of the elbow removed; the message names the file, the joint, its line.
+  // As shipped, without the elbow's acceleration: served all the same (a warning at start-up),
+  // its acceleration listed as not known; the kinematics answer, a motion is refused naming
+  // the joint and the three ways to give it, and planned once the request gives it, the
+  // report saying where each limit came from.
   const std::string entry = "<joint name=\"elbow\" max_acceleration=\"4\" max_jerk=\"40\"/>";
-  const std::string broken = text.replace(text.find(entry), entry.size(), "");
-  const TempFile bad("broken.urdf", broken);
-  const std::string errors = refused_start({"--address", "127.0.0.1:0", "--robot-model", bad.path()});
-  EXPECT_THAT(errors, HasSubstr(bad.path()));
-  EXPECT_THAT(errors, HasSubstr("line 6, joint 'elbow'"));
-  EXPECT_THAT(errors, HasSubstr("acceleration"));
+  const std::string shipped = text.replace(text.find(entry), entry.size(), "");
+  const TempFile bare("shipped.urdf", shipped);
+  Daemon as_shipped({"--address", "127.0.0.1:0", "--drain-seconds", "0.2", "--robot-model", bare.path()});
+  const auto served = stub_of(as_shipped);
+  ASSERT_TRUE(served) << as_shipped.errors();
+  ASSERT_TRUE(served->ListRobots(context().get(), v1::ListRobotsRequest{}, &robots).ok());
+  const v1::RobotModel& listed = robots.robots(robots.robots_size() - 1);
+  EXPECT_EQ(listed.limits(1).max_acceleration(), 0.0);
+  EXPECT_THAT(listed.limits(1).sources().acceleration(), HasSubstr("not known"));
+  EXPECT_THAT(listed.limits(0).sources().acceleration(), HasSubstr("URDF <geotraj> block, line 9, joint 'shoulder'"));
+  EXPECT_THAT(listed.limits(0).sources().velocity(), HasSubstr("URDF <limit velocity>, line 4, joint 'shoulder'"));
+  ASSERT_TRUE(served->ComputeForwardKinematics(context().get(), fk, &response).ok());
+  v1::PlanRequest move;
+  move.mutable_joint_move()->add_goal(0.5);
+  move.mutable_joint_move()->add_goal(1.0);
+  move.mutable_motion()->set_duration_s(0.0);
+  move.mutable_robot()->set_name("two-link");
+  v1::PlanResponse planned;
+  auto refusal = served->PlanTrajectory(context().get(), move, &planned);
+  ASSERT_EQ(refusal.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << refusal.error_message();
+  const std::string why = violation_of(bad_request_violations(refusal), "robot.jointLimits");
+  EXPECT_THAT(why, HasSubstr("joint 1 (elbow) has no acceleration limit"));
+  EXPECT_THAT(why, HasSubstr("robot.jointLimitsYaml, or geotrajd --joint-limits FILE"));
+  EXPECT_THAT(why, HasSubstr("<geotraj><joint name=\"elbow\" max_acceleration="));
+  auto* given = move.mutable_robot()->add_joint_limits();
+  given->set_joint("elbow");
+  given->set_max_acceleration(2.0);
+  const auto ok = served->PlanTrajectory(context().get(), move, &planned);
+  ASSERT_TRUE(ok.ok()) << ok.error_message();
+  EXPECT_NEAR(planned.robot().joints(1).acceleration_usage(), 1.0, 1e-6);  // the elbow's 2 rad/s^2 binds
+  EXPECT_EQ(planned.robot().joints(1).limit_sources().acceleration(), "robot.jointLimits[0]");
+  EXPECT_THAT(planned.robot().joints(0).limit_sources().acceleration(), HasSubstr("URDF <geotraj> block"));
+  EXPECT_THAT(planned.robot().joints(1).limit_sources().velocity(), HasSubstr("URDF <limit velocity>, line 6"));
+  as_shipped.signal(SIGTERM);
+  EXPECT_EQ(as_shipped.wait(), 0);
+  EXPECT_THAT(as_shipped.errors(), HasSubstr("serves the kinematics only until its limits are given"));
 }
 
 // `--joint-limits joint_limits.yaml`: MoveIt's file gives the accelerations the URDF lacks
@@ -1478,9 +1511,6 @@ TEST_F(RobotTest, GeotrajdReadsMoveItsJointLimits) {
     has_velocity_limits: true
     max_velocity: 0.1
 )");
-  const std::string without = refused_start({"--address", "127.0.0.1:0", "--robot-model", urdf.path()});
-  EXPECT_THAT(without, HasSubstr("has no acceleration limit"));
-  EXPECT_THAT(without, HasSubstr("geotrajd --joint-limits"));
   Daemon daemon({"--address", "127.0.0.1:0", "--drain-seconds", "0.2", "--robot-model", urdf.path(),
                  "--joint-limits", yaml.path()});
   const auto stub = stub_of(daemon);
@@ -1494,6 +1524,9 @@ TEST_F(RobotTest, GeotrajdReadsMoveItsJointLimits) {
   EXPECT_EQ(arm.limits(1).max_velocity(), 2.0) << "the URDF's, the file gives none";
   EXPECT_EQ(arm.limits(1).max_acceleration(), 4.0);
   EXPECT_EQ(arm.limits(1).max_jerk(), 40.0);
+  EXPECT_EQ(arm.limits(1).sources().acceleration(), "joint_limits.yaml \"" + yaml.path() + "\" (geotrajd --joint-limits)");
+  EXPECT_EQ(arm.limits(1).sources().jerk(), arm.limits(1).sources().acceleration());
+  EXPECT_THAT(arm.limits(1).sources().velocity(), HasSubstr("URDF <limit velocity>"));
   daemon.signal(SIGTERM);
   EXPECT_EQ(daemon.wait(), 0);
 
@@ -1556,10 +1589,10 @@ TEST_F(RobotTest, UrdfWithoutAccelerationsServesKinematicsAndTakesJointLimits) {
   const v1::RobotModel ur5e = robot_model("ur5e");
   for (const double q : ur5e.home()) request.mutable_robot()->add_initial_joints(q);  // no block: no home
   auto violations = refused(request);
-  const std::string why = violation_of(violations, "robot.urdf");
-  EXPECT_THAT(why, HasSubstr("joint 'shoulder_pan_joint'"));
-  EXPECT_THAT(why, HasSubstr("acceleration"));
-  EXPECT_THAT(why, HasSubstr("robot.jointLimits"));
+  const std::string why = violation_of(violations, "robot.jointLimits");
+  EXPECT_THAT(why, HasSubstr("joints 0 (shoulder_pan_joint), 1 (shoulder_lift_joint)"));
+  EXPECT_THAT(why, HasSubstr("no acceleration limit"));
+  EXPECT_THAT(why, HasSubstr("robot.jointLimitsYaml"));
   const char* names[] = {"shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
                          "wrist_3_joint"};
   for (const char* name : names) {
@@ -1575,6 +1608,10 @@ TEST_F(RobotTest, UrdfWithoutAccelerationsServesKinematicsAndTakesJointLimits) {
   named.mutable_robot()->clear_joint_limits();
   ASSERT_TRUE(plan(named, named_plan).ok());
   EXPECT_NEAR(inline_plan.motion().duration_s(), named_plan.motion().duration_s(), 1e-6);  // the file rounds 2 pi
+  for (int j = 0; j < 6; ++j) {
+    EXPECT_EQ(inline_plan.robot().joints(j).limit_sources().acceleration(), "robot.jointLimits[" + std::to_string(j) + "]");
+    EXPECT_EQ(named_plan.robot().joints(j).limit_sources().acceleration(), "the model's");
+  }
 
   // Tighter: the elbow's acceleration a sixth of the model's, the line takes longer and the
   // elbow stays within the given limit.

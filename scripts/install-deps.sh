@@ -20,7 +20,8 @@ packages=(
   liburdfdom-dev                      # URDF robot models (planner/urdf.cpp; brings TinyXML, console_bridge)
   libyaml-cpp-dev                     # MoveIt's joint_limits.yaml (planner/joint_limits_yaml.cpp)
   coinor-libipopt-dev libnlopt-cxx-dev libceres-dev   # the optimisers (optim/)
-  python3 python3-grpcio python3-protobuf   # the cross-language client test
+  python3 python3-grpcio python3-protobuf   # the Python client package (client/python) and its tests
+  python3-numpy python3-venv python3-setuptools python3-wheel python3-pip
   openssl libssl-dev                  # test certificates for TLS and mutual TLS; the certificate checks
   prometheus                          # promtool checks the metrics exposition and alert rules
   yamllint python3-yaml nginx         # deploy/ checks, and the nginx grpc_pass load-balancing test

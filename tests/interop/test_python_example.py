@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
 """The example client client/python/geotraj_example.py run as a user runs it, against a real
-geotrajd: a plan streamed to CSV, and a bad request whose field violations it prints.
+geotrajd: a plan streamed to CSV, and a bad request whose field violations it prints. Run by
+Debian's python3, where the geotraj package is not installed, the example uses the package
+beside it (client/python/geotraj) with the stubs of --stubs.
 
 Run: test_python_example.py --server build/server/geotrajd --stubs build/tests/interop/pystubs
          --example client/python/geotraj_example.py --requests client/grpcurl
@@ -15,8 +17,9 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
 import unittest
+
+import geotrajd_process
 
 ARGS = None
 
@@ -24,24 +27,11 @@ ARGS = None
 def start_geotrajd(tmp, extra_args, extra_env, dropped):
     """geotrajd on 127.0.0.1:0; its output goes to a file (a pipe that nobody reads could fill
     and block it), whose first line tells the address. Returns (process, address, log)."""
-    log = open(os.path.join(tmp, "geotrajd.log"), "w+")
     env = {k: v for k, v in os.environ.items() if k not in dropped and k != "GEOTRAJ_PLAINTEXT"}
     if "--tls-cert" not in extra_args:
         env["GEOTRAJ_PLAINTEXT"] = "true"  # harmless on loopback; excluded with TLS
     env.update(extra_env)
-    proc = subprocess.Popen([ARGS.server, "--address", "127.0.0.1:0", *extra_args], env=env,
-                            stdout=log, stderr=subprocess.STDOUT)
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and proc.poll() is None:
-        log.seek(0)
-        m = re.search(r"^geotrajd: serving .* on (\S+:\d+)", log.read(), re.M)
-        if m:
-            return proc, m.group(1), log
-        time.sleep(0.05)
-    proc.kill()
-    proc.wait()
-    log.seek(0)
-    raise RuntimeError(f"geotrajd did not report its address: {log.read()}")
+    return geotrajd_process.start_geotrajd(ARGS.server, os.path.join(tmp, "geotrajd.log"), extra_args, env)
 
 
 class PythonExample(unittest.TestCase):

@@ -11,12 +11,14 @@ ends: deadman, the client's cancel, a deadline, SIGTERM (drain), a bad control m
 with its status code and `geotraj-stop-reason` trailer. Jog: a joint driven into its position
 limit (it stops there, exactly), Cartesian jogs in the world and the tool frame. 100 live
 calls at once, twice, with the server's memory flat; and the example client
-client/python/geotraj_live.py run as a user runs it.
+client/python/geotraj_live.py run as a user runs it (on the geotraj package of the source
+tree), its set points saved with --csv.
 
 Run: test_python_live.py --server build/server/geotrajd --stubs build/tests/interop/pystubs
          --requests client/grpcurl --example client/python/geotraj_live.py
 """
 import argparse
+import csv
 import math
 import os
 import queue
@@ -24,6 +26,7 @@ import re
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 import unittest
@@ -658,10 +661,16 @@ class Live(unittest.TestCase):
         # client/python/geotraj_live.py as a user runs it: the PA-10's joint move (2.3 s at
         # full speed) at 50 % after 1 s, paused at 2 s for 1 s, resumed, to the end; a jog of
         # the Panda's joint 4 that stops after 0.5 s; an unknown robot (exit status 1).
+        # The execute's set points go to a CSV (--csv): one row each, the example's columns, the
+        # PA-10's goal at the end, at rest.
         cmd = [sys.executable, ARGS.example, "--address", self.address, "--stubs", ARGS.stubs]
-        res = subprocess.run(cmd + ["execute", os.path.join(ARGS.requests, "joint_move_pa10.json")],
-                             capture_output=True, text=True, timeout=60)
-        self.assertEqual(res.returncode, 0, res.stdout + res.stderr)
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "setpoints.csv")
+            res = subprocess.run(cmd + ["execute", os.path.join(ARGS.requests, "joint_move_pa10.json"), "--csv", out],
+                                 capture_output=True, text=True, timeout=60)
+            self.assertEqual(res.returncode, 0, res.stdout + res.stderr)
+            with open(out, newline="") as f:
+                rows = list(csv.reader(f))
         for line in ("-> speed override 50 %", "-> pause", "-> resume", "end: completed (OK)"):
             self.assertIn(line, res.stdout)
         states = re.findall(r"(?m)^\s+[\d.]+\s+([\d.]+) / ([\d.]+)\s+([\d.]+)\s+(\w+)$", res.stdout)
@@ -669,6 +678,17 @@ class Live(unittest.TestCase):
         self.assertIn("0.500", [factor for _, _, factor, _ in states])
         self.assertEqual(states[-1][0], states[-1][1])  # the plan's end
         self.assertEqual(states[-1][3], "completed")
+        count = int(re.search(r"end: completed \(OK\), (\d+) samples", res.stdout).group(1))
+        self.assertIn(f"csv: {count} set points written to {out}", res.stdout)
+        self.assertEqual(rows[0], ["t", "u", "s", "segment", "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz",
+                                   "ax", "ay", "az", "speed"] + [f"q{j}" for j in range(7)])
+        self.assertEqual(len(rows), count + 1)
+        ts = [float(r[0]) for r in rows[1:]]
+        self.assertTrue(all(b > a for a, b in zip(ts, ts[1:])))
+        self.assertGreater(ts[-1], 3.0)  # 2.3 s of plan, half of it at 50 %, a second paused
+        goal = [0.6, 0.9, -0.3, 1.5, 0.4, 0.6, -0.8]
+        for q, g in zip(rows[-1][-7:], goal):
+            self.assertAlmostEqual(float(q), g, places=9)
         res = subprocess.run(cmd + ["jog", "--robot", "panda", "--joint", "3", "--command", "0.5", "--seconds", "0.5"],
                              capture_output=True, text=True, timeout=60)
         self.assertEqual(res.returncode, 0, res.stdout + res.stderr)

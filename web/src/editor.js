@@ -9,7 +9,7 @@
 // `path.pieces[1].radius` is the JSON's `path.pieces[1].arc.radius`), the input carries the
 // server's name too (data-error-field).
 
-import { getField, setField, isJointPath } from './request.js';
+import { getField, setField, isJointPath, requestKind, stepKind, KIND_NAMES } from './request.js';
 
 const el = (tag, attrs = {}, ...children) => {
   const node = document.createElement(tag);
@@ -94,6 +94,15 @@ function derivativeUnit(request) {
 
 const formatNumber = (value) => (value === undefined || value === null ? '' : String(value));
 
+// A box at least as wide as its text (CSS --chars: its length in digits, and one to spare),
+// so that a value shows whole: 0.106 as 0.106, 0.06283185307179587 to its last digit.
+function fitChars(input) {
+  const set = () => input.style.setProperty('--chars', String(Math.max(3, input.value.length + 1)));
+  set();
+  input.addEventListener('input', set);
+  return input;
+}
+
 export class Editor {
   // root: the element to fill; onChange(kind): called after every edit ('value' or
   // 'structure').
@@ -127,6 +136,7 @@ export class Editor {
       placeholder: placeholder ?? (optional ? 'absent' : '0'), title,
       value: formatNumber(getField(this.request, field)),
     });
+    fitChars(input);
     input.addEventListener('input', () => {
       const text = input.value.trim();
       if (text === '') {
@@ -199,9 +209,9 @@ export class Editor {
         'aria-label': `${label} ${axis}`, value,
       });
       input.addEventListener('input', commit);
-      inputs.push(input);
+      inputs.push(fitChars(input));
     }
-    return el('div', { class: 'row', 'data-field': field },
+    return el('div', { class: 'row vec-row', 'data-field': field },
       el('label', { text: label }), el('div', { class: 'vec' }, ...inputs),
       unit ? el('span', { class: 'unit', text: unit }) : null, this.errorSlot(field));
   }
@@ -212,7 +222,7 @@ export class Editor {
   }
 
   listRow(field, label, unit, options = {}) {
-    return el('div', { class: 'row' }, el('label', { text: label }), this.listInput(field, options),
+    return el('div', { class: 'row wide-row' }, el('label', { text: label }), this.listInput(field, options),
       el('span', { class: 'unit', text: unit }), this.errorSlot(options.errorField ?? field));
   }
 
@@ -246,7 +256,7 @@ export class Editor {
       if (structural) this.render(this.request);
       this.onChange(structural ? 'structure' : 'value');
     });
-    return el('div', { class: 'row' }, el('label', { text: label }), select, this.errorSlot(field));
+    return el('div', { class: 'row select-row' }, el('label', { text: label }), select, this.errorSlot(field));
   }
 
   frameCard(i) {
@@ -307,10 +317,12 @@ export class Editor {
     card.append(more);
   }
 
-  quaternionRow(field) {
-    const q = el('div', { class: 'row', 'data-field': field }, el('label', { text: 'orientation w x y z' }));
+  quaternionRow(field, label = 'orientation w x y z', testid = undefined) {
+    const q = el('div', { class: 'row vec-row', 'data-field': field }, el('label', { text: label }));
     const quat = el('div', { class: 'vec quat' });
-    for (const c of ['w', 'x', 'y', 'z']) quat.append(this.numberInput(`${field}.${c}`, { placeholder: c }));
+    for (const c of ['w', 'x', 'y', 'z']) {
+      quat.append(this.numberInput(`${field}.${c}`, { placeholder: c, testid: testid ? `${testid}-${c}` : undefined }));
+    }
     q.append(quat, this.errorSlot(field));
     return q;
   }
@@ -474,6 +486,16 @@ export class Editor {
       this.restoreEditing(kept);
       return;
     }
+    const kind = requestKind(request);
+    if (kind !== 'path') {
+      delete this.root.dataset.pathForm;
+      this.root.dataset.kind = kind;
+      if (kind === 'sequence') this.root.append(this.sequenceCard());
+      else this.root.append(this.moveCard(kind, kind, kind));
+      this.appendSettings(request, false);
+      this.restoreEditing(kept);
+      return;
+    }
     this.root.dataset.kind = 'path';
     request.path ??= { frames: [] };
     const form = pathForm(request.path);
@@ -490,7 +512,7 @@ export class Editor {
       formSelect.append(option);
     }
     formSelect.addEventListener('change', () => this.setPathForm(formSelect.value));
-    path.append(el('div', { class: 'row' }, el('label', { text: 'path of' }), formSelect));
+    path.append(el('div', { class: 'row select-row' }, el('label', { text: 'path of' }), formSelect));
     path.append(this.selectRow('path.unspecified', 'unspecified constraints', ENUMS.unspecified, 'path-unspecified'));
     if (form === 'frames') {
       path.append(this.selectRow('path.blend', 'blend', ENUMS.blend, 'path-blend'));
@@ -574,7 +596,7 @@ export class Editor {
     if (request.robot) {
       robot.append(this.checkRow('robot.reportOnly', 'report limit violations instead of refusing', 'robot-reportOnly'));
       robot.append(this.jointsRow('robot.initialJoints', 'initial joints', 'robot-initialJoints'));
-      if (shown('robot.approach')) robot.append(this.selectRow('robot.approach', 'path away from the robot', ENUMS.approach, 'robot-approach'));
+      if (shown('robot.approach') && (request.path || getField(request, 'robot.approach') !== undefined)) robot.append(this.selectRow('robot.approach', 'path away from the robot', ENUMS.approach, 'robot-approach'));
       robot.append(this.scalarRow('robot.velocityScale', 'velocity scale', '', { testid: 'robot-velocityScale' }));
       robot.append(this.scalarRow('robot.accelerationScale', 'acceleration scale', '', { testid: 'robot-accelerationScale' }));
     }
@@ -621,6 +643,79 @@ export class Editor {
     } else {
       again.focus();
     }
+  }
+
+  // A tool pose (position [m] and orientation, a unit quaternion w x y z) at `base`.
+  poseRows(card, base, label, prefix, optional = false) {
+    card.append(this.vecInput(`${base}.position`, `${label} position`, { optional, testid: `${prefix}-position`, unit: 'm' }));
+    card.append(this.quaternionRow(`${base}.orientation`, `${label} orientation w x y z`, `${prefix}-orientation`));
+  }
+
+  // A joint move or a linear move at `base` (the request's jointMove or linearMove, or a
+  // sequence step's): its start and its goal, as joint values or as a tool pose, whichever
+  // the request gives (an absent start is where the robot is: its initial joints, or where
+  // the step before ends).
+  moveFields(card, kind, base, prefix) {
+    const move = getField(this.request, base) || {};
+    if (kind === 'jointMove') {
+      card.append(this.jointsRow(`${base}.start`, 'start joints', `${prefix}-start`,
+        'absent: where the robot is'));
+      if (move.goalPose) this.poseRows(card, `${base}.goalPose`, 'goal', `${prefix}-goalPose`);
+      else card.append(this.jointsRow(`${base}.goal`, 'goal joints', `${prefix}-goal`, 'one value per joint'));
+    } else {
+      if (move.start) this.poseRows(card, `${base}.start`, 'start', `${prefix}-start`, true);
+      else card.append(el('div', { class: 'note', text: 'start: where the robot is (its initial joints, or where the step before ends)' }));
+      if (move.goalJoints) card.append(this.jointsRow(`${base}.goalJoints`, 'goal joints', `${prefix}-goalJoints`, 'one value per joint'));
+      else this.poseRows(card, `${base}.goal`, 'goal', `${prefix}-goal`);
+    }
+  }
+
+  // A request of one move (jointMove, linearMove).
+  moveCard(kind, base, prefix) {
+    const card = el('fieldset', { class: 'settings move', 'data-field': base, 'data-testid': prefix },
+      el('legend', { text: KIND_NAMES[kind] }));
+    card.append(this.errorSlot(base));
+    card.append(el('div', { class: 'note', text: kind === 'jointMove'
+      ? 'every joint from its start to its goal on one synchronised profile (thesis 6.2.2.1)'
+      : 'the tool on a straight line to its goal, turning by SLERP (thesis 6.2.2.2)' }));
+    this.moveFields(card, kind, base, prefix);
+    return card;
+  }
+
+  // A sequence: a card per step, its kind, its move's start and goal (a path or a joint path
+  // in it is shown, not edited here), its own duration and the blend to the next step.
+  sequenceCard() {
+    const steps = this.request.sequence;
+    const card = el('fieldset', { class: 'settings sequence', 'data-field': 'sequence', 'data-testid': 'sequence' },
+      el('legend', { text: `sequence of ${steps.length} steps` }));
+    card.append(this.errorSlot('sequence'));
+    card.append(el('div', { class: 'note', text: 'steps in order, each from where the one before ends; the robot rests '
+      + 'between them unless a blend tolerance joins a line to the next' }));
+    steps.forEach((step, i) => {
+      const base = `sequence[${i}]`;
+      const kind = stepKind(step);
+      const box = el('fieldset', { class: 'frame step', 'data-testid': `step-${i}`, 'data-field': base, 'data-kind': kind },
+        el('legend', {}, el('span', { text: `step ${i}: ${KIND_NAMES[kind] || 'no motion given'}` })));
+      box.append(this.errorSlot(base));
+      if (kind === 'jointMove' || kind === 'linearMove') {
+        this.moveFields(box, kind, `${base}.${kind}`, `step-${i}-${kind}`);
+      } else if (kind === 'path') {
+        const path = step.path;
+        const what = path.frames?.length ? `${path.frames.length} key frames` : `${(path.pieces || []).length} pieces`;
+        box.append(el('div', { class: 'note', text: `a path of ${what}: drawn with the motion; open it as a request of its own to edit it` }));
+        box.append(this.errorSlot(`${base}.path`));
+      } else if (kind === 'jointPath') {
+        box.append(el('div', { class: 'note', text: `${(step.jointPath.waypoints || []).length} joint waypoints: drawn with the motion; `
+          + 'open them as a request of their own to edit them' }));
+        box.append(this.errorSlot(`${base}.jointPath`));
+      }
+      box.append(this.scalarRow(`${base}.motion.durationS`, 'duration', 's',
+        { testid: `step-${i}-durationS`, placeholder: "the request's" }));
+      box.append(this.scalarRow(`${base}.blendTolerance`, 'blend to the next', 'm',
+        { testid: `step-${i}-blendTolerance`, placeholder: 'absent: rest' }));
+      card.append(box);
+    });
+    return card;
   }
 
   // The request's robot model (a built-in one by name, or inline), or null.
@@ -709,6 +804,7 @@ export class Editor {
       'data-testid': `waypoint-${i}-joint-${j}`, 'aria-label': `waypoint ${i} joint ${j}`, placeholder: '—',
       value: formatNumber(getField(this.request, field)),
     });
+    fitChars(input);
     input.addEventListener('input', () => {
       const text = input.value.trim();
       const value = text === '' ? 0 : Number(text);
@@ -727,10 +823,10 @@ export class Editor {
   }
 
   // Comma- or space-separated joint values.
-  jointsRow(field, label, testid) {
+  jointsRow(field, label, testid, placeholder = "the model's home") {
     const current = getField(this.request, field) || [];
     const input = el('input', { type: 'text', 'data-field': field, 'data-testid': testid,
-      placeholder: "the model's home", value: current.join(', ') });
+      placeholder, value: current.join(', ') });
     input.addEventListener('input', () => {
       const text = input.value.trim();
       const values = text === '' ? [] : text.split(/[\s,]+/).map(Number);
@@ -742,7 +838,8 @@ export class Editor {
       setField(this.request, field, values.length ? values : undefined);
       this.onChange('value');
     });
-    return el('div', { class: 'row' }, el('label', { text: label }), input,
+    fitChars(input);
+    return el('div', { class: 'row wide-row' }, el('label', { text: label }), input,
       el('span', { class: 'unit', text: 'rad' }), this.errorSlot(field));
   }
 

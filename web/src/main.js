@@ -1,9 +1,11 @@
 // The operator's page: wires the editor, the 3-D view, the readout, the plots, the family
-// view and the replay to geotrajd's JSON API. Every edit replans (debounced): plan and
-// analysis at once for the view, then the stream of samples for the replay, the speed and
-// the joints. A joint path (joint waypoints, no Cartesian path) is drawn from its samples:
-// the tool's path, the tool at each waypoint (forward kinematics) and where the motion
-// passes them.
+// view and the replay to geotrajd's JSON API. It opens any PlanRequest (a path, a move, a
+// sequence, a joint path) as it is, from a file, a paste or a drop, with undo and redo.
+// Every edit replans (debounced): plan and analysis at once for the view, then the stream
+// of samples for the replay, the speed and the joints. What has no Cartesian path to
+// analyse (a joint path, a move, a sequence) is drawn from its samples: the tool's path,
+// for a joint path the tool at each waypoint (forward kinematics) and where the motion
+// passes them, for a sequence where each step ends.
 
 import 'uplot/dist/uPlot.min.css';
 import '../style.css';
@@ -13,8 +15,8 @@ import { View3D } from './view3d.js';
 import { Plots } from './plots.js';
 import { Family } from './family.js';
 import { Replay, fkRobot } from './replay.js';
-import { renderFrames, renderSummary, renderWarnings, renderWaypoints, waypointPasses } from './readout.js';
-import { presets, analysisRequest, cloneRequest, commandLines, isJointPath } from './request.js';
+import { renderFrames, renderSteps, renderSummary, renderWarnings, renderWaypoints, waypointPasses } from './readout.js';
+import { presets, analysisRequest, cloneRequest, commandLines, openDocument, requestKind, setField } from './request.js';
 
 const $ = (selector) => document.querySelector(selector);
 const byTestId = (id) => document.querySelector(`[data-testid="${id}"]`);
@@ -51,6 +53,9 @@ const view = new View3D(byTestId('view3d'), byTestId('colorbar'));
 view.attachSegmentLegend(byTestId('legend-segments'));
 const plots = new Plots(byTestId('plots'));
 const editor = new Editor(byTestId('editor'), (kind) => onEdit(kind));
+// The kinds of request drawn from their samples (no Cartesian path to analyse): the tool's
+// path where the motion takes it.
+const TOOL_PATH_KINDS = new Set(['jointPath', 'jointMove', 'linearMove', 'sequence']);
 const replay = new Replay({
   slider: byTestId('replay-slider'), play: byTestId('replay-play'), time: byTestId('replay-time'),
   tool: byTestId('replay-tool'), status: byTestId('replay-status'),
@@ -87,21 +92,35 @@ function showErrors(error) {
   if (list.children.length) generalErrors.append(list);
 }
 
-// The page for a path or for a joint path (the mode of the request being edited): the
-// readout's title, the waypoints' legend, the colour modes (a joint path's tool path is
-// coloured by speed: it has no curvature to show), the family (of key frames) hidden. On a
-// change of mode what the other one drew goes.
+// The page for the kind of request being edited (requestKind: a path, a joint path, a joint
+// or linear move, a sequence): the readout's title, the waypoints' legend, the colour modes
+// (a tool path drawn from the samples is coloured by speed: it has no curvature to show),
+// the family (of key frames) hidden but for a path. On a change of kind what the other one
+// drew goes.
 const colorSelect = byTestId('color-mode');
-function applyMode(jointPath) {
-  const was = body.dataset.requestKind === 'jointPath';
-  body.dataset.requestKind = jointPath ? 'jointPath' : 'path';
-  byTestId('readout-title').textContent = jointPath ? 'Waypoints passed' : 'Achieved at the key frames';
+function applyMode(kind) {
+  const jointPath = kind === 'jointPath';
+  const toolPathOnly = TOOL_PATH_KINDS.has(kind);
+  const wasKind = body.dataset.requestKind || 'path';
+  const was = TOOL_PATH_KINDS.has(wasKind);
+  body.dataset.requestKind = kind;
+  body.dataset.toolPath = String(toolPathOnly);
+  byTestId('readout-title').textContent = jointPath ? 'Waypoints passed'
+    : toolPathOnly ? 'Steps of the motion' : 'Achieved at the key frames';
   byTestId('legend-waypoints').hidden = !jointPath;
-  byTestId('family').hidden = jointPath;
-  byTestId('family-title').hidden = jointPath;
-  for (const option of colorSelect.options) option.disabled = jointPath && option.value !== 'speed';
-  if (jointPath === was) return;
-  if (jointPath) {
+  byTestId('family').hidden = toolPathOnly;
+  byTestId('family-title').hidden = toolPathOnly;
+  for (const option of colorSelect.options) option.disabled = toolPathOnly && option.value !== 'speed';
+  if (kind === wasKind) return;
+  view.setTrace(null);
+  view.setStepMarks(null);
+  if (toolPathOnly === was) {
+    view.setCurve([], null);
+    view.setWaypoints(null);
+    byTestId('readout').replaceChildren();
+    return;
+  }
+  if (toolPathOnly) {
     state.colorModeBefore = colorSelect.value;
     colorSelect.value = 'speed';
   } else {
@@ -130,8 +149,10 @@ function saveLocally() {
 
 function onEdit(kind) {
   state.editTime = performance.now();
+  remember(kind);
   saveLocally();
-  if (kind === 'structure') family.updateTargets(state.request.path);
+  if (requestKind(state.request) !== 'path') family.updateTargets(null);
+  else if (kind === 'structure') family.updateTargets(state.request.path);
   else family.requestChanged();
   schedule();
 }
@@ -175,19 +196,26 @@ function frameArcLengths(response, frameCount) {
 // frames of its `to` pieces (tagged "start" and "to i").
 function viewFrames(request) {
   const path = request?.path;
-  if (pathForm(path) === 'frames') return { frames: path?.frames || [], labels: null };
+  if (requestKind(request) !== 'path') return { frames: [], labels: null, fields: [] };
+  if (pathForm(path) === 'frames') {
+    const frames = path?.frames || [];
+    return { frames, labels: null, fields: frames.map((_, i) => `path.frames[${i}]`) };
+  }
   const frames = [];
   const labels = [];
+  const fields = [];
   if (path.start) {
     frames.push(path.start);
     labels.push('start');
+    fields.push('path.start');
   }
   (path.pieces || []).forEach((piece, i) => {
     if (!piece.to) return;
     frames.push(piece.to);
     labels.push(`to ${i}`);
+    fields.push(`path.pieces[${i}].to`);
   });
-  return { frames, labels };
+  return { frames, labels, fields };
 }
 
 // The kind of each segment of a path of pieces (PlanResponse.segments[].kind), or null for
@@ -261,10 +289,11 @@ async function replan() {
   showErrors(error);
 
   const frames = request.path?.frames || [];
-  const jointPath = isJointPath(request);
-  const pieces = !jointPath && pathForm(request.path) === 'pieces';
+  const kind = requestKind(request);
+  const jointPath = kind === 'jointPath';
+  const pieces = kind === 'path' && pathForm(request.path) === 'pieces';
   // A path with an approach move is planned as a sequence: its path's report is a step's.
-  const report = response?.steps?.length
+  const report = kind === 'path' && response?.steps?.length
     ? response.steps.find((step) => step.kind === 'path' || step.kind === 'blended') || {}
     : response;
   if (profile) {
@@ -274,7 +303,7 @@ async function replan() {
   }
   const marked = viewFrames(request);
   view.setFrames(marked.frames, report?.warnings || [], profile?.points || state.profile?.points, extent(profile?.points),
-    marked.labels);
+    marked.labels, marked.fields);
   renderWarnings(byTestId('warnings'), report?.warnings, error?.preconditionViolations);
   // What the readout shows belongs to the last plan that succeeded.
   for (const id of ['readout', 'summary']) byTestId(id).classList.toggle('stale', !response);
@@ -285,10 +314,12 @@ async function replan() {
       // one's (if it has as many waypoints).
       const count = request.jointPath.waypoints?.length || 0;
       renderWaypoints(byTestId('readout'), request, state.passes?.length === count ? state.passes : null);
-    } else {
+    } else if (kind === 'path') {
       renderFrames(byTestId('readout'), request, report);
+    } else {
+      renderSteps(byTestId('readout'), request, response);
     }
-    renderSummary(byTestId('summary'), response, request);
+    renderSummary(byTestId('summary'), response, request, report);
     // A path of pieces: the joins of its segments (start, piece and transition ends).
     plots.setFrameMarks(frameArcLengths(report, pieces ? (report.frames || []).length : frames.length));
     if (pieces) editor.setPieceEnds(pieceEnds(report, (request.path.pieces || []).length));
@@ -300,7 +331,7 @@ async function replan() {
     else plots.setBinding(null, 0);
   }
   if (profile) plots.setProfile(profile.points || []);
-  else if (jointPath) plots.setProfile(null, 'a joint path has no Cartesian path: see the joints below');
+  else if (kind !== 'path') plots.setProfile(null, `a ${kind === 'jointPath' ? 'joint path' : 'move or sequence'} has no path of key frames to profile: see the speed and the joints below`);
   const elapsed = performance.now() - editTime;
   state.plans += 1;
   body.dataset.plans = String(state.plans);
@@ -315,9 +346,9 @@ async function replan() {
   state.editTime = 0;
 
   clearTimeout(state.streamTimer);
-  if (response && request.motion && !(request.sequence || []).length) {
+  if (response && request.motion) {
     body.dataset.streamState = 'pending';
-    state.streamTimer = setTimeout(() => streamSamples(request, generation), STREAM_DEBOUNCE_MS);
+    state.streamTimer = setTimeout(() => streamSamples(request, response, generation), STREAM_DEBOUNCE_MS);
   } else {
     state.streamController?.abort();
     body.dataset.streamState = 'none';
@@ -325,12 +356,15 @@ async function replan() {
     state.speedAtS = null;
     replay.clear(response ? 'no motion in the request: give it a duration to replay' : 'no plan');
     plots.setSamples(null, null);
+    plots.setTimeMarks([]);
+    view.setTrace(null);
+    view.setStepMarks(null);
   }
 }
 
 // The samples of the plan (POST /v1/stream): the replay, the speed plot, the joint plots
 // and the curve's speed colouring.
-async function streamSamples(request, generation) {
+async function streamSamples(request, response, generation) {
   state.streamController?.abort();
   const controller = new AbortController();
   state.streamController = controller;
@@ -348,8 +382,14 @@ async function streamSamples(request, generation) {
   }
   if (generation !== state.generation) return;
   state.samples = samples;
-  const jointPath = isJointPath(request);
+  const kind = requestKind(request);
+  const jointPath = kind === 'jointPath';
+  const steps = response?.steps || [];
   let passes = null;
+  // The steps of a sequence (or of a path after its approach move): where each ends, marked
+  // in the view, and when each starts, marked on the plots over time.
+  const ends = stepEnds(steps, samples);
+  view.setStepMarks(ends.length > 1 ? ends : null);
   if (jointPath) {
     // No Cartesian path: the tool's path is where the samples take it.
     state.speedAtS = null;
@@ -358,23 +398,45 @@ async function streamSamples(request, generation) {
     plots.setTimeMarks((passes || []).map((p) => p.t));
     view.setCurve(toolPath(samples), null, null, true);
     renderWaypoints(byTestId('readout'), request, passes);
+  } else if (TOOL_PATH_KINDS.has(kind)) {
+    state.speedAtS = null;
+    renderSteps(byTestId('readout'), request, response, samples);
+    plots.setTimeMarks(steps.slice(1).map((step) => step.startTimeS ?? 0), steps.slice(1).map((step) => `s${step.index ?? 0}`));
+    view.setCurve(toolPath(samples), null, null, true);
   } else {
-    plots.setTimeMarks([]);
+    plots.setTimeMarks(steps.slice(1).map((step) => step.startTimeS ?? 0), steps.slice(1).map((step) => `s${step.index ?? 0}`));
     state.speedAtS = speedLookup(samples);
     if (view.colorMode === 'speed' && state.profile) view.setCurve(state.profile.points || [], state.speedAtS, state.segmentKinds);
   }
+  // A path after an approach move: the whole motion's tool path too, thin, with the path.
+  const trace = kind === 'path' && steps.length ? toolPath(samples) : null;
+  view.setTrace(trace);
   plots.setSamples(samples, robotInfo(request.robot));
+  replay.steps = steps;
   await Promise.all([replay.load(samples, request.robot || null),
     jointPath ? markWaypoints(request, samples, passes, generation) : null]);
   if (generation !== state.generation) return;
-  if (jointPath) {
-    // The arm in view with its tool's path (the path is small beside it): once per request,
-    // and on `fit view`.
-    view.fitExtra = [...replay.fk.values()].flat();
-    if (state.fitArm) view.refit();
-    state.fitArm = false;
-  }
+  // The arm in view with the motion (the path is small beside it), and the approach's tool
+  // path: once per request, and on `fit view`.
+  view.fitExtra = [...[...replay.fk.values()].flat(), ...(trace || []).map((p) => p.position)];
+  if (state.fitArm) view.refit();
+  state.fitArm = false;
   body.dataset.streamState = 'ready';
+}
+
+// Where each step of a plan ends (StepReport.firstSample, sampleCount): [{position, label}]
+// from the samples, labelled with the step's index and kind.
+function stepEnds(steps, samples) {
+  const ends = [];
+  for (const step of steps) {
+    const last = Number(step.firstSample ?? 0) + Number(step.sampleCount ?? 0) - 1;
+    const sample = samples[Math.min(samples.length - 1, Math.max(0, last))];
+    if (!sample) continue;
+    const index = step.index ?? 0;
+    const span = step.lastIndex !== undefined && step.lastIndex !== index ? `${index}-${step.lastIndex}` : `${index}`;
+    ends.push({ position: sample.position || {}, label: `end of step ${span}` });
+  }
+  return ends;
 }
 
 // The samples of a joint path as the view's tool path: {position, speed}, at most
@@ -443,22 +505,113 @@ function speedLookup(samples) {
   };
 }
 
-function setRequest(request) {
+// Opens `request` (a start page's choice, a file, a pasted text, or the tab's saved one):
+// the editor shows it as it is, the view is framed on it when planned. note: what the
+// page says about it above the editor ('' for nothing). An opened request is an edit: undo
+// gives the one before back. keepView (undo, redo): the view stays where it is.
+function setRequest(request, { note = '', keepView = false, remembered = false } = {}) {
   state.request = request;
-  const jointPath = isJointPath(request);
-  if (!jointPath) request.path ??= { frames: [] };
-  applyMode(jointPath);
-  view.fitted = false;
-  state.fitArm = jointPath;
+  const kind = requestKind(request);
+  applyMode(kind);
+  if (!keepView) {
+    view.fitted = false;
+    view.fitExtra = [];
+    state.fitArm = Boolean(request.robot);
+    // Nothing of the request before stays on show (if this one is refused, nothing is).
+    state.profile = null;
+    state.samples = null;
+    view.setCurve([], null);
+    view.setTrace(null);
+    view.setStepMarks(null);
+    view.setWaypoints(null);
+    replay.clear('planning…');
+    for (const id of ['readout', 'summary']) byTestId(id).replaceChildren();
+  }
   state.speedAtS = null;
   family.clear();
   editor.render(request);
   family.updateTargets(request.path);
-  family.suggestRange();
+  if (kind === 'path') family.suggestRange();
+  showNote(note);
+  if (!remembered) remember('open');
   saveLocally();
   state.editTime = performance.now();
   schedule();
 }
+
+const openNote = byTestId('open-note');
+function showNote(text) {
+  openNote.textContent = text || '';
+  openNote.hidden = !text;
+}
+
+// --- undo and redo -------------------------------------------------------------------------
+// The request after every edit, as JSON: undo goes back one, redo forward again. Typing in
+// one box (edits of kind 'value' less than UNDO_MERGE_MS apart) is one step.
+
+const UNDO_MERGE_MS = 800;
+const UNDO_DEPTH = 200;
+const history = { undo: [], redo: [], current: null, kind: '', at: 0 };
+const undoButton = byTestId('undo');
+const redoButton = byTestId('redo');
+
+function updateHistoryButtons() {
+  undoButton.disabled = !history.undo.length;
+  redoButton.disabled = !history.redo.length;
+  body.dataset.undo = String(history.undo.length);
+  body.dataset.redo = String(history.redo.length);
+}
+
+function remember(kind) {
+  const json = JSON.stringify(state.request);
+  if (json === history.current) return;
+  const now = performance.now();
+  const merge = kind === 'value' && history.kind === 'value' && now - history.at < UNDO_MERGE_MS && history.undo.length;
+  if (!merge && history.current !== null) {
+    history.undo.push(history.current);
+    if (history.undo.length > UNDO_DEPTH) history.undo.shift();
+  }
+  history.redo = [];
+  history.current = json;
+  history.kind = kind;
+  history.at = now;
+  updateHistoryButtons();
+}
+
+function travel(from, to) {
+  if (!from.length) return;
+  to.push(history.current);
+  history.current = from.pop();
+  history.kind = '';
+  const request = JSON.parse(history.current);
+  // The same kind of motion: the view stays; another (an opened request undone): framed anew.
+  setRequest(request, { keepView: requestKind(request) === requestKind(state.request), remembered: true });
+  updateHistoryButtons();
+}
+const undo = () => travel(history.undo, history.redo);
+const redo = () => travel(history.redo, history.undo);
+undoButton.addEventListener('click', undo);
+redoButton.addEventListener('click', redo);
+document.addEventListener('keydown', (e) => {
+  if (!(e.ctrlKey || e.metaKey) || e.altKey) return;
+  const key = e.key.toLowerCase();
+  if (key !== 'z' && key !== 'y') return;
+  // The token and the family's boxes keep their own (the browser's) undo.
+  const target = e.target;
+  if (target instanceof Element && target.closest('form.token, [data-testid="family"], .commands')) return;
+  e.preventDefault();
+  if (key === 'y' || e.shiftKey) redo();
+  else undo();
+});
+
+// A key frame dragged in the 3-D view: its position set (rounded to 0.1 mm).
+view.onFrameDrag = (field, position) => {
+  if (!state.request) return;
+  const round = (v) => Number(v.toFixed(4));
+  setField(state.request, `${field}.position`, { x: round(position.x), y: round(position.y), z: round(position.z) });
+  editor.render(state.request);
+  onEdit('structure');
+};
 
 // --- start page, files, commands, token --------------------------------------------------
 
@@ -474,29 +627,50 @@ for (const button of document.querySelectorAll('[data-start]')) {
 }
 $('[data-action=start]').addEventListener('click', openStart);
 
+// A request file or pasted text: a PlanRequest opens as it is (what the server is sent is
+// the file's request); an ExecuteRequest opens its plan; anything else is refused, saying
+// why, and the request being edited stays.
+function openText(text, name) {
+  const opened = openDocument(text, name);
+  if (opened.error) {
+    showErrors({ message: opened.error });
+    setStatus(opened.error, 'error');
+    body.dataset.openState = 'refused';
+    return;
+  }
+  body.dataset.openState = 'opened';
+  if (startDialog.open) startDialog.close();
+  setRequest(opened.request, { note: opened.note });
+}
+
 function loadFile(input) {
   const file = input.files?.[0];
   if (!file) return;
-  file.text().then((text) => {
-    let request;
-    try {
-      request = JSON.parse(text);
-    } catch (e) {
-      showErrors({ message: `${file.name} is not JSON: ${e.message}` });
-      return;
-    }
-    if (typeof request !== 'object' || request === null || Array.isArray(request)) {
-      showErrors({ message: `${file.name} does not hold a PlanRequest object` });
-      return;
-    }
-    if (startDialog.open) startDialog.close();
-    setRequest(request);
-  });
+  file.text().then((text) => openText(text, file.name));
   input.value = '';
 }
 for (const id of ['load-file', 'start-file']) {
   byTestId(id).addEventListener('change', (e) => loadFile(e.target));
 }
+
+// Pasted anywhere but in a box, or dropped on the page: opened as a file is.
+document.addEventListener('paste', (e) => {
+  const target = e.target;
+  if (target instanceof Element && target.closest('input, textarea, select')) return;
+  const text = e.clipboardData?.getData('text/plain') || '';
+  if (!text.trim()) return;
+  e.preventDefault();
+  openText(text, 'the pasted text');
+});
+document.addEventListener('dragover', (e) => {
+  if (e.dataTransfer?.types?.includes('Files')) e.preventDefault();
+});
+document.addEventListener('drop', (e) => {
+  const file = e.dataTransfer?.files?.[0];
+  if (!file) return;
+  e.preventDefault();
+  file.text().then((text) => openText(text, file.name));
+});
 
 byTestId('save').addEventListener('click', () => {
   if (!state.request) return;
@@ -559,9 +733,10 @@ byTestId('show-frames').addEventListener('change', (e) => {
   if (!state.request) return;
   const marked = viewFrames(state.request);
   view.setFrames(marked.frames, state.response?.warnings || [], state.profile?.points, extent(state.profile?.points),
-    marked.labels);
+    marked.labels, marked.fields);
   if (view.lastWaypoints) view.setWaypoints(view.lastWaypoints);
 });
+byTestId('show-grid').addEventListener('change', (e) => view.setGridVisible(e.target.checked));
 $('[data-action=fit]').addEventListener('click', () => view.refit());
 
 async function loadRobots() {
@@ -605,4 +780,5 @@ window.addEventListener('hashchange', () => {
 if (presets[preset]) setRequest(presets[preset]());
 else if (saved) setRequest(saved);
 else openStart();
+updateHistoryButtons();
 body.dataset.ready = 'true';

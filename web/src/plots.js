@@ -77,6 +77,27 @@ function limitLinesPlugin(getLimits) {
   };
 }
 
+// The width of a y axis from its widest tick value (uPlot's default, 50 px, cuts values such
+// as -0.0012 or 1500): ticks, gap and the text measured in the axis's font.
+function axisSize(u, values, axisIdx, cycleNum) {
+  const axis = u.axes[axisIdx];
+  if (cycleNum > 1 && axis._size) return axis._size;
+  let size = (axis.ticks?.size ?? 10) + (axis.gap ?? 5);
+  const longest = (values || []).reduce((a, v) => (String(v ?? '').length > a.length ? String(v ?? '') : a), '');
+  if (longest) {
+    u.ctx.save();
+    u.ctx.font = axis.font?.[0] ?? `${Math.round(12 * uPlot.pxRatio)}px sans-serif`;
+    size += u.ctx.measureText(longest).width / uPlot.pxRatio;
+    u.ctx.restore();
+  }
+  return Math.ceil(size) + 6;
+}
+
+// Every y axis of `options` sized by axisSize, its label given room (labelSize).
+function sizedAxes(axes) {
+  return axes.map((a, i) => (i === 0 ? a : { size: axisSize, labelSize: 20, ...a }));
+}
+
 class Chart {
   constructor(parent, testid, title, note) {
     this.card = el('div', 'plot-card');
@@ -105,7 +126,8 @@ class Chart {
   show(options, data) {
     this.plot?.destroy();
     this.body.replaceChildren();
-    this.options = { title: this.title, width: this.width(), height: 240, ...options };
+    this.options = { title: this.title, width: this.width(), height: 240, ...options,
+      axes: options.axes ? sizedAxes(options.axes) : undefined };
     this.plot = new uPlot(this.options, data, this.body);
     this.card.dataset.series = String(data.length - 1);
   }
@@ -152,9 +174,10 @@ export class Plots {
     this.frameMarks = frameS.map((x, i) => ({ x, label: `${i}` }));
   }
 
-  // t: the times [s] at which the motion passes the waypoints of a joint path ([] for none).
-  setTimeMarks(t) {
-    this.timeMarks = t.map((x, i) => ({ x, label: `w${i}` }));
+  // t: the times [s] at which the motion passes the waypoints of a joint path, or at which
+  // the steps of a sequence start ([] for none); labels: each mark's (default w0, w1, ...).
+  setTimeMarks(t, labels = null) {
+    this.timeMarks = t.map((x, i) => ({ x, label: labels?.[i] ?? `w${i}` }));
   }
 
   // points: PathProfile.points, or null (then `message` says why there is none).
@@ -272,8 +295,9 @@ export class Plots {
     const kinds = [...new Set(stretches.map(describe))];
     const end = Math.max(duration || 0, ...stretches.map((b) => b.tEnd ?? 0)) || 1;
     const rowH = 24;
-    const left = 200;
-    const width = 600;
+    // Room for the longest row label (13 px text: about 7.5 px a character).
+    const left = Math.max(120, Math.ceil(Math.max(...kinds.map((k) => k.length)) * 7.5) + 14);
+    const width = left + 420;
     const plotW = width - left - 20;
     const height = kinds.length * rowH + 50;
     const ns = 'http://www.w3.org/2000/svg';

@@ -4,6 +4,7 @@
 // Every value has a stable data-testid and its full precision in data-value.
 
 import { fmt } from './plots.js';
+import { KIND_NAMES, requestKind } from './request.js';
 
 const QUANTITIES = [
   ['curvature', 'κ', '1/m'],
@@ -96,7 +97,35 @@ export function renderFrames(root, request, response) {
     'Achieved on the curve, leaving side (in: the approach side where it differs). Green: as asked; red: not as asked.'));
 }
 
-export function renderSummary(root, response, request) {
+// The motion a plan makes, in words: {kind, text}. kind: 'frames' or 'pieces' (a path),
+// 'jointPath', 'jointMove', 'linearMove' or 'sequence'; a path after an approach move says
+// so (its steps are in PlanResponse.steps).
+export function motionKind(request, response) {
+  let kind = requestKind(request);
+  if (kind === 'path') kind = request.path?.frames?.length || !(request.path?.start || request.path?.pieces?.length) ? 'frames' : 'pieces';
+  const steps = response?.steps || [];
+  let text = KIND_NAMES[kind];
+  if (kind === 'sequence') {
+    text = `sequence of ${(request.sequence || []).length} steps`;
+  } else if (steps.length > 1) {
+    text = `${text}, after a ${KIND_NAMES[steps[0].kind] || steps[0].kind} to its start (robot.approach)`;
+  }
+  return { kind, text };
+}
+
+// A step of PlanResponse.steps in words: "step 2: joint move", "steps 1-3: blended chain".
+export function stepName(step) {
+  const index = step.index ?? 0;
+  const last = step.lastIndex ?? index;
+  const kind = KIND_NAMES[step.kind] || step.kind || '';
+  return last !== index ? `steps ${index}-${last}: ${kind}` : `step ${index}: ${kind}`;
+}
+
+// The plan's summary: the motion's kind, its steps (a sequence, a path after its approach
+// move: each step's kind and duration), the path's arc length and segments (report: the
+// path's own report, a step's for a path after an approach), the motion's duration and
+// peaks, the robot's report and the optimisers'.
+export function renderSummary(root, response, request, report = response) {
   root.replaceChildren();
   if (!response) return;
   const dl = el('dl', { class: 'summary' });
@@ -106,23 +135,30 @@ export function renderSummary(root, response, request) {
     dd.append(valueSpan(testid, value));
     if (unit) dd.append(document.createTextNode(` ${unit}`));
     dl.append(dd);
+    return dd;
   };
+  const kind = motionKind(request, response);
+  dl.append(el('dt', {}, 'motion'));
+  dl.append(el('dd', { 'data-testid': 'plan-kind', 'data-kind': kind.kind,
+    'data-steps': String((response.steps || []).length) }, kind.text));
   for (const step of response.steps || []) {
-    item(`step ${step.index ?? 0}: ${step.kind || ''}`, `plan-step-${step.index ?? 0}`, step.durationS ?? 0,
-      `s from t = ${fmt(step.startTimeS ?? 0)} s, ${fmt(step.arcLength ?? 0)} m`);
+    const dd = item(stepName(step), `plan-step-${step.index ?? 0}`, step.durationS ?? 0,
+      `s from t = ${fmt(step.startTimeS ?? 0)} s${step.arcLength ? `, ${fmt(step.arcLength)} m` : ''}`);
+    dd.querySelector('.value').dataset.kind = step.kind || '';
   }
   const jointPath = request?.jointPath;
+  const planKind = requestKind(request);
   if (jointPath) {
     // No Cartesian path: no arc length, no segments.
     item('waypoints', 'plan-waypoints', (jointPath.waypoints || []).length);
     item('blend tolerance', 'plan-blend-tolerance', jointPath.blendTolerance ?? 0, 'rad (joint space)');
-  } else {
-    item('arc length', 'plan-arc-length', response.arcLength ?? 0, 'm');
-    item('segments', 'plan-segments', (response.segments || []).length);
+  } else if (planKind === 'path') {
+    item('arc length', 'plan-arc-length', report?.arcLength ?? 0, 'm');
+    item('segments', 'plan-segments', (report?.segments || []).length);
   }
-  if (response.closedLoop) {
-    item('closed-loop max error', 'plan-closed-loop', response.closedLoop.maxError ?? 0,
-      response.closedLoop.worstField ? `at ${response.closedLoop.worstField}` : '');
+  if (report?.closedLoop) {
+    item('closed-loop max error', 'plan-closed-loop', report.closedLoop.maxError ?? 0,
+      report.closedLoop.worstField ? `at ${report.closedLoop.worstField}` : '');
   }
   const m = response.motion;
   if (m) {
@@ -130,6 +166,9 @@ export function renderSummary(root, response, request) {
     item('peak speed', 'plan-peak-speed', m.peakSpeed ?? 0, 'm/s');
     item('peak acceleration', 'plan-peak-acceleration', m.peakAcceleration ?? 0, 'm/s²');
     item('samples', 'plan-samples', Number(m.sampleCount ?? 0));
+  } else {
+    dl.append(el('dt', {}, 'duration'));
+    dl.append(el('dd', { 'data-testid': 'plan-no-motion' }, 'none: the geometry only (give the motion a duration, or 0 for the fastest, to time it)'));
   }
   const r = response.robot;
   if (r) {
@@ -139,20 +178,79 @@ export function renderSummary(root, response, request) {
     item('min manipulability', 'plan-min-manipulability', r.minManipulability ?? 0, `at t = ${fmt(r.minManipulabilityT ?? 0)} s`);
     item('max IK error', 'plan-ik-error', r.maxIkPositionError ?? 0, 'm');
   }
-  const timing = response.optimization?.timing;
+  const optimization = response.optimization || report?.optimization;
+  const timing = optimization?.timing;
   if (timing) {
     item('time-optimal duration', 'plan-time-optimal', timing.objectiveAfter ?? 0,
       `s (before ${fmt(timing.objectiveBefore ?? 0)} s, ${(timing.status || '').replace('OPTIMIZER_STATUS_', '').toLowerCase()})`);
   }
-  const scales = response.optimization?.tangentScales;
+  const scales = optimization?.tangentScales;
   if (scales) {
     item('tangent-scale objective', 'plan-tangent-objective', scales.objectiveAfter ?? 0,
       `(before ${fmt(scales.objectiveBefore ?? 0)}); scales ${(scales.tangentScales || []).map(fmt).join(', ')}`);
   }
   root.append(dl);
-  if (request && (request.sequence || []).length) {
-    root.append(el('div', { class: 'plot-note' }, 'a sequence: the editor shows its path requests only'));
+}
+
+// The length [m] of the tool's path over samples[from, to).
+function toolPathLength(samples, from, to) {
+  let sum = 0;
+  for (let i = Math.max(1, from + 1); i < Math.min(to, samples.length); ++i) {
+    const p = samples[i - 1].position || {};
+    const q = samples[i].position || {};
+    sum += Math.hypot((q.x ?? 0) - (p.x ?? 0), (q.y ?? 0) - (p.y ?? 0), (q.z ?? 0) - (p.z ?? 0));
   }
+  return sum;
+}
+
+// The steps of a move or a sequence (the readout beside the plan): a row per step of
+// PlanResponse.steps (a single move: one row, the whole motion), its kind, when it starts,
+// how long it moves, the length of the tool's path, and how its goal was chosen or how its
+// corners were blended. samples (once streamed): the tool's path length of a step the plan
+// gives none for (a joint move, a single move) is measured on them.
+export function renderSteps(root, request, response, samples = null) {
+  const steps = response?.steps?.length ? response.steps
+    : [{ index: 0, kind: requestKind(request), startTimeS: 0, durationS: response?.motion?.durationS ?? 0 }];
+  const table = el('table', { class: 'readout', 'data-testid': 'step-readout' });
+  const head = el('tr');
+  for (const text of ['step', 'kind', 'from t [s]', 'duration [s]', 'tool path [m]']) head.append(el('th', {}, text));
+  const thead = el('thead');
+  thead.append(head);
+  table.append(thead);
+  const body = el('tbody');
+  const notes = [];
+  steps.forEach((step) => {
+    const i = step.index ?? 0;
+    const row = el('tr', { 'data-testid': `step-${i}-row` });
+    const last = step.lastIndex ?? i;
+    row.append(el('td', {}, last !== i ? `${i}-${last}` : `${i}`));
+    row.append(el('td', { 'data-testid': `step-${i}-kind`, 'data-kind': step.kind || '' }, KIND_NAMES[step.kind] || step.kind || ''));
+    let length = step.arcLength || undefined;
+    if (length === undefined && samples?.length) {
+      const first = response?.steps?.length ? Number(step.firstSample ?? 0) : 0;
+      const count = response?.steps?.length ? Number(step.sampleCount ?? 0) : samples.length;
+      length = toolPathLength(samples, first, first + count);
+    }
+    for (const [key, value] of [['start', step.startTimeS ?? 0], ['duration', step.durationS ?? 0], ['arc-length', length]]) {
+      const td = el('td');
+      td.append(valueSpan(`step-${i}-${key}`, value));
+      row.append(td);
+    }
+    body.append(row);
+    if (step.goalChoice) notes.push(`Step ${i}'s goal, of the inverse kinematics' solutions: ${step.goalChoice}.`);
+    for (const c of step.corners || []) {
+      notes.push(`The corner after step ${c.afterStep ?? 0}: blended within ${fmt(c.tolerance ?? 0)} m ` +
+        `(${fmt(c.deviation ?? 0)} m off the corner's route), turning ${fmt(((c.corner ?? 0) * 180) / Math.PI)}°.`);
+    }
+  });
+  table.append(body);
+  root.replaceChildren(table);
+  const note = el('div', { class: 'plot-note' });
+  note.textContent = [
+    'Each step from rest to rest (a blended chain without resting at its corners); the tool\'s path is drawn from the samples, each step\'s end marked;',
+    'its length is the plan\'s, or measured on the samples for a joint move.',
+    ...notes].join(' ');
+  root.append(note);
 }
 
 export function renderWarnings(root, warnings, violations) {

@@ -45,6 +45,130 @@ export function isJointPath(request) {
   return Boolean(request?.jointPath);
 }
 
+// What a PlanRequest moves along (its oneof of motions, as the server reads it): 'path' (key
+// frames or pieces), 'jointPath', 'jointMove', 'linearMove' or 'sequence'.
+export function requestKind(request) {
+  if (request?.jointPath) return 'jointPath';
+  if (request?.sequence?.length) return 'sequence';
+  if (request?.jointMove) return 'jointMove';
+  if (request?.linearMove) return 'linearMove';
+  return 'path';
+}
+
+// The kinds in words (a path's form and a step's kind too: StepReport.kind).
+export const KIND_NAMES = {
+  frames: 'path of key frames',
+  pieces: 'path of pieces',
+  path: 'path',
+  jointPath: 'joint path',
+  jointMove: 'joint move',
+  linearMove: 'linear move',
+  sequence: 'sequence',
+  blended: 'blended chain',
+};
+
+// The kind of a sequence's step (a SequenceStep's oneof).
+export function stepKind(step) {
+  for (const kind of ['path', 'jointMove', 'linearMove', 'jointPath']) if (step?.[kind]) return kind;
+  return '';
+}
+
+// The fields of a PlanRequest (proto JSON names).
+const PLAN_FIELDS = ['path', 'motion', 'robot', 'optimize', 'analysisPoints', 'samplesPerBatch', 'pacing',
+  'jointMove', 'linearMove', 'sequence', 'jointPath'];
+
+// The JSON values of a text, one after the other (a file of several messages, as grpcurl
+// sends a stream's: `{...}\n{...}`); null if it is not JSON values only.
+export function jsonValues(text) {
+  try {
+    return [JSON.parse(text)];
+  } catch {
+    // Several values, or none: split at the top level below.
+  }
+  const values = [];
+  let depth = 0;
+  let inString = false;
+  let start = -1;
+  for (let i = 0; i < text.length; ++i) {
+    const c = text[i];
+    if (inString) {
+      if (c === '\\') ++i;
+      else if (c === '"') inString = false;
+    } else if (c === '"') {
+      inString = true;
+    } else if (c === '{' || c === '[') {
+      if (depth++ === 0) start = i;
+    } else if (c === '}' || c === ']') {
+      if (--depth === 0) {
+        try {
+          values.push(JSON.parse(text.slice(start, i + 1)));
+        } catch {
+          return null;
+        }
+      }
+      if (depth < 0) return null;
+    } else if (depth === 0 && !/\s/.test(c)) {
+      return null;
+    }
+  }
+  return depth === 0 && values.length ? values : null;
+}
+
+// What the page makes of a request file (or pasted text) named `name`: {request, note} for a
+// PlanRequest (note: what was opened of a message that holds one, as an ExecuteRequest's
+// plan), or {error} saying why it opens nothing.
+export function openDocument(text, name = 'the text') {
+  const values = jsonValues(text);
+  if (!values) {
+    let why = '';
+    try {
+      JSON.parse(text);
+    } catch (e) {
+      why = `: ${e.message}`;
+    }
+    return { error: `${name} is not JSON${why}` };
+  }
+  const object = (v) => typeof v === 'object' && v !== null && !Array.isArray(v);
+  const first = values[0];
+  const jog = (v) => object(v) && ['start', 'joints', 'twist', 'heartbeat', 'stop'].some((k) => k in v) &&
+    !PLAN_FIELDS.some((k) => k in v && k !== 'joints');
+  if (values.length > 1) {
+    if (values.every(jog)) {
+      return { error: `${name} holds ${values.length} JogRequest messages (a start, then jog commands): ` +
+        'jogging moves the robot live over the gRPC stream TrajectoryService/Jog (grpcurl, geotraj jog), ' +
+        'which the page does not drive; it opens PlanRequests' };
+    }
+    return { error: `${name} holds ${values.length} JSON values: the page opens one PlanRequest` };
+  }
+  if (!object(first)) return { error: `${name} does not hold a JSON object (a PlanRequest in proto JSON)` };
+  const keys = Object.keys(first);
+  if ('plan' in first && keys.every((k) => k === 'plan' || k === 'options')) {
+    if (!object(first.plan)) return { error: `${name}: an ExecuteRequest whose plan is not an object` };
+    return { request: first.plan, note: `${name} is an ExecuteRequest: its plan is opened (the page plans it; ` +
+      'executing it live, with its options, is the gRPC stream TrajectoryService/Execute: geotraj execute or grpcurl)' };
+  }
+  if ('joints' in first && keys.every((k) => k === 'robot' || k === 'joints')) {
+    return { error: `${name} is a ForwardKinematicsRequest (a robot and its joint values), not a PlanRequest: ` +
+      'the page opens motions to plan; its answer (the tool pose, the Jacobian, the axes) is POST /v1/fk, ' +
+      'geotraj fk or grpcurl TrajectoryService/ComputeForwardKinematics' };
+  }
+  if ('target' in first && keys.every((k) => k === 'robot' || !PLAN_FIELDS.includes(k))) {
+    return { error: `${name} is an InverseKinematicsRequest (a robot and a tool pose), not a PlanRequest: ` +
+      'the page opens motions to plan; its answer (the joint values) is POST /v1/ik, geotraj ik or grpcurl ' +
+      'TrajectoryService/ComputeInverseKinematics' };
+  }
+  if (jog(first)) {
+    return { error: `${name} is a JogRequest: jogging moves the robot live over the gRPC stream ` +
+      'TrajectoryService/Jog, which the page does not drive; it opens PlanRequests' };
+  }
+  const unknown = keys.filter((k) => !PLAN_FIELDS.includes(k));
+  if (unknown.length) {
+    return { error: `${name} is not a PlanRequest: no field ${unknown.map((k) => `"${k}"`).join(', ')} in a PlanRequest ` +
+      `(its fields: ${PLAN_FIELDS.join(', ')})` };
+  }
+  return { request: first, note: '' };
+}
+
 // Field paths as the server writes them: "path.frames[2].curvature".
 export function parsePath(field) {
   const parts = [];

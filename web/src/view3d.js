@@ -87,14 +87,22 @@ export class View3D {
     this.family = new THREE.Group();
     this.robot = new THREE.Group();
     this.waypoints = new THREE.Group();
-    this.scene.add(this.grid, this.curve, this.frames, this.marks, this.family, this.robot, this.waypoints);
+    this.trace = new THREE.Group();
+    this.stepMarks = new THREE.Group();
+    this.scene.add(this.grid, this.curve, this.frames, this.marks, this.family, this.robot, this.waypoints, this.trace,
+      this.stepMarks);
     this.lineMaterials = [];
     this.colorMode = 'curvature';
     this.showFrames = true;
     this.fitted = false;
-    // Points `fit view` frames with the curve (a joint path's arm), in W [m].
+    // Points `fit view` frames with the curve (the arm over the motion, an approach's tool
+    // path), in W [m].
     this.fitExtra = [];
     this.buildGrid(-0.5, 1, -0.5, 0.5, 1);
+    // Key frames dragged with the mouse: onFrameDrag(field, {x, y, z}) when one is let go.
+    this.onFrameDrag = null;
+    this.pickables = [];
+    this.installDrag();
 
     new ResizeObserver(() => this.resize()).observe(container);
     this.resize();
@@ -118,6 +126,76 @@ export class View3D {
       this.pending = false;
       this.renderer.render(this.scene, this.camera);
       this.labels.render(this.scene, this.camera);
+      this.publishScreen();
+    });
+  }
+
+  // Where things are on the canvas, as fractions of its width and height from its top left
+  // (data-frames-screen: each key frame's [x, y]; data-curve-box: the drawn curve's bounding
+  // box [x0, y0, x1, y1]), for whoever checks the view from outside.
+  publishScreen() {
+    const project = (p) => {
+      const q = p.clone().project(this.camera);
+      return [(q.x + 1) / 2, (1 - q.y) / 2];
+    };
+    this.container.dataset.framesScreen = JSON.stringify(this.pickables.map((m) => project(m.position).map((v) => Number(v.toFixed(4)))));
+    const points = this.lastCurve?.points || [];
+    if (points.length < 2) {
+      delete this.container.dataset.curveBox;
+      return;
+    }
+    const box = [Infinity, Infinity, -Infinity, -Infinity];
+    const step = Math.max(1, Math.floor(points.length / 500));
+    for (let i = 0; i < points.length; i += step) {
+      const [x, y] = project(v3(points[i].position));
+      box[0] = Math.min(box[0], x);
+      box[1] = Math.min(box[1], y);
+      box[2] = Math.max(box[2], x);
+      box[3] = Math.max(box[3], y);
+    }
+    this.container.dataset.curveBox = JSON.stringify(box.map((v) => Number(v.toFixed(4))));
+  }
+
+  // Dragging a key frame's dot: the frame follows the mouse in the plane through it facing
+  // the camera (the orbit controls wait meanwhile), and onFrameDrag says where it was let go.
+  installDrag() {
+    const element = this.labels.domElement;
+    const raycaster = new THREE.Raycaster();
+    const ndc = (e) => {
+      const r = element.getBoundingClientRect();
+      return new THREE.Vector2(((e.clientX - r.left) / r.width) * 2 - 1, -((e.clientY - r.top) / r.height) * 2 + 1);
+    };
+    let drag = null;
+    this.container.addEventListener('pointerdown', (e) => {
+      if (e.button !== 0 || !this.onFrameDrag || !this.pickables.length) return;
+      raycaster.setFromCamera(ndc(e), this.camera);
+      const hit = raycaster.intersectObjects(this.pickables, false)[0];
+      if (!hit) return;
+      e.stopPropagation();
+      e.preventDefault();
+      const normal = this.camera.getWorldDirection(new THREE.Vector3());
+      drag = { mesh: hit.object, plane: new THREE.Plane().setFromNormalAndCoplanarPoint(normal, hit.object.position),
+        moved: false, pointer: e.pointerId };
+      this.controls.enabled = false;
+      this.container.dataset.dragging = hit.object.userData.field;
+    }, { capture: true });
+    window.addEventListener('pointermove', (e) => {
+      if (!drag) return;
+      raycaster.setFromCamera(ndc(e), this.camera);
+      const at = raycaster.ray.intersectPlane(drag.plane, new THREE.Vector3());
+      if (!at) return;
+      drag.moved = true;
+      drag.mesh.position.copy(at);
+      for (const o of drag.mesh.userData.followers) o.position.copy(at);
+      this.render();
+    });
+    window.addEventListener('pointerup', () => {
+      if (!drag) return;
+      const { mesh, moved } = drag;
+      drag = null;
+      this.controls.enabled = true;
+      delete this.container.dataset.dragging;
+      if (moved) this.onFrameDrag?.(mesh.userData.field, { x: mesh.position.x, y: mesh.position.y, z: mesh.position.z });
     });
   }
 
@@ -170,6 +248,14 @@ export class View3D {
     const yl = label('y [m]', 'axis');
     yl.position.set(x1 + 0.14, (y0 + y1) / 2, 0);
     this.grid.add(xl, yl);
+    for (const o of this.grid.children) o.visible = this.gridVisible !== false;
+  }
+
+  // The floor grid, its coordinates and the axes of W shown or not.
+  setGridVisible(visible) {
+    this.gridVisible = visible;
+    for (const o of this.grid.children) o.visible = visible;
+    this.render();
   }
 
   // The grid around positions (and the origin), on 0.1 m lines with 0.1 m to spare.
@@ -362,9 +448,12 @@ export class View3D {
   // frames: the request's key frames (positions and the operator's T, N, B);
   // warnings: PlanResponse.warnings placed on the profile by u; labels: each frame's tag
   // (default: its index).
-  setFrames(frames, warnings, profilePoints, scaleHint, labels = null) {
+  // fields: each frame's field path in the request (path.frames[i], path.start, ...), for
+  // dragging it (none: not draggable).
+  setFrames(frames, warnings, profilePoints, scaleHint, labels = null, fields = null) {
     disposeGroup(this.frames);
     disposeGroup(this.marks);
+    this.pickables = [];
     // Arrows a tenth of the path's size, within 4 to 15 cm.
     const length = Math.min(0.15, Math.max(0.04, (scaleHint || 0.5) * 0.1));
     frames.forEach((frame, i) => {
@@ -391,6 +480,15 @@ export class View3D {
         new THREE.MeshStandardMaterial({ color: 0x222222 }));
       dot.position.copy(p);
       this.frames.add(dot);
+      if (fields?.[i]) {
+        // What the mouse picks: a ball about the dot, larger than it, not drawn.
+        const handle = new THREE.Mesh(new THREE.SphereGeometry(length * 0.3, 10, 8),
+          new THREE.MeshBasicMaterial({ visible: false }));
+        handle.position.copy(p);
+        handle.userData = { field: fields[i], followers: [dot, tag] };
+        this.frames.add(handle);
+        this.pickables.push(handle);
+      }
       if (frame.cusp) this.addMark(p, 0xc2185b, 'cusp', length, 'cusp');
       if (frame.inflection) this.addMark(p, 0xef6c00, 'inflection', length, 'inflection');
       if (frame.stop) this.addMark(p, 0x555555, 'stop', length, 'stop');
@@ -541,23 +639,90 @@ export class View3D {
       this.scene.add(this.toolMarker);
     }
     this.toolMarker.visible = Boolean(p);
+    this.toolMarker.scale.setScalar(this.markerScale ?? 1);
     if (p) this.toolMarker.position.copy(p);
     this.render();
   }
 
+  // The motion in view: the camera, looking from where it looks now (from the front right
+  // and above the first time), at the distance where the bounding box of `positions` (the
+  // curve or the tool's path, and the arm over the motion when it is shown) fills the
+  // canvas; the origin counts only when it is among them.
   fit(positions) {
     this.gridAround(positions);
-    // The curve and the origin (the robot's base) in view: the camera at the distance where
-    // their bounding sphere fills the vertical field of view.
-    const box = new THREE.Box3().setFromPoints([...positions, new THREE.Vector3()]);
+    const box = new THREE.Box3().setFromPoints(positions);
     const center = box.getCenter(new THREE.Vector3());
-    const radius = Math.max(0.05, box.getSize(new THREE.Vector3()).length() / 2);
+    // The tool's ball (12 mm about a metre of motion) in proportion to what is framed.
+    this.markerScale = Math.min(1, Math.max(0.1, box.getSize(new THREE.Vector3()).length()));
+    this.toolMarker?.scale.setScalar(this.markerScale);
+    const dir = this.fitted ? this.camera.position.clone().sub(this.controls.target) : new THREE.Vector3(1, -1.3, 0.9);
+    if (dir.lengthSq() < 1e-18) dir.set(1, -1.3, 0.9);
+    dir.normalize();
+    // The points across the view's axes: the centre of their extent, and the distance at
+    // which the widest of them fits the horizontal and the vertical field of view, 8 % to
+    // spare, and the arm's girth (4 cm) beyond its axes when it is among them.
+    const pad = this.fitExtra.length ? 0.04 : 0;
+    const forward = dir.clone().negate();
+    const right = new THREE.Vector3().crossVectors(forward, this.camera.up).normalize();
+    if (right.lengthSq() < 1e-12) right.set(1, 0, 0);
+    const up = new THREE.Vector3().crossVectors(right, forward).normalize();
+    const tanV = Math.tan(THREE.MathUtils.degToRad(this.camera.fov) / 2);
+    const tanH = tanV * this.camera.aspect;
+    const across = positions.map((p) => {
+      const d = new THREE.Vector3(p.x, p.y, p.z).sub(center);
+      return [d.dot(right), d.dot(up), d.dot(forward)];
+    });
+    const mid = (k) => (Math.min(...across.map((a) => a[k])) + Math.max(...across.map((a) => a[k]))) / 2;
+    const [ma, mb] = [mid(0), mid(1)];
+    center.addScaledVector(right, ma).addScaledVector(up, mb);
+    let distance = 0.05;
+    for (const [a, b, depth] of across) {
+      distance = Math.max(distance, ((Math.abs(a - ma) + pad) * 1.08) / tanH - depth,
+        ((Math.abs(b - mb) + pad) * 1.08) / tanV - depth);
+    }
     this.controls.target.copy(center);
-    const dir = new THREE.Vector3(1, -1.3, 0.9).normalize();
-    const fov = THREE.MathUtils.degToRad(this.camera.fov);
-    this.camera.position.copy(center).addScaledVector(dir, (radius / Math.sin(fov / 2)) * 1.05);
+    this.camera.position.copy(center).addScaledVector(dir, distance);
+    this.camera.near = Math.max(1e-4, distance / 1000);
+    this.camera.far = Math.max(100, distance * 20);
+    this.camera.updateProjectionMatrix();
     this.controls.update();
     this.fitted = true;
+    this.render();
+  }
+
+  // A thin grey line of the whole motion's tool path ({position} points: a path's approach
+  // move with the path), or null.
+  setTrace(points) {
+    disposeGroup(this.trace);
+    if (points?.length >= 2) {
+      const line = this.makeLine(points.map((p) => v3(p.position)), null, 2, { dashSize: 0.01, gapSize: 0.006 });
+      line.material.color.set(0x607d8b);
+      this.trace.add(line);
+    }
+    this.container.dataset.tracePoints = String(points?.length || 0);
+    this.render();
+  }
+
+  // Where the steps of a motion end: [{position, label}] (a small square dot and its label),
+  // or null. data-step-marks: the count drawn.
+  setStepMarks(marks) {
+    disposeGroup(this.stepMarks);
+    const list = marks || [];
+    const size = Math.min(0.012, Math.max(0.004, extentOf(list.map((m) => v3(m.position))) * 0.015));
+    for (const m of list) {
+      const p = v3(m.position);
+      const box = new THREE.Mesh(new THREE.BoxGeometry(size, size, size), new THREE.MeshStandardMaterial({ color: 0x37474f }));
+      box.position.copy(p);
+      this.stepMarks.add(box);
+      if (this.showFrames) {
+        const tag = label(m.label, 'step');
+        tag.position.copy(p);
+        tag.center.set(-0.1, -0.4);
+        this.stepMarks.add(tag);
+      }
+    }
+    this.container.dataset.stepMarks = String(list.length);
+    this.render();
   }
 
   // The camera towards `center` ({x, y, z}) from where it looks now, at the distance where a
@@ -575,7 +740,7 @@ export class View3D {
   }
 
   refit() {
-    if (this.lastCurve?.points?.length) this.fit([...this.lastCurve.points.map((p) => v3(p.position)), ...this.fitExtra]);
+    if (this.lastCurve?.points?.length) this.fit([...this.lastCurve.points.map((p) => v3(p.position)), ...this.fitExtra.map(v3)]);
     this.render();
   }
 }

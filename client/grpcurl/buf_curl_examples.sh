@@ -6,8 +6,9 @@
 #   geotrajd --address 127.0.0.1:50051 &
 #   client/grpcurl/buf_curl_examples.sh [HOST:PORT]   (default: $GEOTRAJ_ADDRESS or 127.0.0.1:50051)
 #
-# buf is the npm package @bufbuild/buf: `npm ci` in tests/interop/node installs the pinned
-# version there, and this script finds it (else $BUF, else buf on PATH).
+# buf is the npm package @bufbuild/buf, pinned in tests/interop/node: $BUF, else the one the
+# build installs (build/tests/interop/node/node_modules, or $GEOTRAJ_BUILD_DIR's), else one
+# `npm ci` installed in tests/interop/node, else buf on PATH.
 # GEOTRAJ_TOKEN=...     sends `authorization: Bearer ...` with every call (and reflection).
 # GEOTRAJ_TLS_CA=FILE   calls https:// and trusts the CA certificates in FILE (PEM);
 #                       without it the calls are plaintext HTTP/2 (http:// with prior knowledge).
@@ -18,12 +19,13 @@ address="${1:-${GEOTRAJ_ADDRESS:-127.0.0.1:50051}}"
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 buf="${BUF:-}"
 if [ -z "$buf" ]; then
-  if [ -x "$here/../../tests/interop/node/node_modules/.bin/buf" ]; then
-    buf="$here/../../tests/interop/node/node_modules/.bin/buf"
-  elif command -v buf >/dev/null 2>&1; then
-    buf=buf
-  else
-    echo "buf_curl_examples.sh: buf not found: run 'npm ci' in tests/interop/node, or set BUF" >&2
+  for candidate in "${GEOTRAJ_BUILD_DIR:-$here/../../build}/tests/interop/node/node_modules/.bin/buf" \
+                   "$here/../../tests/interop/node/node_modules/.bin/buf"; do
+    if [ -x "$candidate" ]; then buf="$candidate"; break; fi
+  done
+  if [ -z "$buf" ] && command -v buf >/dev/null 2>&1; then buf=buf; fi
+  if [ -z "$buf" ]; then
+    echo "buf_curl_examples.sh: buf not found: build the project (make), run 'npm ci' in tests/interop/node, or set BUF" >&2
     exit 2
   fi
 fi

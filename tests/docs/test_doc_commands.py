@@ -55,8 +55,9 @@ import tempfile
 import threading
 import time
 
-DEFAULT_DOCS = ["README.md", "client/node/README.md", "docs/*.md"]
-DEFAULT_REQUIRED = ["README.md", "client/node/README.md", "docs/clients.md", "docs/moves.md"]
+DEFAULT_DOCS = ["README.md", "client/node/README.md", "client/python/README.md", "docs/*.md"]
+DEFAULT_REQUIRED = ["README.md", "client/node/README.md", "client/python/README.md", "docs/clients.md",
+                    "docs/moves.md"]
 DOC_ADDRESS = "127.0.0.1:50051"
 MARKER = re.compile(r"^\s*<!--\s*doc-test\b(.*?)-->\s*$")
 FENCE = re.compile(r"^(\s*)(`{3,}|~{3,})")

@@ -278,18 +278,22 @@ core::Expected<Request> admit_motion(const GeometryInput& geometry, const Motion
   append(violations, check_motion(spec, motion, geometry, robot_spec, out.optimize ? &*out.optimize : nullptr));
   out.motion = spec;
   out.robot = std::move(robot);
+  // A joint move or path needs a robot: said here when none was given; one given and refused
+  // was named where it was resolved.
   if (geometry.joint_move) {
-    if (!out.robot) {
+    if (!out.robot && robot_spec == nullptr) {
       violations.push_back({"robot", "is required by a jointMove: the joints belong to a robot model"});
     }
-    if (!violations.empty()) return tl::unexpected(std::move(violations));
+    if (!out.robot || !violations.empty()) return tl::unexpected(std::move(violations));
     auto move = joint_move_geometry(*geometry.joint_move, *out.robot);
     if (!move) return tl::unexpected(std::move(move.error()));
     out.geometry = std::move(*move);
     return out;
   }
   if (geometry.joint_path) {
-    if (!out.robot) violations.push_back({"robot", "is required by a jointPath: the joints belong to a robot model"});
+    if (!out.robot && robot_spec == nullptr) {
+      violations.push_back({"robot", "is required by a jointPath: the joints belong to a robot model"});
+    }
     // A joint path is timed by its joints' limits; its tool goes where they take it.
     const auto cartesian = [&](const char* name, bool given) {
       if (given) {
@@ -365,13 +369,11 @@ core::Expected<Request> admit_single(const RequestInput& input, const RobotCatal
   }
   Violations violations;
   std::shared_ptr<const Robot> robot;
-  bool refused = false;  // a robot given, and refused: its violations name it
   if (input.robot && input.geometry.kinds() == 1) {
     if (auto r = resolved(*input.robot, catalog, stop_at)) {
       robot = std::move(*r);
     } else {
-      violations = std::move(r.error());
-      refused = true;
+      violations = std::move(r.error());  // named there; admit_motion says no more of it
     }
   }
   if (robot && robot->tool_axis_free && (input.geometry.joint_move || input.geometry.joint_path)) {
@@ -381,12 +383,7 @@ core::Expected<Request> admit_single(const RequestInput& input, const RobotCatal
   }
   auto out = admit_motion(input.geometry, *input.motion, input.robot ? &*input.robot : nullptr, std::move(robot),
                           input.optimize, false);
-  if (!out) {
-    // A joint move or path "requires a robot": not said of one given and refused.
-    for (auto& v : out.error())
-      if (!(refused && v.field == "robot" && v.description.starts_with("is required by a joint")))
-        violations.push_back(std::move(v));
-  }
+  if (!out) append(violations, std::move(out.error()));
   if (!violations.empty()) return tl::unexpected(std::move(violations));
   return out;
 }

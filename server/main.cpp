@@ -340,9 +340,10 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->group("Logs");
   app.add_option("--robot-model", options.robot_model_files,
-                 "robot model file: a URDF document (.urdf; docs/kinematics.md) or proto3 JSON of geotraj.v1.RobotModel "
-                 "(as ListRobots prints it), served by its name beside the built-in models; repeat for several "
-                 "(environment: comma-separated)")
+                 "robot model file: a URDF document (.urdf; docs/kinematics.md; FILE.urdf:TIP_LINK names the chain's "
+                 "tip link, by default the leaf through the most moving joints) or proto3 JSON of "
+                 "geotraj.v1.RobotModel (as ListRobots prints it), served by its name beside the built-in models; "
+                 "repeat for several (environment: comma-separated)")
       ->envname("GEOTRAJ_ROBOT_MODELS")
       ->delimiter(',')
       ->group("Models");

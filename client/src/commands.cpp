@@ -70,11 +70,17 @@ std::vector<v1::PathSpec*> paths_of(v1::PlanRequest& request) {
 
 }  // namespace
 
-bool set_robot_source(const std::string& name, const std::string& urdf_file, v1::RobotSpec& robot) {
+bool set_robot_source(const std::string& name, const std::string& urdf_file, const std::string& tip_link,
+                      v1::RobotSpec& robot) {
   if (!name.empty() && !urdf_file.empty()) {
     std::cerr << "geotraj: give the robot by --robot NAME or --urdf FILE, not both\n";
     return false;
   }
+  if (!tip_link.empty() && urdf_file.empty()) {
+    std::cerr << "geotraj: --tip-link names the tip link of an --urdf FILE's chain: give --urdf\n";
+    return false;
+  }
+  if (!tip_link.empty()) robot.set_tip_link(tip_link);
   if (!name.empty()) robot.set_name(name);
   if (urdf_file.empty()) return true;
   std::string text;
@@ -93,8 +99,8 @@ bool read_plan_request(const CallOptions& options, v1::PlanRequest& request) {
   } else if (!read_request(options.input, request)) {
     return false;
   }
-  if ((!flags.robot.empty() || !flags.urdf.empty()) &&
-      !set_robot_source(flags.robot, flags.urdf, *request.mutable_robot()))
+  if ((!flags.robot.empty() || !flags.urdf.empty() || !flags.tip_link.empty()) &&
+      !set_robot_source(flags.robot, flags.urdf, flags.tip_link, *request.mutable_robot()))
     return false;
   if (flags.rate_hz > 0.0) request.mutable_motion()->set_cycle_rate_hz(flags.rate_hz);
   if (!flags.waypoints.empty()) {
@@ -421,7 +427,9 @@ int run_fk(const Connection& connection, const CallOptions& options) {
   v1::ForwardKinematicsRequest request;
   if (!options.input.empty() && !read_request(options.input, request)) return 2;
   const auto& k = options.kinematics;
-  if ((!k.robot.empty() || !k.urdf.empty()) && !set_robot_source(k.robot, k.urdf, *request.mutable_robot())) return 2;
+  if ((!k.robot.empty() || !k.urdf.empty() || !k.tip_link.empty()) &&
+      !set_robot_source(k.robot, k.urdf, k.tip_link, *request.mutable_robot()))
+    return 2;
   if (!k.joints.empty()) {
     request.clear_joints();
     for (double q : k.joints) request.add_joints(q);
@@ -437,7 +445,9 @@ int run_ik(const Connection& connection, const CallOptions& options) {
   v1::InverseKinematicsRequest request;
   if (!options.input.empty() && !read_request(options.input, request)) return 2;
   const auto& k = options.kinematics;
-  if ((!k.robot.empty() || !k.urdf.empty()) && !set_robot_source(k.robot, k.urdf, *request.mutable_robot())) return 2;
+  if ((!k.robot.empty() || !k.urdf.empty() || !k.tip_link.empty()) &&
+      !set_robot_source(k.robot, k.urdf, k.tip_link, *request.mutable_robot()))
+    return 2;
   if (!k.seed.empty()) {
     request.mutable_robot()->clear_initial_joints();
     for (double q : k.seed) request.mutable_robot()->add_initial_joints(q);

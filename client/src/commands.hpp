@@ -42,6 +42,7 @@ struct OptimizeFlags {
   double blend_tolerance = -1.0;  ///< jointPath.blendTolerance [rad or m]; < 0: the request's
   std::string robot;              ///< robot.name; empty: the request's
   std::string urdf;               ///< --urdf FILE: robot.urdf, the file's text; empty: none
+  std::string tip_link;           ///< --tip-link LINK: robot.tipLink (with --urdf)
   double rate_hz = 0.0;           ///< motion.cycleRateHz [Hz]; 0: the request's
 };
 
@@ -49,6 +50,7 @@ struct OptimizeFlags {
 struct KinematicsFlags {
   std::string robot;                 ///< robot.name; empty: the request's
   std::string urdf;                  ///< --urdf FILE: robot.urdf, the file's text; empty: none
+  std::string tip_link;              ///< --tip-link LINK: robot.tipLink (with --urdf)
   std::vector<double> joints;        ///< fk: the joint values [rad or m], joint 0 first
   std::vector<double> seed;          ///< ik: robot.initialJoints
   std::vector<double> position;      ///< ik: target.position (x, y, z) [m]
@@ -69,6 +71,7 @@ struct LiveFlags {
   std::string robot;       ///< a built-in model's name
   std::string robot_file;  ///< a RobotModel in the proto JSON mapping
   std::string urdf;        ///< a URDF file
+  std::string tip_link;    ///< --tip-link LINK: robot.tipLink (with --urdf)
   std::vector<double> joints;  ///< robot.initialJoints [rad or m]; empty: the model's home
   std::optional<double> rate_hz;            ///< start.cycleRateHz [Hz]
   std::optional<double> velocity_scale;     ///< start.velocityScale, in (0, 1]
@@ -105,7 +108,8 @@ bool read_text(const std::string& input, std::string& text);
 /// The robot of a request from the CLI's --robot NAME or --urdf FILE (at most one; neither:
 /// the request's own): false, with the reason on stderr, where both are given or the file
 /// cannot be read.
-bool set_robot_source(const std::string& name, const std::string& urdf_file, v1::RobotSpec& robot);
+bool set_robot_source(const std::string& name, const std::string& urdf_file, const std::string& tip_link,
+                      v1::RobotSpec& robot);
 /// Parses a request file ("-": standard input) in the proto JSON mapping; prints why it
 /// cannot (naming the file and the message type) and returns false.
 bool read_request(const std::string& input, google::protobuf::Message& request);

@@ -412,7 +412,7 @@ int run_jog(const Connection& connection, const CallOptions& options) {
     std::cerr << "geotraj: jog: the robot and the script cannot both come from standard input\n";
     return 2;
   }
-  if (!set_robot_source(flags.robot, flags.urdf, *robot)) return 2;
+  if (!set_robot_source(flags.robot, flags.urdf, flags.tip_link, *robot)) return 2;
   if (!flags.robot_file.empty() && !read_request(flags.robot_file, *robot->mutable_model())) return 2;
   for (double q : flags.joints) robot->add_initial_joints(q);
   if (flags.rate_hz) start->set_cycle_rate_hz(*flags.rate_hz);

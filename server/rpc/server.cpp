@@ -7,6 +7,7 @@
 #include <grpcpp/server_builder.h>
 
 #include <cmath>
+#include <filesystem>
 #include <csignal>
 #include <fstream>
 #include <sstream>
@@ -171,14 +172,26 @@ tl::expected<RobotCatalog, std::string> robot_catalog(const ServerOptions& optio
   const auto yaml = joint_limits_files(options);
   if (!yaml) return tl::unexpected(yaml.error());
   bool named = false;
-  for (const auto& file : options.robot_model_files) {
+  for (const auto& given : options.robot_model_files) {
+    // FILE, or FILE:TIP_LINK where FILE names a file and the whole does not.
+    std::string file = given;
+    planner::UrdfOptions urdf_options;
+    if (const auto colon = given.rfind(':'); colon != std::string::npos && !std::filesystem::exists(given) &&
+                                             std::filesystem::exists(given.substr(0, colon))) {
+      file = given.substr(0, colon);
+      urdf_options.tip_link = given.substr(colon + 1);
+    }
     auto text = read_file(file, "robot model file");
     if (!text) return tl::unexpected(text.error());
     // A URDF document (by its extension, or its first character) or a RobotModel in JSON.
     // MoveIt's limits over the model's, for the joints it has (a gripper's are not the arm's).
     const auto first = text->find_first_not_of(" \t\r\n");
     const bool urdf = file.ends_with(".urdf") || (first != std::string::npos && (*text)[first] == '<');
-    auto read = (urdf ? planner::robot_from_urdf(*text) : robot_model_from_json(*text)).map([&](core::RobotModel m) {
+    if (!urdf && !urdf_options.tip_link.empty()) {
+      return tl::unexpected("robot model file \"" + file + "\": a tip link (\":" + urdf_options.tip_link +
+                            "\") is read for a URDF document only");
+    }
+    auto read = (urdf ? planner::robot_from_urdf(*text, urdf_options) : robot_model_from_json(*text)).map([&](core::RobotModel m) {
       for (bool n : planner::apply_named_limits(*yaml, m)) named = named || n;
       return m;
     });

@@ -162,6 +162,24 @@ TEST(Cli, UrdfAsShippedForTheKinematicsAndWithMoveItsLimitsForAPlan) {
     EXPECT_EQ(j.limit_sources().acceleration(), "robot.jointLimitsYaml");  // the file the CLI sent
     EXPECT_THAT(j.limit_sources().velocity(), HasSubstr("URDF <limit velocity>, line "));
   }
+  // A hand's two fingers: two leaves, listed; --tip-link names the flange.
+  std::string hand = urdf;
+  hand.insert(hand.find("</robot>"), R"(<link name="finger_left"/><link name="finger_right"/>
+  <joint name="finger_joint1" type="prismatic"><parent link="panda_link8"/><child link="finger_left"/><axis xyz="0 1 0"/>
+    <limit lower="0" upper="0.04" effort="20" velocity="0.2"/></joint>
+  <joint name="finger_joint2" type="prismatic"><parent link="panda_link8"/><child link="finger_right"/><axis xyz="0 -1 0"/>
+    <limit lower="0" upper="0.04" effort="20" velocity="0.2"/></joint>
+)");
+  const TempText with_hand("panda_hand.urdf", hand);
+  const CliRun tied = run_cli("fk --urdf '" + with_hand.path + "' --joints " + q, true);
+  EXPECT_NE(tied.exit_code, 0);
+  EXPECT_THAT(tied.out, HasSubstr("'finger_left', 'finger_right'"));
+  const CliRun tipped = run_cli("fk --json --urdf '" + with_hand.path + "' --tip-link panda_link8 --joints " + q);
+  ASSERT_EQ(tipped.exit_code, 0) << tipped.out;
+  const auto c = from_json<v1::ForwardKinematicsResponse>(tipped.out);
+  EXPECT_NEAR(c.pose().position().x(), a.pose().position().x(), 1e-12);
+  EXPECT_NEAR(c.pose().position().z(), a.pose().position().z(), 1e-12);
+  EXPECT_EQ(run_cli("fk --robot panda --tip-link panda_link8 --joints " + q, true).exit_code, 2);
   const CliRun both = run_cli("fk --robot panda --urdf '" + file.path + "' --joints " + q, true);
   EXPECT_EQ(both.exit_code, 2);
   EXPECT_THAT(both.out, HasSubstr("--robot NAME or --urdf FILE, not both"));

@@ -1479,6 +1479,25 @@ TEST_F(RobotTest, GeotrajdServesAUrdfFile) {
   as_shipped.signal(SIGTERM);
   EXPECT_EQ(as_shipped.wait(), 0);
   EXPECT_THAT(as_shipped.errors(), HasSubstr("serves the kinematics only until its limits are given"));
+
+  // A camera frame beside the flange: two leaves through both joints, listed; FILE:TIP_LINK
+  // names the tip.
+  std::string camera = shipped;
+  camera.insert(camera.find("</robot>"), "<link name=\"camera\"/><joint name=\"camera_mount\" type=\"fixed\">"
+                                         "<parent link=\"lower\"/><child link=\"camera\"/></joint>\n");
+  const TempFile with_camera("camera.urdf", camera);
+  EXPECT_THAT(refused_start({"--address", "127.0.0.1:0", "--robot-model", with_camera.path()}),
+              HasSubstr("'camera', 'flange'"));
+  Daemon to_flange({"--address", "127.0.0.1:0", "--drain-seconds", "0.2", "--robot-model", with_camera.path() + ":flange"});
+  const auto flange = stub_of(to_flange);
+  ASSERT_TRUE(flange) << to_flange.errors();
+  v1::ForwardKinematicsResponse at_flange;
+  ASSERT_TRUE(flange->ComputeForwardKinematics(context().get(), fk, &at_flange).ok());
+  EXPECT_LT((vec(at_flange.pose().position()) - vec(response.pose().position())).norm(), 1e-12);
+  to_flange.signal(SIGTERM);
+  EXPECT_EQ(to_flange.wait(), 0);
+  EXPECT_THAT(refused_start({"--address", "127.0.0.1:0", "--robot-model", with_camera.path() + ":nowhere"}),
+              HasSubstr("nowhere"));
 }
 
 // `--joint-limits joint_limits.yaml`: MoveIt's file gives the accelerations the URDF lacks

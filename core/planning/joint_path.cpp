@@ -446,10 +446,12 @@ std::optional<Violations> check_pass(const JointPathPlan& plan, double rate, con
     evaluate_point(plan.path, x.s, point, hint, false);
     q_ddot = point.q_s * x.a + point.q_ss * (x.v * x.v);
     const double dt = t - t_prev;
-    // A ratio r > 1 shrinks the points around the interval by 1 / r^2 for a velocity, 1 / r
-    // for an acceleration, 1 / r^2 for a jerk (as check_time_optimal_samples does).
-    // `ratio` (where >= 0): the usage, when it is not value / limit (a torque's,
-    // dynamic_torque_usage: its part beyond gravity's, which scales as an acceleration).
+    // The sample's portion and grid interval.
+    const std::size_t p = portion_of(plan.path.rests, x.s);
+    const std::size_t k = interval_of(plan.grids[p], x.s - plan.path.rests[p]);
+    // An excess tightens the grid around it (SampleCheck::tighten). `ratio` (where >= 0): the
+    // usage, when it is not value / limit (a torque's, dynamic_torque_usage: its part beyond
+    // gravity's, which scales as an acceleration).
     auto note = [&](double value, double limit, int order, Eigen::Index j, double& usage, double ratio = -1.0) {
       if (!(limit < kInf)) return;
       const double r = ratio >= 0.0 ? ratio : value / limit;
@@ -458,22 +460,10 @@ std::optional<Violations> check_pass(const JointPathPlan& plan, double rate, con
         check.worst_usage = r;
         worst = {value, limit, t, x.s, order, j};  // described once, after the pass
       }
-      if (r > 1.0 + options.sample_tolerance) {
-        check.broken = true;
-        const std::size_t p = portion_of(plan.path.rests, x.s);
-        const auto& grid = plan.grids[p];
-        const std::size_t k = interval_of(grid, x.s - plan.path.rests[p]);
-        const double f = (order == 2 || order == 4 ? 1.0 / r : 1.0 / (r * r)) * (1.0 - 1e-6);
-        auto& shrink = order == 3 ? check.jerk_shrink[p] : check.shrink[p];
-        const std::size_t N = grid.size() - 1;
-        const std::size_t lo = order == 3 && k > 0 ? k - 1 : k, hi = order == 3 ? std::min(N, k + 2) : k + 1;
-        for (std::size_t g = lo; g <= hi; ++g) shrink[g] = std::min(shrink[g], f);
-      }
+      if (r > 1.0 + options.sample_tolerance) check.tighten(p, k, r, order);
     };
     // Torques: screened by the grid's terms, exact near a limit.
     if (torques) {
-      const std::size_t p = portion_of(plan.path.rests, x.s);
-      const std::size_t k = interval_of(plan.grids[p], x.s - plan.path.rests[p]);
       const GridPoint &g0 = plan.grids[p][k], &g1 = plan.grids[p][k + 1];
       const double within = std::clamp((x.s - plan.path.rests[p] - g0.s) / (g1.s - g0.s), 0.0, 1.0);
       q_dot = point.q_s * x.v;

@@ -229,6 +229,21 @@ Expected<MotionPlan> assemble_motion(const MotionSpec& spec, std::vector<MotionP
   return plan;
 }
 
+void SampleCheck::tighten(std::size_t portion, std::size_t k, double r, int order) {
+  broken = true;
+  auto& points = order == 3 ? jerk_shrink[portion] : shrink[portion];
+  // A ratio r shrinks sigma by 1 / r^2 for a velocity, 1 / r for an acceleration (and a
+  // torque's part beyond gravity), and the jerk limit by 1 / r^2: twice the correction that
+  // would remove the excess where it was measured, since the limits of neighbouring samples
+  // move too, and the loop settles in fewer rounds.
+  const double f = (order == 2 || order == 4 ? 1.0 / r : 1.0 / (r * r)) * (1.0 - 1e-6);
+  // A jerk comes from the acceleration's change across a grid point and the estimated third
+  // derivative of the joint path there: the points around the interval tighten too.
+  const std::size_t N = points.size() - 1;
+  const std::size_t lo = order == 3 && k > 0 ? k - 1 : k, hi = order == 3 ? std::min(N, k + 2) : k + 1;
+  for (std::size_t i = lo; i <= hi; ++i) points[i] = std::min(points[i], f);
+}
+
 Expected<SampleCheck> check_time_optimal_samples(const Path& path, const OrientationPlan& orientation,
                                                  const MotionPlan& motion,
                                                  const std::vector<std::vector<GridPoint>>& grids,
@@ -271,10 +286,9 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
       const double h = por.length / static_cast<double>(N);
       const std::size_t k =
           h > 0.0 ? std::min(N - 1, static_cast<std::size_t>(std::max(0.0, (ms.s - por.s_start) / h))) : 0;
-      // A ratio r shrinks sigma by 1 / r^2 for a velocity, 1 / r for an acceleration, and the
-      // jerk limit by 1 / r^2.
-      // `ratio` (where >= 0): the usage, when it is not value / limit (a torque's: its part
-      // beyond gravity's, dynamic_torque_usage, scales as an acceleration).
+      // An excess tightens the grid around it (SampleCheck::tighten). `ratio` (where >= 0): the
+      // usage, when it is not value / limit (a torque's: its part beyond gravity's,
+      // dynamic_torque_usage, scales as an acceleration).
       auto note = [&](double value, double limit, int order, Eigen::Index joint = -1, const char* what = nullptr,
                       double ratio = -1.0) {
         if (!(limit < kInf)) return;
@@ -291,19 +305,7 @@ Expected<SampleCheck> check_time_optimal_samples(const Path& path, const Orienta
                       " at t = " + number(ms.t, 6) + " s (s = " + number(ms.s, 6) + " m, " +
                       number(plan.spec.cycle_rate_hz, 6) + " Hz)";
         }
-        if (r > 1.0 + options.sample_tolerance) {
-          out.broken = true;
-          auto& shrink = order == 3 ? out.jerk_shrink[ms.portion] : out.shrink[ms.portion];
-          // Twice the correction that would remove the excess where it was measured: the
-          // limits of neighbouring samples move too, and the loop settles in fewer rounds.
-          // (A torque's part beyond gravity scales as an acceleration.)
-          const double f = (order == 2 || order == 4 ? 1.0 / r : 1.0 / (r * r)) * (1.0 - 1e-6);
-          // A jerk comes from the acceleration's change across a grid point and the
-          // estimated third derivative of the joint path there: the points around the
-          // interval tighten too.
-          const std::size_t lo = order == 3 && k > 0 ? k - 1 : k, hi = order == 3 ? std::min(N, k + 2) : k + 1;
-          for (std::size_t i = lo; i <= hi; ++i) shrink[i] = std::min(shrink[i], f);
-        }
+        if (r > 1.0 + options.sample_tolerance) out.tighten(ms.portion, k, r, order);
       };
       const double dt = ms.t - t_prev;
       if (ms.speed > 0.0) {

@@ -271,6 +271,11 @@ struct SampleCheck {
   /// Where the worst usage is: "joint 3 jerk 51.2 of 50 rad/s^3 at t = 1.25 s (s = 0.4 m)".
   std::string worst;
   double check_rate_hz = 0.0;  ///< the finest rate checked [Hz]
+
+  /// Records an excess: usage r > 1 of a limit of `order` (1 velocity, 2 acceleration, 3 jerk,
+  /// 4 torque, whose usage scales as an acceleration's) measured in grid interval k of
+  /// `portion`: broken, and that interval's points shrunk as said above.
+  void tighten(std::size_t portion, std::size_t k, double r, int order);
 };
 
 /// Streams `motion` through MotionSampler at its cycle rate, then, if every sample there

@@ -146,7 +146,9 @@ LiveExecution::LiveExecution(const Trajectory& trajectory, const RobotModel* rob
                              const IkOptions& ik)
     : trajectory_(&trajectory),
       dynamics_(robot != nullptr && has_dynamics(*robot) ? robot : nullptr),
-      sampler_(trajectory, robot, seed, ik) {}
+      sampler_(trajectory, robot, seed, ik) {
+  sampler_.leave_torques();  // computed once per cycle, at the speed factor (write)
+}
 
 Expected<LiveExecution> LiveExecution::start(const Trajectory& trajectory, const RobotModel* robot,
                                              const JointVector& seed, const LiveLimits& limits, double cycle_rate_hz,
@@ -386,8 +388,8 @@ void LiveExecution::write(LiveSample& out) {
   if (x.has_joints) {
     x.joints.q_dot = plan_.joints.q_dot * r;
     x.joints.q_ddot = plan_.joints.q_ddot * (r * r) + plan_.joints.q_dot * r_dot;
-    // The torques of the motion as it runs (the plan's, at r = 1, stand at full speed).
-    if (dynamics_ != nullptr && x.joints.tau.size() == x.joints.q.size() && (r != 1.0 || r_dot != 0.0))
+    // The torques of the motion as it runs, at its speed factor (the sampler leaves them).
+    if (dynamics_ != nullptr && x.joints.tau.size() == x.joints.q.size())
       inverse_dynamics(*dynamics_, x.joints.q, x.joints.q_dot, x.joints.q_ddot, dynamics_options(*dynamics_),
                        x.joints.tau);
   }

@@ -210,7 +210,11 @@ void StepSampler::finish(TrajectorySample& out) {
   }
   if (out.has_joints && dynamics_ != nullptr) {
     JointSample& j = out.joints;
-    inverse_dynamics(*dynamics_, j.q, j.q_dot, j.q_ddot, dynamics_options(*dynamics_), j.tau);
+    if (compute_torques_) {
+      inverse_dynamics(*dynamics_, j.q, j.q_dot, j.q_ddot, dynamics_options(*dynamics_), j.tau);
+    } else {
+      j.tau.resize(j.q.size());  // the caller's to fill
+    }
   } else {
     out.joints.tau.resize(0);
   }
@@ -240,6 +244,7 @@ StepRef TrajectorySampler::step(std::size_t i) const {
 void TrajectorySampler::start_step(const JointVector& seed) {
   sampler_.reset();  // its tracker's workspace first
   sampler_.emplace(step(step_), robot_, seed, options_);
+  if (!compute_torques_) sampler_->leave_torques();
 }
 
 bool TrajectorySampler::next(TrajectorySample& out) {
@@ -273,6 +278,11 @@ void TrajectorySampler::at(double t, TrajectorySample& out) {
     sampler_->at(t, out);
   }
   finish(out);
+}
+
+void TrajectorySampler::leave_torques() {
+  compute_torques_ = false;
+  if (sampler_) sampler_->leave_torques();
 }
 
 void TrajectorySampler::finish(TrajectorySample& out) {

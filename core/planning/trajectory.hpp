@@ -104,6 +104,8 @@ class StepSampler {
   /// decrease; t is clamped to [0, duration]). Do not mix with next().
   void at(double t, TrajectorySample& out);
   std::size_t index() const { return k_; }
+  /// JointSample::tau sized for the caller to fill, not computed (TrajectorySampler::leave_torques).
+  void leave_torques() { compute_torques_ = false; }
 
  private:
   void finish(TrajectorySample& out);
@@ -121,6 +123,7 @@ class StepSampler {
   /// The model whose joint torques each sample carries (JointSample::tau), where it has mass
   /// properties; null otherwise.
   const RobotModel* dynamics_ = nullptr;
+  bool compute_torques_ = true;
 };
 
 /// Samples a trajectory in time order (no heap allocation per sample; a sequence allocates
@@ -141,6 +144,9 @@ class TrajectorySampler {
   void at(double t, TrajectorySample& out);
   /// Index of the next sample.
   std::size_t index() const { return k_; }
+  /// Leaves JointSample::tau to the caller: sized, not computed (live execution computes the
+  /// torques once, at its speed factor).
+  void leave_torques();
 
  private:
   void finish(TrajectorySample& out);
@@ -156,6 +162,7 @@ class TrajectorySampler {
   TrajectorySample scratch_;
   Eigen::Quaterniond previous_q_ = Eigen::Quaterniond::Identity();
   std::size_t k_ = 0;
+  bool compute_torques_ = true;
 };
 
 }  // namespace geotraj::core

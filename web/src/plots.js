@@ -270,7 +270,11 @@ export class Plots {
     make(this.jointVel, 'jointVelocities', 'rad/s', 'joint velocity',
       (l) => [-(l.maxVelocity ?? 0) * (robot.velocityScale ?? 1), (l.maxVelocity ?? 0) * (robot.velocityScale ?? 1)]);
     make(this.jointAcc, 'jointAccelerations', 'rad/s²', 'joint acceleration',
-      (l) => [-(l.maxAcceleration ?? 0) * (robot.accelerationScale ?? 1), (l.maxAcceleration ?? 0) * (robot.accelerationScale ?? 1)]);
+      // No band where the model has no acceleration limit (a URDF as shipped: maxAcceleration 0
+      // in ListRobots; the request's jointLimits or jointLimitsYaml give the plan's).
+      (l) => (l.maxAcceleration > 0
+        ? [-l.maxAcceleration * (robot.accelerationScale ?? 1), l.maxAcceleration * (robot.accelerationScale ?? 1)]
+        : null));
     // Torques: a model with mass properties (the Panda, the UR5e, a URDF with <inertial>).
     if (samples[0].jointTorques?.length === n) {
       make(this.jointTau, 'jointTorques', 'N m', 'joint torque',

@@ -11,7 +11,7 @@ REQUIRED = (
 )
 
 HOW = ("On Debian or Ubuntu: sudo apt-get install {deb}, then use /usr/bin/python3, or a venv made with "
-       "`python3 -m venv --system-site-packages` (a venv without it does not see Debian's packages). "
+       "`/usr/bin/python3 -m venv --system-site-packages` (a venv without it does not see Debian's packages). "
        "Elsewhere: pip install '{pip}'.")
 
 

@@ -15,6 +15,7 @@
 #include <set>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/robot/robot.hpp"
 #include "planner/joint_limits_yaml.hpp"
@@ -54,8 +55,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   // Whatever the reader accepts makes a valid model of the joints it names.
   geotraj::core::RobotModel panda = *geotraj::planner::find_builtin_robot("panda");
-  for (auto& l : *read) l.joint = "panda_joint" + std::to_string(1 + std::hash<std::string>{}(l.joint) % 7);
-  geotraj::planner::apply_named_limits(*read, panda);
+  std::vector<geotraj::planner::NamedLimits> renamed = *read;
+  for (auto& l : renamed) l.joint = "panda_joint" + std::to_string(1 + std::hash<std::string>{}(l.joint) % 7);
+  geotraj::planner::apply_named_limits(renamed, panda);
   if (const auto bad = geotraj::core::validate_robot(panda); !bad.empty())
     fail("the limits read make an invalid model: " + bad.front().field + " " + bad.front().description);
   return 0;

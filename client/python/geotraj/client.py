@@ -388,11 +388,12 @@ class Client:
     # --- robots ------------------------------------------------------------------------------
 
     def list_robots(self, timeout: Optional[float] = None) -> List["pb.RobotModel"]:
-        """ListRobots: the built-in robot models, in full (links, limits, home)."""
+        """ListRobots: the models the server serves (the built-in ones and its --robot-model
+        files), in full (joints or links, limits with their sources, home)."""
         return list(self._unary(self.stub.ListRobots, pb.ListRobotsRequest(), timeout).robots)
 
     def robots(self, timeout: Optional[float] = None) -> Dict[str, "pb.RobotModel"]:
-        """The built-in robot models by name."""
+        """The models the server serves, by name."""
         return {m.name: m for m in self.list_robots(timeout)}
 
     def forward_kinematics(self, robot: RobotLike, joints: Sequence[float] = (),

@@ -24,6 +24,10 @@ const CLI::Validator kFinite(
     },
     "", "FINITE");
 
+// --tip-link, beside every --urdf.
+constexpr const char* kTipLinkHelp =
+    "with --urdf: the chain's tip link (robot.tipLink; default: the leaf link through the most moving joints)";
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -98,7 +102,7 @@ int main(int argc, char** argv) {
     sub->add_option("--urdf", options.optimize.urdf,
                     "a URDF file as its maker ships it (robot.urdf; accelerations from --joint-limits or a <geotraj> "
                     "block)");
-    sub->add_option("--tip-link", options.optimize.tip_link, "with --urdf: the chain's tip link (robot.tipLink; default: the leaf link through the most moving joints)");
+    sub->add_option("--tip-link", options.optimize.tip_link, kTipLinkHelp);
     sub->add_option("--rate", options.optimize.rate_hz, "the cycle rate [Hz] (motion.cycleRateHz)")
         ->check(kFinite)->check(CLI::PositiveNumber);
     sub->add_option("--approach", options.optimize.approach,
@@ -175,7 +179,7 @@ int main(int argc, char** argv) {
   jog->add_option("--robot", live.robot, "a built-in robot's name (see `geotraj robots`)");
   jog->add_option("--robot-file", live.robot_file, "a RobotModel in the proto JSON mapping (- for stdin)");
   jog->add_option("--urdf", live.urdf, "a URDF file as its maker ships it (robot.urdf)");
-  jog->add_option("--tip-link", live.tip_link, "with --urdf: the chain's tip link (robot.tipLink; default: the leaf link through the most moving joints)");
+  jog->add_option("--tip-link", live.tip_link, kTipLinkHelp);
   jog->add_option("--joints", live.joints,
                   "where the robot is: joint values [rad or m], joint 0 first, comma-separated (default: the model's "
                   "home)")
@@ -201,14 +205,14 @@ int main(int argc, char** argv) {
                                       "joint values");
   fk->add_option("--robot", kin.robot, "a built-in robot's name (see `geotraj robots`)");
   fk->add_option("--urdf", kin.urdf, "or a URDF file as its maker ships it (robot.urdf)");
-  fk->add_option("--tip-link", kin.tip_link, "with --urdf: the chain's tip link (robot.tipLink; default: the leaf link through the most moving joints)");
+  fk->add_option("--tip-link", kin.tip_link, kTipLinkHelp);
   fk->add_option("--joints", kin.joints, "joint values [rad or m], joint 0 first, comma-separated")->delimiter(',');
   fk->add_option("--request", options.input, "or a ForwardKinematicsRequest in the proto JSON mapping (- for stdin)");
   auto* ik = app.add_subcommand("ik", "ComputeInverseKinematics: the joints of a tool pose (exit 3 when it is out of "
                                       "reach: the closest pose is printed)");
   ik->add_option("--robot", kin.robot, "a built-in robot's name (see `geotraj robots`)");
   ik->add_option("--urdf", kin.urdf, "or a URDF file as its maker ships it (robot.urdf)");
-  ik->add_option("--tip-link", kin.tip_link, "with --urdf: the chain's tip link (robot.tipLink; default: the leaf link through the most moving joints)");
+  ik->add_option("--tip-link", kin.tip_link, kTipLinkHelp);
   ik->add_option("--position", kin.position, "the tool's position x,y,z in W [m]")->delimiter(',');
   ik->add_option("--orientation", kin.orientation, "the tool's orientation as a unit quaternion w,x,y,z (default: "
                                                    "the identity)")

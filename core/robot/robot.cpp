@@ -396,7 +396,10 @@ ValidRobot with_tool_roll(const ValidRobot& robot) {
   limits.max_velocity = kMaxJointLimit;
   limits.max_acceleration = kMaxJointLimit;
   model.limits.push_back(limits);
-  if (!model.limit_sources.empty()) model.limit_sources.push_back({"the tool's roll (unlimited)", "the tool's roll (unlimited)", "", "", true});
+  if (!model.limit_sources.empty()) {
+    const std::string unlimited = "the tool's roll (unlimited)";
+    model.limit_sources.push_back({unlimited, unlimited, "", "", true});
+  }
   model.flange = Eigen::Isometry3d::Identity();
   model.tool = Eigen::Isometry3d::Identity();
   if (!model.home.empty()) model.home.push_back(0.0);

@@ -218,8 +218,8 @@ void set_dh(RobotModel& model, DhTable table);
 
 /// Every problem with `model` (field paths relative to the model, proto JSON names):
 /// `joints` (none, or more than kMaxJoints; `links` for a DH model), `limits` (not one per
-/// joint), `limitSources` (neither empty nor one per joint), `links[i].a` ... not finite (a DH model), `joints[i].origin` not finite or not a
-/// rigid transform, `joints[i].axis` not a unit vector, `flange`, `limits[i].minPosition` >
+/// joint), `limitSources` (neither empty nor one per joint), `links[i].a` ... not finite (a DH
+/// model), `joints[i].origin` not finite or not a rigid transform, `joints[i].axis` not a unit vector, `flange`, `limits[i].minPosition` >
 /// maxPosition, `limits[i].maxVelocity`, `limits[i].maxAcceleration`, `limits[i].maxJerk` not
 /// finite or outside [kMinJointLimit, kMaxJointLimit] (joint_limit_violation),
 /// `base.orientation` / `tool.orientation` not a rotation, `base.position` / `tool.position`

@@ -191,10 +191,10 @@ tl::expected<RobotCatalog, std::string> robot_catalog(const ServerOptions& optio
       return tl::unexpected("robot model file \"" + file + "\": a tip link (\":" + urdf_options.tip_link +
                             "\") is read for a URDF document only");
     }
-    auto read = (urdf ? planner::robot_from_urdf(*text, urdf_options) : robot_model_from_json(*text)).map([&](core::RobotModel m) {
-      for (bool n : planner::apply_named_limits(*yaml, m)) named = named || n;
-      return m;
-    });
+    auto read = urdf ? planner::robot_from_urdf(*text, urdf_options) : robot_model_from_json(*text);
+    if (read) {
+      for (bool n : planner::apply_named_limits(*yaml, *read)) named = named || n;
+    }
     // Checked once, here: the catalogue's models carry the proof to every request.
     auto model = read.and_then([](core::RobotModel m) { return core::ValidRobot::check(std::move(m)); });
     if (!model) {
@@ -372,7 +372,8 @@ tl::expected<RunningServer, std::string> start_server(const ServerOptions& optio
   if (!robots) return tl::unexpected(robots.error());
   for (const auto& m : robots->models) {  // served for the kinematics; a motion says what it lacks
     if (std::string why = planner::missing_accelerations(m); !why.empty())
-      warnings.push_back("robot model \"" + m->name + "\" serves the kinematics only until its limits are given: " + why);
+      warnings.push_back("robot model \"" + m->name + "\" serves the kinematics only until its limits are given: " +
+                         why);
   }
 
   RunningServer running;
